@@ -1,0 +1,42 @@
+// Disc of radius R centred at (0, R + gap), just above the plane y = 0: its lowest point
+// (0, gap) is where contact starts, so the mesh is refined there (size hc) and coarse (h)
+// far away. Override with e.g. `-setnumber hc 0.05 -setnumber gap 0.1`.
+DefineConstant[
+  R = {8, Name "R"},
+  gap = {0.05, Name "gap"},
+  h = {1.0, Name "h"},
+  hc = {0.1, Name "hc"}
+];
+Mesh.ElementOrder = 1;
+
+yc = R + gap;
+s = Sqrt(2) / 2;
+Point(1) = {0, yc, 0, h};                // centre
+Point(2) = {-R * s, yc - R * s, 0, h};   // 225 deg
+Point(3) = {0, gap, 0, hc};              // 270 deg: lowest point
+Point(4) = {R * s, yc - R * s, 0, h};    // 315 deg
+Point(5) = {0, yc + R, 0, h};            // 90 deg
+Circle(1) = {2, 1, 3};
+Circle(2) = {3, 1, 4};
+Circle(3) = {4, 1, 5};
+Circle(4) = {5, 1, 2};
+Curve Loop(1) = {1, 2, 3, 4};
+Plane Surface(1) = {1};
+
+// Size hc within 5 hc of the lowest point, growing to h at 4 h away.
+Field[1] = Distance;
+Field[1].PointsList = {3};
+Field[2] = Threshold;
+Field[2].InField = 1;
+Field[2].SizeMin = hc;
+Field[2].SizeMax = h;
+Field[2].DistMin = 5 * hc;
+Field[2].DistMax = 4 * h;
+Background Field = 2;
+Mesh.MeshSizeExtendFromBoundary = 0;
+Mesh.MeshSizeFromPoints = 0;
+Mesh.MeshSizeFromCurvature = 0;
+
+Physical Curve("contact") = {1, 2};   // lower quarter, 225..315 deg
+Physical Curve("free") = {3, 4};
+Physical Surface("disc") = {1};

@@ -1,0 +1,189 @@
+//! One generic distributed assembler: each rank loops over its own cells, computes element
+//! contributions with the pure kernels of `fem`, maps nodes to global DOFs and adds them with
+//! `MatSetValues`/`VecSetValues` (PETSc moves off-rank entries). Every matrix and load vector
+//! of the solver goes through here, with exact preallocation from the partition.
+
+use crate::error::Result;
+use crate::mesh::{Element, Mesh};
+use crate::partition::Partition;
+use crate::petsc::{Matrix, Vector};
+use crate::scene::expr::VecExpr;
+
+/// Largest element: 8 nodes x 3 components.
+pub const MAX_EDOFS: usize = 24;
+
+/// Element node coordinates on the stack.
+#[inline]
+pub fn cell_coords(mesh: &Mesh, e: &Element, out: &mut [[f64; 3]; 8]) -> usize {
+    let nodes = e.nodes();
+    for (i, &v) in nodes.iter().enumerate() {
+        out[i] = mesh.coords[v];
+    }
+    nodes.len()
+}
+
+/// Interlaced global DOFs of a node list.
+#[inline]
+pub fn node_dofs(part: &Partition, nodes: &[usize], out: &mut Vec<i32>) {
+    out.clear();
+    for &v in nodes {
+        for c in 0..part.dim {
+            out.push(part.dof(v, c) as i32);
+        }
+    }
+}
+
+/// An empty distributed matrix with the pattern of "nodes sharing a cell", block size dim.
+pub fn new_matrix(mesh: &Mesh, part: &Partition) -> Result<Matrix> {
+    let (d, o) = part.preallocation(mesh);
+    Matrix::new_aij(part.n_owned_dofs(), part.n_global_dofs(), part.dim, &d, &o)
+}
+
+/// A distributed vector with this partition's layout.
+pub fn new_vector(part: &Partition) -> Result<Vector> {
+    Vector::new_mpi(part.n_owned_dofs(), part.n_global_dofs(), part.dim)
+}
+
+/// Assemble `sum_K P_K^T kernel(K) P_K` over this rank's cells. The kernel receives the cell
+/// index and its node coordinates and writes the (n dim)^2 row-major element matrix, DOFs
+/// interlaced (node * dim + component), in the cell's own node order.
+pub fn assemble_matrix<F>(mesh: &Mesh, part: &Partition, mut kernel: F) -> Result<Matrix>
+where
+    F: FnMut(usize, &[[f64; 3]], &mut [f64]) -> Result<()>,
+{
+    let mut mat = new_matrix(mesh, part)?;
+    let mut xy = [[0.0; 3]; 8];
+    let mut ke = [0.0; MAX_EDOFS * MAX_EDOFS];
+    let mut dofs = Vec::with_capacity(MAX_EDOFS);
+    for &c in &part.local_cells {
+        let cell = &mesh.cells[c];
+        let n = cell_coords(mesh, cell, &mut xy);
+        let nd = n * part.dim;
+        kernel(c, &xy[..n], &mut ke[..nd * nd])?;
+        node_dofs(part, cell.nodes(), &mut dofs);
+        mat.set_values(&dofs, &dofs, &ke[..nd * nd], true)?;
+    }
+    mat.assemble()?;
+    Ok(mat)
+}
+
+/// The rank that integrates a boundary element: the owner of its smallest node (deterministic).
+pub fn boundary_rank(part: &Partition, e: &Element) -> usize {
+    let v = *e.nodes().iter().min().expect("boundary element has nodes");
+    part.node_owner[v]
+}
+
+/// Nodal interpolant of a vector expression at time `t` into a distributed vector.
+pub fn interpolate(mesh: &Mesh, part: &Partition, f: &VecExpr, t: f64) -> Result<Vector> {
+    let mut x = new_vector(part)?;
+    let dim = part.dim;
+    let mut idx = Vec::with_capacity(part.n_owned_dofs());
+    let mut vals = Vec::with_capacity(part.n_owned_dofs());
+    for &v in &part.owned_nodes {
+        let val = f.eval(mesh.coords[v], t);
+        for (c, &vc) in val.iter().enumerate().take(dim) {
+            idx.push(part.dof(v, c) as i32);
+            vals.push(vc);
+        }
+    }
+    x.set_values(&idx, &vals, false)?;
+    x.assemble()?;
+    Ok(x)
+}
+
+/// External loads of the scene: body force over the cells, tractions over boundary elements.
+/// `assemble(t)` gives the load vector `f(t) = int N f dx + int_{Gamma_N} N g ds`.
+pub struct Loads {
+    body_force: Option<VecExpr>,
+    /// (boundary element index, traction) pairs this rank integrates.
+    tractions: Vec<(usize, usize)>,
+    traction_exprs: Vec<VecExpr>,
+    /// Whether `f` changes in time (else it is assembled once).
+    pub time_dependent: bool,
+    pub present: bool,
+}
+
+/// Quadrature order for loads given as general expressions.
+const LOAD_QUADRATURE_ORDER: usize = 4;
+
+impl Loads {
+    pub fn new(
+        mesh: &Mesh,
+        part: &Partition,
+        body_force: Option<&VecExpr>,
+        neumann: &[(String, VecExpr)],
+    ) -> Result<Loads> {
+        let body_force = body_force.filter(|f| !f.is_zero()).cloned();
+        let mut tractions = Vec::new();
+        let mut traction_exprs = Vec::new();
+        let mut time_dependent = body_force.as_ref().is_some_and(|f| f.depends_on_t());
+        for (group, g) in neumann {
+            let pg = mesh.group(group)?;
+            if pg.dim + 1 != mesh.dim {
+                return Err(crate::error::Error::Scene(format!(
+                    "neumann group \"{group}\" has dimension {}, but tractions act on boundary groups of dimension {}",
+                    pg.dim,
+                    mesh.dim - 1
+                )));
+            }
+            if g.is_zero() {
+                continue;
+            }
+            time_dependent |= g.depends_on_t();
+            let k = traction_exprs.len();
+            traction_exprs.push(g.clone());
+            for (bi, e) in mesh.boundary.iter().enumerate() {
+                if e.kind.dim() == pg.dim
+                    && pg.entities.contains(&e.entity)
+                    && boundary_rank(part, e) == part.rank
+                {
+                    tractions.push((bi, k));
+                }
+            }
+        }
+        let present = body_force.is_some() || !traction_exprs.is_empty();
+        Ok(Loads { body_force, tractions, traction_exprs, time_dependent, present })
+    }
+
+    /// Assemble f(t) into `out` (overwritten).
+    pub fn assemble(&self, mesh: &Mesh, part: &Partition, t: f64, out: &mut Vector) -> Result<()> {
+        out.zero()?;
+        let dim = part.dim;
+        let mut xy = [[0.0; 3]; 8];
+        let mut fe = [0.0; MAX_EDOFS];
+        let mut dofs = Vec::with_capacity(MAX_EDOFS);
+        if let Some(f) = &self.body_force {
+            let func = |x: [f64; 3]| f.eval(x, t);
+            for &c in &part.local_cells {
+                let cell = &mesh.cells[c];
+                let n = cell_coords(mesh, cell, &mut xy);
+                crate::fem::kernels::body_force(
+                    cell.kind,
+                    &xy[..n],
+                    &func,
+                    LOAD_QUADRATURE_ORDER,
+                    &mut fe[..n * dim],
+                );
+                node_dofs(part, cell.nodes(), &mut dofs);
+                out.set_values(&dofs, &fe[..n * dim], true)?;
+            }
+        }
+        for &(bi, k) in &self.tractions {
+            let g = &self.traction_exprs[k];
+            let func = |x: [f64; 3], _n: [f64; 3]| g.eval(x, t);
+            let e = &mesh.boundary[bi];
+            let n = cell_coords(mesh, e, &mut xy);
+            crate::fem::kernels::traction(
+                e.kind,
+                &xy[..n],
+                &func,
+                dim,
+                LOAD_QUADRATURE_ORDER,
+                &mut fe[..n * dim],
+            );
+            node_dofs(part, e.nodes(), &mut dofs);
+            out.set_values(&dofs, &fe[..n * dim], true)?;
+        }
+        out.assemble()
+    }
+}

@@ -1,0 +1,87 @@
+//! Everything the user reads goes through here: only rank 0 prints. A progress bar with step,
+//! simulated time and ETA on a terminal; plain periodic lines otherwise (logs, CI).
+
+use std::io::IsTerminal;
+use std::time::{Duration, Instant};
+
+pub struct Console {
+    pub rank: usize,
+    pub quiet: bool,
+}
+
+impl Console {
+    pub fn new(rank: usize, quiet: bool) -> Console {
+        Console { rank, quiet }
+    }
+    /// A line on stdout from rank 0.
+    pub fn say(&self, msg: impl AsRef<str>) {
+        if self.rank == 0 && !self.quiet {
+            println!("{}", msg.as_ref());
+        }
+    }
+    /// A line on stdout from rank 0 even when quiet (results, summaries).
+    pub fn result(&self, msg: impl AsRef<str>) {
+        if self.rank == 0 {
+            println!("{}", msg.as_ref());
+        }
+    }
+}
+
+pub struct Progress {
+    bar: Option<indicatif::ProgressBar>,
+    plain: bool,
+    total: usize,
+    start: Instant,
+    last_line: Instant,
+}
+
+impl Progress {
+    pub fn new(console: &Console, total: usize, enabled: bool) -> Progress {
+        let active = enabled && console.rank == 0 && !console.quiet;
+        let tty = std::io::stderr().is_terminal();
+        let bar = if active && tty {
+            let b = indicatif::ProgressBar::new(total as u64);
+            b.set_style(
+                indicatif::ProgressStyle::with_template(
+                    "{bar:30} step {pos}/{len}  {msg}  elapsed {elapsed_precise}  ETA {eta_precise}",
+                )
+                .expect("progress template"),
+            );
+            Some(b)
+        } else {
+            None
+        };
+        Progress {
+            bar,
+            plain: active && !tty,
+            total,
+            start: Instant::now(),
+            last_line: Instant::now(),
+        }
+    }
+
+    /// Report step `n` done at simulated time `t`; `drift` is the energy balance residual.
+    pub fn update(&mut self, n: usize, t: f64, drift: f64) {
+        if let Some(b) = &self.bar {
+            b.set_position(n as u64);
+            b.set_message(format!("t = {t:.4e}  energy balance {drift:.1e}"));
+        } else if self.plain {
+            let now = Instant::now();
+            if now.duration_since(self.last_line) >= Duration::from_secs(10) || n == self.total {
+                self.last_line = now;
+                let el = now.duration_since(self.start).as_secs_f64();
+                let eta = if n > 0 { el / n as f64 * (self.total - n) as f64 } else { 0.0 };
+                eprintln!(
+                    "step {n}/{}  t = {t:.4e}  energy balance {drift:.1e}  elapsed {el:.1} s  ETA {eta:.1} s",
+                    self.total
+                );
+            }
+        }
+    }
+
+    pub fn finish(&mut self) {
+        if let Some(b) = self.bar.take() {
+            b.finish_and_clear();
+        }
+    }
+}

@@ -1,0 +1,297 @@
+//! HDF5 output: the mesh, nodal time series in the original gmsh node numbering, the energies
+//! of every step, the scene text and the run's settings.
+//!
+//! Layout (all names documented in README.md):
+//! - `/mesh/coordinates` [n_nodes, 3], `/mesh/node_tags` [n_nodes],
+//!   `/mesh/cells/<kind>` [n, nodes per cell] (0-based indices into coordinates),
+//!   `/mesh/cell_rank` [n_cells] (METIS partition, same order as the cells),
+//! - `/time` [n_out], `/step` [n_out] of the written field steps,
+//! - `/fields/displacement`, `/fields/velocity` [n_out, n_nodes, dim],
+//! - `/energy/{step,time,kinetic,potential,total,external_work}` [n_steps + 1], one entry per
+//!   step (external work `W^n = sum_k f^{k+1/2} . du^k`, so `total - total[0] - external_work`
+//!   is the integrator's energy balance, zero up to solver tolerance),
+//! - attributes on `/`: `scene`, `settings` (key = value lines), `ranks`, `version`, `status`.
+//!
+//! The file is opened with the MPI-IO driver: each rank writes its own contiguous block of
+//! every field (in natural, i.e. original, node order), so no rank gathers a whole field.
+//! Dataset creation and resizing are collective; every step is flushed so a run that dies
+//! keeps what it wrote.
+
+use std::path::{Path, PathBuf};
+
+use hdf5::types::VarLenUnicode;
+use hdf5::{Dataset, File};
+use mpi::traits::AsRaw;
+
+use crate::error::{Error, Result};
+use crate::mesh::Mesh;
+
+fn h5err(path: &Path, what: &str, e: hdf5::Error) -> Error {
+    Error::Io(format!("{}: {what}: {e}", path.display()))
+}
+
+/// The block of natural (original-order) nodes a rank writes: an even split.
+pub fn natural_range(n_nodes: usize, rank: usize, size: usize) -> (usize, usize) {
+    let lo = n_nodes * rank / size;
+    let hi = n_nodes * (rank + 1) / size;
+    (lo, hi)
+}
+
+/// Which nodal fields are written, and how often.
+#[derive(Debug, Clone)]
+pub struct OutputPlan {
+    pub displacement: bool,
+    pub velocity: bool,
+    pub every: usize,
+}
+
+pub struct Output {
+    path: PathBuf,
+    file: File,
+    dim: usize,
+    range: (usize, usize),
+    rank: usize,
+    plan: OutputPlan,
+    time: Dataset,
+    step: Dataset,
+    displacement: Option<Dataset>,
+    velocity: Option<Dataset>,
+    energy: [Dataset; 6],
+    n_fields_written: usize,
+    n_energies_written: usize,
+}
+
+fn write_str_attr(loc: &hdf5::Location, name: &str, value: &str, path: &Path) -> Result<()> {
+    let v: VarLenUnicode = value.parse().map_err(|_| {
+        Error::Io(format!("{}: attribute {name} is not valid text", path.display()))
+    })?;
+    let attr = match loc.attr(name) {
+        Ok(a) => a,
+        Err(_) => loc
+            .new_attr::<VarLenUnicode>()
+            .create(name)
+            .map_err(|e| h5err(path, &format!("create attribute {name}"), e))?,
+    };
+    attr.write_scalar(&v).map_err(|e| h5err(path, &format!("write attribute {name}"), e))
+}
+
+impl Output {
+    /// Create the file collectively on all ranks of `world` and write the mesh and metadata.
+    /// Refuses to overwrite an existing file unless `overwrite`.
+    #[allow(clippy::too_many_arguments)]
+    pub fn create(
+        path: &Path,
+        world: &mpi::topology::SimpleCommunicator,
+        rank: usize,
+        size: usize,
+        mesh: &Mesh,
+        cell_rank: &[usize],
+        scene_text: &str,
+        settings: &[(String, String)],
+        plan: OutputPlan,
+        overwrite: bool,
+    ) -> Result<Output> {
+        if path.exists() && !overwrite {
+            return Err(Error::Io(format!(
+                "{} exists; pass --overwrite to replace it or choose another output.file",
+                path.display()
+            )));
+        }
+        if let Some(dir) = path.parent() {
+            if !dir.as_os_str().is_empty() {
+                std::fs::create_dir_all(dir)
+                    .map_err(|e| Error::Io(format!("cannot create {}: {e}", dir.display())))?;
+            }
+        }
+        let comm = world.as_raw();
+        let file = File::with_options()
+            .with_fapl(|p| p.mpio(comm, None))
+            .create(path)
+            .map_err(|e| h5err(path, "create", e))?;
+        let dim = mesh.dim;
+        let n = mesh.n_nodes();
+        let range = natural_range(n, rank, size);
+
+        // Mesh: every rank holds it; rank 0 writes (datasets are created collectively).
+        let g = file.create_group("mesh").map_err(|e| h5err(path, "create /mesh", e))?;
+        let coords = g
+            .new_dataset::<f64>()
+            .shape((n, 3))
+            .create("coordinates")
+            .map_err(|e| h5err(path, "create /mesh/coordinates", e))?;
+        let tags = g
+            .new_dataset::<u64>()
+            .shape((n,))
+            .create("node_tags")
+            .map_err(|e| h5err(path, "create /mesh/node_tags", e))?;
+        let cr = g
+            .new_dataset::<i32>()
+            .shape((cell_rank.len(),))
+            .create("cell_rank")
+            .map_err(|e| h5err(path, "create /mesh/cell_rank", e))?;
+        let cg = g.create_group("cells").map_err(|e| h5err(path, "create /mesh/cells", e))?;
+        let mut kinds: Vec<crate::mesh::ElementKind> = mesh.cells.iter().map(|c| c.kind).collect();
+        kinds.sort_by_key(|k| k.gmsh_type());
+        kinds.dedup();
+        let mut cell_sets = Vec::new();
+        for k in &kinds {
+            let conn: Vec<u64> = mesh
+                .cells
+                .iter()
+                .filter(|c| c.kind == *k)
+                .flat_map(|c| c.nodes().iter().map(|&v| v as u64))
+                .collect();
+            let nn = k.n_nodes();
+            let ds = cg
+                .new_dataset::<u64>()
+                .shape((conn.len() / nn, nn))
+                .create(k.name())
+                .map_err(|e| h5err(path, "create /mesh/cells", e))?;
+            cell_sets.push((ds, conn, nn));
+        }
+        if rank == 0 {
+            let flat: Vec<f64> = mesh.coords.iter().flat_map(|c| c.iter().copied()).collect();
+            let arr = ndarray::Array2::from_shape_vec((n, 3), flat).expect("shape");
+            coords.write(&arr).map_err(|e| h5err(path, "write /mesh/coordinates", e))?;
+            tags.write(&mesh.node_tags).map_err(|e| h5err(path, "write /mesh/node_tags", e))?;
+            let cr_i: Vec<i32> = cell_rank.iter().map(|&r| r as i32).collect();
+            cr.write(&cr_i).map_err(|e| h5err(path, "write /mesh/cell_rank", e))?;
+            for (ds, conn, nn) in &cell_sets {
+                let arr = ndarray::Array2::from_shape_vec((conn.len() / nn, *nn), conn.clone())
+                    .expect("shape");
+                ds.write(&arr).map_err(|e| h5err(path, "write /mesh/cells", e))?;
+            }
+        }
+
+        let resizable_1d = |name: &str| -> Result<Dataset> {
+            file.new_dataset::<f64>()
+                .chunk((1024,))
+                .shape((0..,))
+                .create(name)
+                .map_err(|e| h5err(path, &format!("create {name}"), e))
+        };
+        let time = resizable_1d("time")?;
+        let step = resizable_1d("step")?;
+        let fg = file.create_group("fields").map_err(|e| h5err(path, "create /fields", e))?;
+        let field = |name: &str| -> Result<Dataset> {
+            fg.new_dataset::<f64>()
+                .chunk((1, n.clamp(1, 1 << 16), dim))
+                .shape((0.., n, dim))
+                .create(name)
+                .map_err(|e| h5err(path, &format!("create /fields/{name}"), e))
+        };
+        let displacement = if plan.displacement { Some(field("displacement")?) } else { None };
+        let velocity = if plan.velocity { Some(field("velocity")?) } else { None };
+        file.create_group("energy").map_err(|e| h5err(path, "create /energy", e))?;
+        let energy = [
+            resizable_1d("energy/step")?,
+            resizable_1d("energy/time")?,
+            resizable_1d("energy/kinetic")?,
+            resizable_1d("energy/potential")?,
+            resizable_1d("energy/total")?,
+            resizable_1d("energy/external_work")?,
+        ];
+
+        let settings_text: String = settings.iter().map(|(k, v)| format!("{k} = {v}\n")).collect();
+        write_str_attr(&file, "scene", scene_text, path)?;
+        write_str_attr(&file, "settings", &settings_text, path)?;
+        write_str_attr(&file, "version", env!("CARGO_PKG_VERSION"), path)?;
+        write_str_attr(&file, "status", "running", path)?;
+        let ranks = file
+            .new_attr::<i32>()
+            .create("ranks")
+            .map_err(|e| h5err(path, "create attribute ranks", e))?;
+        ranks.write_scalar(&(size as i32)).map_err(|e| h5err(path, "write attribute ranks", e))?;
+        file.flush().map_err(|e| h5err(path, "flush", e))?;
+
+        Ok(Output {
+            path: path.to_path_buf(),
+            file,
+            dim,
+            range,
+            rank,
+            plan,
+            time,
+            step,
+            displacement,
+            velocity,
+            energy,
+            n_fields_written: 0,
+            n_energies_written: 0,
+        })
+    }
+
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+    /// This rank's block of natural nodes.
+    pub fn natural_range(&self) -> (usize, usize) {
+        self.range
+    }
+    pub fn wants_fields(&self, step: usize) -> bool {
+        step % self.plan.every == 0
+    }
+
+    /// Write the nodal fields of one step. `u` and `v` are this rank's natural block
+    /// (nodes `range.0..range.1`, interlaced components). Collective.
+    pub fn write_fields(&mut self, step: usize, t: f64, u: &[f64], v: &[f64]) -> Result<()> {
+        let k = self.n_fields_written;
+        let (lo, hi) = self.range;
+        let path = self.path.clone();
+        for (ds, data, name) in
+            [(&self.displacement, u, "displacement"), (&self.velocity, v, "velocity")]
+        {
+            if let Some(ds) = ds {
+                let n = ds.shape()[1];
+                ds.resize((k + 1, n, self.dim))
+                    .map_err(|e| h5err(&path, &format!("resize /fields/{name}"), e))?;
+                let arr = ndarray::Array3::from_shape_vec((1, hi - lo, self.dim), data.to_vec())
+                    .map_err(|_| Error::Io(format!("{name}: block size mismatch")))?;
+                ds.write_slice(&arr, ndarray::s![k..k + 1, lo..hi, ..])
+                    .map_err(|e| h5err(&path, &format!("write /fields/{name}"), e))?;
+            }
+        }
+        for (ds, val, name) in [(&self.time, t, "time"), (&self.step, step as f64, "step")] {
+            ds.resize((k + 1,)).map_err(|e| h5err(&path, &format!("resize /{name}"), e))?;
+            if self.rank == 0 {
+                ds.write_slice(&[val], k..k + 1)
+                    .map_err(|e| h5err(&path, &format!("write /{name}"), e))?;
+            }
+        }
+        self.n_fields_written += 1;
+        self.file.flush().map_err(|e| h5err(&path, "flush", e))
+    }
+
+    /// Append one step's energies. Collective (resizing is), rank 0 writes.
+    pub fn write_energy(
+        &mut self,
+        step: usize,
+        t: f64,
+        kinetic: f64,
+        potential: f64,
+        external_work: f64,
+    ) -> Result<()> {
+        let k = self.n_energies_written;
+        let vals = [step as f64, t, kinetic, potential, kinetic + potential, external_work];
+        for (ds, val) in self.energy.iter().zip(vals) {
+            ds.resize((k + 1,)).map_err(|e| h5err(&self.path, "resize /energy", e))?;
+            if self.rank == 0 {
+                ds.write_slice(&[val], k..k + 1)
+                    .map_err(|e| h5err(&self.path, "write /energy", e))?;
+            }
+        }
+        self.n_energies_written += 1;
+        Ok(())
+    }
+
+    /// Record a string attribute on the root (e.g. a result summary). Collective.
+    pub fn set_attr(&self, name: &str, value: &str) -> Result<()> {
+        write_str_attr(&self.file, name, value, &self.path)
+    }
+
+    /// Mark the run's status ("finished", or "failed: message") and flush. Collective.
+    pub fn finish(&mut self, status: &str) -> Result<()> {
+        write_str_attr(&self.file, "status", status, &self.path)?;
+        self.file.flush().map_err(|e| h5err(&self.path, "flush", e))
+    }
+}

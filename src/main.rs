@@ -1,0 +1,136 @@
+//! The `massfree` command. A run reads top to bottom: init MPI and PETSc, read the scene,
+//! mesh, partition, assemble, set up solvers, initial energy, time loop, output, summary.
+
+use std::path::PathBuf;
+
+use clap::{Parser, Subcommand};
+use mpi::traits::*;
+
+use massfree::console::Console;
+use massfree::error::{Error, Result};
+use massfree::petsc::Petsc;
+use massfree::simulation::{summary_lines, RunOptions, Simulation};
+
+#[derive(Parser, Debug)]
+#[command(
+    name = "massfree",
+    version,
+    about = "Dynamic elasticity with contact and mass-free surface layers, on PETSc and MPI"
+)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand, Debug)]
+enum Command {
+    /// Run a scene (launch with mpirun for several ranks). PETSc options go after `--`.
+    Run {
+        /// The scene file (TOML).
+        scene: PathBuf,
+        /// Output file (default: the scene's output.file).
+        #[arg(long, short)]
+        output: Option<PathBuf>,
+        /// Replace an existing output file.
+        #[arg(long)]
+        overwrite: bool,
+        /// Do not write an HDF5 file.
+        #[arg(long)]
+        no_output: bool,
+        /// Override the scene's number of steps.
+        #[arg(long)]
+        steps: Option<usize>,
+        /// Print only the summary.
+        #[arg(long, short)]
+        quiet: bool,
+        /// Print the energies of every step.
+        #[arg(long, short)]
+        verbose: bool,
+        /// Override a mesh parameter of the scene's .geo, e.g. --param h=0.0625 (repeatable).
+        #[arg(long = "param", value_name = "NAME=VALUE")]
+        params: Vec<String>,
+        /// Write the run's summary (sizes, timings, energies, errors) to this TOML file.
+        #[arg(long, value_name = "FILE")]
+        summary: Option<PathBuf>,
+        /// PETSc options, e.g. -ksp_type cg -pc_type gamg -log_view (prefix step_ for the step solver).
+        #[arg(last = true, allow_hyphen_values = true)]
+        petsc: Vec<String>,
+    },
+}
+
+fn run(cli: Cli, universe: &mpi::environment::Universe) -> Result<()> {
+    let world = universe.world();
+    let rank = world.rank() as usize;
+    match cli.command {
+        Command::Run {
+            scene,
+            output,
+            overwrite,
+            no_output,
+            steps,
+            quiet,
+            verbose,
+            params,
+            summary: summary_file,
+            petsc,
+        } => {
+            let program = std::env::args().next().unwrap_or_else(|| "massfree".into());
+            let mut args = vec![program];
+            args.extend(petsc);
+            // The guard is declared first so it is dropped last, after every PETSc object.
+            let _petsc =
+                Petsc::init(&args, "massfree: dynamic elasticity with mass-free surface layers")?;
+            let console = Console::new(rank, quiet);
+            let mut scene = massfree::scene::load(&scene)?;
+            for p in &params {
+                scene.set_mesh_param(p)?;
+            }
+            let opts = RunOptions { output, overwrite, steps, quiet, verbose, no_output };
+            let mut sim = Simulation::setup(&world, &console, scene, opts)?;
+            console.say(format!(
+                "{}: {} nodes, {} cells ({}D), {} DOFs on {} rank(s); assembling",
+                sim.scene.name,
+                sim.mesh.n_nodes(),
+                sim.mesh.cells.len(),
+                sim.mesh.dim,
+                sim.part.n_global_dofs(),
+                world.size()
+            ));
+            sim.assemble()?;
+            let summary = sim.run()?;
+            for line in summary_lines(&sim, &summary) {
+                console.result(line);
+            }
+            if let (Some(path), 0) = (summary_file, rank) {
+                let text =
+                    toml::to_string(&summary).map_err(|e| Error::Io(format!("summary: {e}")))?;
+                std::fs::write(&path, text)
+                    .map_err(|e| Error::Io(format!("cannot write {}: {e}", path.display())))?;
+            }
+            Ok(())
+        }
+    }
+}
+
+fn main() {
+    let cli = Cli::parse();
+    let code = {
+        let Some(universe) = mpi::initialize() else {
+            eprintln!("massfree: MPI error: MPI was already initialized");
+            std::process::exit(1);
+        };
+        let rank = universe.world().rank();
+        match run(cli, &universe) {
+            Ok(()) => 0,
+            Err(e) => {
+                // Scene, mesh and solver errors happen on every rank alike: rank 0 speaks.
+                if rank == 0 || matches!(e, Error::Io(_) | Error::Mpi(_)) {
+                    eprintln!("massfree: {e}");
+                }
+                1
+            }
+        }
+        // universe dropped here: MPI_Finalize after PETSc's guard was dropped inside run().
+    };
+    std::process::exit(code);
+}

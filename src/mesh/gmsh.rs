@@ -1,0 +1,172 @@
+//! Meshing `.geo` sources with the `gmsh` command, with a content-addressed cache so that
+//! re-running a scene (or many ranks asking for the same mesh) does not re-mesh.
+
+use crate::error::{Error, Result};
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+use std::sync::atomic::{AtomicUsize, Ordering};
+
+/// Meshes `geo` with gmsh in dimension `dim` and returns the path of the MSH 4.1 file.
+///
+/// Runs `gmsh <geo> -<dim> -format msh41 [-bin] -setnumber NAME VALUE ... -o <out> -v 2`.
+/// `-setnumber` overrides parameters the .geo declares with
+/// `DefineConstant[ h = {0.25, Name "h"} ];` (a plain `h = 0.25;` would ignore it).
+/// The output is `cache_dir/<stem>-<hash>.msh`, the hash covering the .geo content, the
+/// parameters, `dim`, `binary` and the gmsh version; an existing file is reused as is.
+/// gmsh writes to a temporary name that is renamed into place, so concurrent callers never
+/// see a half-written mesh. Files the .geo `Include`s are not part of the hash.
+pub fn mesh_geo(
+    geo: &Path,
+    params: &[(String, f64)],
+    dim: usize,
+    binary: bool,
+    cache_dir: &Path,
+) -> Result<PathBuf> {
+    if !(1..=3).contains(&dim) {
+        return Err(Error::Mesh(format!(
+            "meshing {}: dimension {dim} is not 1, 2 or 3",
+            geo.display()
+        )));
+    }
+    for (name, value) in params {
+        let ok_name = name.chars().next().is_some_and(|c| c.is_ascii_alphabetic() || c == '_')
+            && name.chars().all(|c| c.is_ascii_alphanumeric() || c == '_');
+        if !ok_name {
+            return Err(Error::Mesh(format!(
+                "meshing {}: bad gmsh parameter name \"{name}\"",
+                geo.display()
+            )));
+        }
+        if !value.is_finite() {
+            return Err(Error::Mesh(format!(
+                "meshing {}: parameter {name} = {value} is not finite",
+                geo.display()
+            )));
+        }
+    }
+    let content = std::fs::read(geo)
+        .map_err(|e| Error::Mesh(format!("cannot read geo file {}: {e}", geo.display())))?;
+    let version = gmsh_version()?;
+
+    let mut h = Fnv::new();
+    h.bytes(b"massfree mesh cache v1");
+    h.bytes(&content);
+    h.bytes(version.as_bytes());
+    h.u64(dim as u64);
+    h.u64(binary as u64);
+    h.u64(params.len() as u64);
+    for (name, value) in params {
+        h.bytes(name.as_bytes());
+        h.u64(value.to_bits());
+    }
+    let stem = geo.file_stem().and_then(|s| s.to_str()).unwrap_or("mesh");
+    let out = cache_dir.join(format!("{stem}-{:016x}.msh", h.0));
+    if out.is_file() {
+        return Ok(out);
+    }
+
+    std::fs::create_dir_all(cache_dir).map_err(|e| {
+        Error::Mesh(format!("cannot create mesh cache folder {}: {e}", cache_dir.display()))
+    })?;
+    static COUNTER: AtomicUsize = AtomicUsize::new(0);
+    let tmp = cache_dir.join(format!(
+        ".{stem}-{:016x}.{}.{}.tmp.msh",
+        h.0,
+        std::process::id(),
+        COUNTER.fetch_add(1, Ordering::Relaxed)
+    ));
+
+    let mut cmd = Command::new("gmsh");
+    cmd.arg(geo).arg(format!("-{dim}")).args(["-format", "msh41"]);
+    if binary {
+        cmd.arg("-bin");
+    }
+    for (name, value) in params {
+        cmd.arg("-setnumber").arg(name).arg(value.to_string());
+    }
+    cmd.arg("-o").arg(&tmp).args(["-v", "2"]);
+    let result = cmd.output();
+    let failed = |why: String| {
+        let _ = std::fs::remove_file(&tmp);
+        Err(Error::Mesh(format!("gmsh failed on {}: {why}", geo.display())))
+    };
+    let output = match result {
+        Ok(o) => o,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Err(not_found()),
+        Err(e) => return failed(format!("cannot run gmsh: {e}")),
+    };
+    // gmsh can exit 0 after reporting errors, and writes an output file even on failure.
+    if let Some(why) = failure(&output) {
+        return failed(why);
+    }
+    if !tmp.is_file() {
+        return failed("gmsh wrote no output file".to_string());
+    }
+    std::fs::rename(&tmp, &out).map_err(|e| {
+        let _ = std::fs::remove_file(&tmp);
+        Error::Mesh(format!("cannot move the mesh into place at {}: {e}", out.display()))
+    })?;
+    Ok(out)
+}
+
+fn not_found() -> Error {
+    Error::Mesh("gmsh not found: install the Debian package gmsh".to_string())
+}
+
+/// `gmsh --version` (printed on stderr by gmsh 4.8), part of the cache key.
+fn gmsh_version() -> Result<String> {
+    let o = Command::new("gmsh").arg("--version").output().map_err(|e| {
+        if e.kind() == std::io::ErrorKind::NotFound {
+            not_found()
+        } else {
+            Error::Mesh(format!("cannot run gmsh --version: {e}"))
+        }
+    })?;
+    let text =
+        format!("{}{}", String::from_utf8_lossy(&o.stdout), String::from_utf8_lossy(&o.stderr));
+    Ok(text.trim().to_string())
+}
+
+/// Why a gmsh run failed, if it did: its last "Error" line, else its last line.
+fn failure(o: &Output) -> Option<String> {
+    let text =
+        format!("{}\n{}", String::from_utf8_lossy(&o.stderr), String::from_utf8_lossy(&o.stdout));
+    let lines: Vec<&str> = text.lines().map(str::trim).filter(|l| !l.is_empty()).collect();
+    let error_line = lines.iter().rev().find(|l| l.starts_with("Error")).copied();
+    if o.status.success() && error_line.is_none() {
+        return None;
+    }
+    let status = match o.status.code() {
+        Some(c) => format!("exit status {c}"),
+        None => "killed by a signal (crashed)".to_string(),
+    };
+    Some(match error_line.or(lines.last().copied()) {
+        Some(l) => format!("{l} ({status})"),
+        None => status,
+    })
+}
+
+/// 64-bit FNV-1a: stable across Rust versions (unlike `DefaultHasher`), so the cache
+/// names stay valid between builds.
+struct Fnv(u64);
+
+impl Fnv {
+    fn new() -> Fnv {
+        Fnv(0xcbf2_9ce4_8422_2325)
+    }
+    fn byte(&mut self, b: u8) {
+        self.0 = (self.0 ^ b as u64).wrapping_mul(0x0000_0100_0000_01b3);
+    }
+    /// Length-prefixed, so that consecutive fields cannot run into each other.
+    fn bytes(&mut self, b: &[u8]) {
+        self.u64(b.len() as u64);
+        for &x in b {
+            self.byte(x);
+        }
+    }
+    fn u64(&mut self, v: u64) {
+        for x in v.to_le_bytes() {
+            self.byte(x);
+        }
+    }
+}

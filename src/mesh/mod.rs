@@ -1,0 +1,100 @@
+//! The plain mesh every rank holds: node coordinates, elements by dimension, and gmsh
+//! physical groups by name. Reading (MSH 4.1, ASCII and binary) lives in `msh`, meshing
+//! `.geo` sources with the gmsh command in `gmsh`, geometric checks in `check`.
+
+pub mod check;
+pub mod gmsh;
+pub mod msh;
+
+use crate::error::{Error, Result};
+pub use crate::fem::element::ElementKind;
+
+/// One mesh element: its kind, its nodes (indices into `Mesh::coords`, gmsh ordering), and
+/// the gmsh entity it belongs to (physical groups are sets of entities).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Element {
+    pub kind: ElementKind,
+    nodes: [usize; 8],
+    /// gmsh element tag (for error messages).
+    pub tag: u64,
+    /// gmsh entity tag (the entity's dimension is `kind.dim()`).
+    pub entity: i32,
+}
+
+impl Element {
+    pub fn new(kind: ElementKind, nodes: &[usize], tag: u64, entity: i32) -> Element {
+        assert_eq!(nodes.len(), kind.n_nodes());
+        let mut n = [0usize; 8];
+        n[..nodes.len()].copy_from_slice(nodes);
+        Element { kind, nodes: n, tag, entity }
+    }
+    pub fn nodes(&self) -> &[usize] {
+        &self.nodes[..self.kind.n_nodes()]
+    }
+}
+
+/// A gmsh physical group: a name, a dimension, and the entities it contains.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PhysicalGroup {
+    pub name: String,
+    pub dim: usize,
+    pub tag: i32,
+    pub entities: Vec<i32>,
+}
+
+#[derive(Debug, Clone, PartialEq)]
+pub struct Mesh {
+    /// Spatial dimension of the problem: 2 or 3 (the highest element dimension present).
+    pub dim: usize,
+    /// Node coordinates (z = 0 in 2D). Only nodes used by `cells` are kept, sorted by gmsh tag.
+    pub coords: Vec<[f64; 3]>,
+    /// gmsh tag of node i (the "original numbering" users see is the index i in this order).
+    pub node_tags: Vec<u64>,
+    /// Elements of dimension `dim`: the bodies.
+    pub cells: Vec<Element>,
+    /// Elements of lower dimension (facets, edges, points) that carry physical groups.
+    pub boundary: Vec<Element>,
+    pub groups: Vec<PhysicalGroup>,
+}
+
+impl Mesh {
+    pub fn n_nodes(&self) -> usize {
+        self.coords.len()
+    }
+
+    /// The physical group called `name`, or an error naming it and listing the groups there are.
+    pub fn group(&self, name: &str) -> Result<&PhysicalGroup> {
+        self.groups.iter().find(|g| g.name == name).ok_or_else(|| {
+            let have: Vec<String> =
+                self.groups.iter().map(|g| format!("\"{}\" (dim {})", g.name, g.dim)).collect();
+            Error::Mesh(format!(
+                "physical group \"{name}\" not found in the mesh; it has {}",
+                if have.is_empty() { "no physical groups".to_string() } else { have.join(", ") }
+            ))
+        })
+    }
+
+    /// Elements (cells or boundary elements) that belong to the group.
+    pub fn group_elements(&self, name: &str) -> Result<Vec<&Element>> {
+        let g = self.group(name)?;
+        let pool = if g.dim == self.dim { &self.cells } else { &self.boundary };
+        Ok(pool
+            .iter()
+            .filter(|e| e.kind.dim() == g.dim && g.entities.contains(&e.entity))
+            .collect())
+    }
+
+    /// Sorted, de-duplicated node indices of the group's elements.
+    pub fn group_nodes(&self, name: &str) -> Result<Vec<usize>> {
+        let mut nodes: Vec<usize> =
+            self.group_elements(name)?.iter().flat_map(|e| e.nodes().iter().copied()).collect();
+        nodes.sort_unstable();
+        nodes.dedup();
+        Ok(nodes)
+    }
+
+    /// Coordinates of the nodes of an element.
+    pub fn element_coords(&self, e: &Element) -> Vec<[f64; 3]> {
+        e.nodes().iter().map(|&n| self.coords[n]).collect()
+    }
+}

@@ -1,0 +1,196 @@
+//! METIS element partition, node ownership, and the global DOF numbering.
+//!
+//! Every rank holds the whole mesh and runs METIS with the same fixed seed, so all ranks
+//! agree on the partition without communication. A node is owned by the smallest rank among
+//! the elements that contain it; owned nodes are numbered contiguously per rank (in original
+//! order within a rank), DOFs are interlaced `node * dim + component` with block size `dim`.
+//! Users only ever see the original (gmsh) node order, so results can be compared entry by
+//! entry across rank counts.
+
+use crate::error::{Error, Result};
+use crate::mesh::Mesh;
+
+/// The fixed METIS seed: the partition must be the same on every rank and every run.
+pub const METIS_SEED: i32 = 7;
+
+#[derive(Debug, Clone)]
+pub struct Partition {
+    pub rank: usize,
+    pub size: usize,
+    pub dim: usize,
+    /// Rank of each cell (METIS part).
+    pub cell_rank: Vec<usize>,
+    /// Owning rank of each node.
+    pub node_owner: Vec<usize>,
+    /// Global (PETSc) node number of each original node.
+    pub node_global: Vec<usize>,
+    /// Rank r owns global node numbers `node_offsets[r]..node_offsets[r+1]`.
+    pub node_offsets: Vec<usize>,
+    /// Original indices of the nodes this rank owns, in global order.
+    pub owned_nodes: Vec<usize>,
+    /// Cells this rank assembles.
+    pub local_cells: Vec<usize>,
+}
+
+/// Node -> cells adjacency in CSR form (offsets of length n_nodes + 1).
+pub fn node_cells(mesh: &Mesh) -> (Vec<usize>, Vec<usize>) {
+    let n = mesh.n_nodes();
+    let mut count = vec![0usize; n + 1];
+    for c in &mesh.cells {
+        for &v in c.nodes() {
+            count[v + 1] += 1;
+        }
+    }
+    for i in 0..n {
+        count[i + 1] += count[i];
+    }
+    let mut fill = count.clone();
+    let mut list = vec![0usize; count[n]];
+    for (ci, c) in mesh.cells.iter().enumerate() {
+        for &v in c.nodes() {
+            list[fill[v]] = ci;
+            fill[v] += 1;
+        }
+    }
+    (count, list)
+}
+
+/// METIS k-way partition of the cells' dual graph (cells adjacent when they share a facet).
+pub fn partition_cells(mesh: &Mesh, nparts: usize) -> Result<Vec<usize>> {
+    let ne = mesh.cells.len();
+    if nparts <= 1 || ne == 0 {
+        return Ok(vec![0; ne]);
+    }
+    if ne < nparts {
+        return Err(Error::Partition(format!(
+            "the mesh has {ne} cells, fewer than the {nparts} ranks: use fewer ranks or a finer mesh"
+        )));
+    }
+    let mut eptr: Vec<metis::Idx> = Vec::with_capacity(ne + 1);
+    let mut eind: Vec<metis::Idx> = Vec::new();
+    eptr.push(0);
+    for c in &mesh.cells {
+        eind.extend(c.nodes().iter().map(|&v| v as metis::Idx));
+        eptr.push(eind.len() as metis::Idx);
+    }
+    // Facet neighbours: 2 shared nodes in 2D (an edge), 3 in 3D (a triangle or part of a quad face).
+    let ncommon = if mesh.dim == 2 { 2 } else { 3 };
+    let dual = metis::mesh_to_dual(&eptr, &eind, ncommon)
+        .map_err(|e| Error::Partition(format!("METIS_MeshToDual failed: {e}")))?;
+    let mut part: Vec<metis::Idx> = vec![0; ne];
+    metis::Graph::new(1, nparts as metis::Idx, dual.xadj(), dual.adjncy())
+        .map_err(|e| Error::Partition(format!("METIS graph: {e}")))?
+        .set_option(metis::option::Seed(METIS_SEED))
+        .part_kway(&mut part)
+        .map_err(|e| Error::Partition(format!("METIS_PartGraphKway failed: {e}")))?;
+    Ok(part.into_iter().map(|p| p as usize).collect())
+}
+
+impl Partition {
+    /// Partition `mesh` over `size` ranks and derive this rank's view.
+    pub fn new(mesh: &Mesh, rank: usize, size: usize) -> Result<Partition> {
+        let cell_rank = partition_cells(mesh, size)?;
+        Ok(Self::from_cell_ranks(mesh, rank, size, cell_rank))
+    }
+
+    /// Ownership and numbering from a given cell partition (deterministic).
+    pub fn from_cell_ranks(
+        mesh: &Mesh,
+        rank: usize,
+        size: usize,
+        cell_rank: Vec<usize>,
+    ) -> Partition {
+        let n = mesh.n_nodes();
+        let mut node_owner = vec![usize::MAX; n];
+        for (ci, c) in mesh.cells.iter().enumerate() {
+            for &v in c.nodes() {
+                node_owner[v] = node_owner[v].min(cell_rank[ci]);
+            }
+        }
+        let mut counts = vec![0usize; size + 1];
+        for &o in &node_owner {
+            counts[o + 1] += 1;
+        }
+        for r in 0..size {
+            counts[r + 1] += counts[r];
+        }
+        let node_offsets = counts.clone();
+        let mut next = counts;
+        let mut node_global = vec![0usize; n];
+        for v in 0..n {
+            let o = node_owner[v];
+            node_global[v] = next[o];
+            next[o] += 1;
+        }
+        let owned_nodes: Vec<usize> = (0..n).filter(|&v| node_owner[v] == rank).collect();
+        let local_cells: Vec<usize> =
+            (0..mesh.cells.len()).filter(|&c| cell_rank[c] == rank).collect();
+        Partition {
+            rank,
+            size,
+            dim: mesh.dim,
+            cell_rank,
+            node_owner,
+            node_global,
+            node_offsets,
+            owned_nodes,
+            local_cells,
+        }
+    }
+
+    pub fn n_owned_nodes(&self) -> usize {
+        self.owned_nodes.len()
+    }
+    pub fn n_global_nodes(&self) -> usize {
+        self.node_offsets[self.size]
+    }
+    pub fn n_owned_dofs(&self) -> usize {
+        self.n_owned_nodes() * self.dim
+    }
+    pub fn n_global_dofs(&self) -> usize {
+        self.n_global_nodes() * self.dim
+    }
+    /// First global DOF owned by this rank.
+    pub fn first_dof(&self) -> usize {
+        self.node_offsets[self.rank] * self.dim
+    }
+    /// Global DOF of component `comp` of original node `node`.
+    #[inline]
+    pub fn dof(&self, node: usize, comp: usize) -> usize {
+        self.node_global[node] * self.dim + comp
+    }
+    pub fn owns(&self, node: usize) -> bool {
+        self.node_owner[node] == self.rank
+    }
+
+    /// Exact preallocation for a matrix coupling nodes that share a cell: per owned DOF row,
+    /// the number of columns in the diagonal block (owned by this rank) and off it.
+    pub fn preallocation(&self, mesh: &Mesh) -> (Vec<i32>, Vec<i32>) {
+        let (off, list) = node_cells(mesh);
+        let (lo, hi) = (self.node_offsets[self.rank], self.node_offsets[self.rank + 1]);
+        let mut mark = vec![usize::MAX; mesh.n_nodes()];
+        let mut d_nnz = Vec::with_capacity(self.n_owned_dofs());
+        let mut o_nnz = Vec::with_capacity(self.n_owned_dofs());
+        for &v in &self.owned_nodes {
+            let (mut d, mut o) = (0i32, 0i32);
+            for &c in &list[off[v]..off[v + 1]] {
+                for &w in mesh.cells[c].nodes() {
+                    if mark[w] != v {
+                        mark[w] = v;
+                        let g = self.node_global[w];
+                        if g >= lo && g < hi {
+                            d += 1;
+                        } else {
+                            o += 1;
+                        }
+                    }
+                }
+            }
+            for _ in 0..self.dim {
+                d_nnz.push(d * self.dim as i32);
+                o_nnz.push(o * self.dim as i32);
+            }
+        }
+        (d_nnz, o_nnz)
+    }
+}

@@ -1,0 +1,374 @@
+//! Sparse distributed matrices (PETSc `Mat`, AIJ format) and near null spaces.
+
+use super::{check_len, ensure_live, ffi, init, petsc_bool, to_int, to_usize, Vector};
+use crate::error::{Error, Result};
+use std::ptr;
+
+/// Nonzero statistics summed over all ranks (`MatGetInfo` with `MAT_GLOBAL_SUM`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct MatNonzeroInfo {
+    /// Nonzeros allocated by the preallocation.
+    pub allocated: f64,
+    /// Nonzeros actually stored.
+    pub used: f64,
+    /// Number of mallocs during assembly (0 when the preallocation was exact or generous).
+    pub mallocs: f64,
+}
+
+/// An owned square AIJ matrix on `PETSC_COMM_WORLD` (`MatDestroy` on drop).
+pub struct Matrix {
+    m: ffi::Mat,
+    range: (usize, usize),
+    size: (usize, usize),
+}
+
+impl Matrix {
+    /// Creates a square AIJ matrix with `local_rows` owned rows (and columns), exactly
+    /// preallocated: `d_nnz[i]` / `o_nnz[i]` are the nonzeros of local row `i` in the
+    /// diagonal / off-diagonal block. Inserting outside the preallocation is an error
+    /// (`MAT_NEW_NONZERO_ALLOCATION_ERR`), because a silent malloc there costs minutes.
+    /// `MAT_KEEP_NONZERO_PATTERN` is set too: row zeroing keeps explicit zeros.
+    pub fn new_aij(
+        local_rows: usize,
+        global_rows: usize,
+        block_size: usize,
+        d_nnz: &[i32],
+        o_nnz: &[i32],
+    ) -> Result<Matrix> {
+        ensure_live()?;
+        check_len("Matrix::new_aij d_nnz", local_rows, d_nnz.len())?;
+        check_len("Matrix::new_aij o_nnz", local_rows, o_nnz.len())?;
+        let n = to_int(local_rows, "Matrix local rows")?;
+        let gn = to_int(global_rows, "Matrix global rows")?;
+        let bs = to_int(block_size.max(1), "Matrix block size")?;
+        let mut m: ffi::Mat = ptr::null_mut();
+        // SAFETY: PETSc is live; `m` is an out-pointer.
+        chk!(ffi::MatCreate(init::Petsc::comm_world(), &mut m))?;
+        let mut out = Matrix { m, range: (0, 0), size: (0, 0) };
+        // SAFETY: `m` is a fresh Mat; sizes are consistent ints.
+        chk!(ffi::MatSetSizes(m, n, n, gn, gn))?;
+        // SAFETY: MATAIJ is a NUL-terminated type name; AIJ is Seq on 1 rank, MPI otherwise.
+        chk!(ffi::MatSetType(m, ffi::MATAIJ.as_ptr().cast()))?;
+        // SAFETY: valid Mat, before preallocation as PETSc requires.
+        chk!(ffi::MatSetBlockSize(m, bs))?;
+        // On one rank the whole row is in the "diagonal" block.
+        let seq_nnz: Vec<i32> = d_nnz.iter().zip(o_nnz).map(|(d, o)| d + o).collect();
+        // SAFETY: arrays hold `local_rows` entries; the call is a no-op on MPI matrices.
+        chk!(ffi::MatSeqAIJSetPreallocation(m, 0, seq_nnz.as_ptr()))?;
+        // SAFETY: as above; a no-op on sequential matrices.
+        chk!(ffi::MatMPIAIJSetPreallocation(m, 0, d_nnz.as_ptr(), 0, o_nnz.as_ptr()))?;
+        out.set_option(ffi::MatOption_MAT_NEW_NONZERO_ALLOCATION_ERR, true)?;
+        // Zeroed rows keep explicit zeros, so the pattern never shrinks and SAME_NONZERO_PATTERN
+        // stays valid for matrices assembled alike (e.g. `axpy` after Dirichlet zeroing).
+        out.set_option(ffi::MatOption_MAT_KEEP_NONZERO_PATTERN, true)?;
+        out.read_layout()?;
+        Ok(out)
+    }
+
+    fn from_raw(m: ffi::Mat) -> Result<Matrix> {
+        let mut out = Matrix { m, range: (0, 0), size: (0, 0) };
+        out.read_layout()?;
+        Ok(out)
+    }
+
+    fn read_layout(&mut self) -> Result<()> {
+        let (mut lo, mut hi, mut r, mut c) = (0, 0, 0, 0);
+        // SAFETY: valid, preallocated Mat; out-pointers are locals.
+        chk!(ffi::MatGetOwnershipRange(self.m, &mut lo, &mut hi))?;
+        // SAFETY: as above.
+        chk!(ffi::MatGetSize(self.m, &mut r, &mut c))?;
+        self.range = (to_usize(lo), to_usize(hi));
+        self.size = (to_usize(r), to_usize(c));
+        Ok(())
+    }
+
+    fn set_option(&mut self, op: ffi::MatOption, flag: bool) -> Result<()> {
+        // SAFETY: valid handle; `op` is a MatOption constant from the bindings.
+        chk!(ffi::MatSetOption(self.m, op, petsc_bool(flag)))
+    }
+
+    /// The raw handle, for calls this wrapper does not cover. Ownership stays here.
+    pub fn raw(&self) -> ffi::Mat {
+        self.m
+    }
+
+    /// Inserts or adds (`add`) the dense block `vals` (row-major, `rows.len() x cols.len()`)
+    /// at global `rows` x `cols`. Negative indices are skipped (PETSc convention). Rows of
+    /// other ranks are allowed and sent during [`assemble`](Matrix::assemble).
+    pub fn set_values(
+        &mut self,
+        rows: &[i32],
+        cols: &[i32],
+        vals: &[f64],
+        add: bool,
+    ) -> Result<()> {
+        check_len("Matrix::set_values values (rows x cols)", rows.len() * cols.len(), vals.len())?;
+        let nr = to_int(rows.len(), "Matrix::set_values rows")?;
+        let nc = to_int(cols.len(), "Matrix::set_values cols")?;
+        let mode = if add { ffi::InsertMode_ADD_VALUES } else { ffi::InsertMode_INSERT_VALUES };
+        // SAFETY: rows/cols/vals hold nr, nc and nr*nc entries; PETSc copies them.
+        chk!(ffi::MatSetValues(self.m, nr, rows.as_ptr(), nc, cols.as_ptr(), vals.as_ptr(), mode))
+    }
+
+    /// Final assembly (collective): communicates off-rank entries, compresses storage.
+    pub fn assemble(&mut self) -> Result<()> {
+        let t = ffi::MatAssemblyType_MAT_FINAL_ASSEMBLY;
+        // SAFETY: valid handle; Begin/End are paired.
+        chk!(ffi::MatAssemblyBegin(self.m, t))?;
+        // SAFETY: as above.
+        chk!(ffi::MatAssemblyEnd(self.m, t))
+    }
+
+    /// `y = A x`.
+    pub fn mult(&self, x: &Vector, y: &mut Vector) -> Result<()> {
+        // SAFETY: valid handles; `y` is distinct from `x` by the borrow rules.
+        chk!(ffi::MatMult(self.m, x.raw(), y.raw()))
+    }
+
+    /// `z = y + A x`.
+    pub fn mult_add(&self, x: &Vector, y: &Vector, z: &mut Vector) -> Result<()> {
+        // SAFETY: valid handles; `z` is distinct from `x` (PETSc allows z == y, not needed).
+        chk!(ffi::MatMultAdd(self.m, x.raw(), y.raw(), z.raw()))
+    }
+
+    /// A matrix with the same layout and nonzero pattern; values copied if `copy_values`,
+    /// zero otherwise.
+    pub fn duplicate(&self, copy_values: bool) -> Result<Matrix> {
+        let op = if copy_values {
+            ffi::MatDuplicateOption_MAT_COPY_VALUES
+        } else {
+            ffi::MatDuplicateOption_MAT_DO_NOT_COPY_VALUES
+        };
+        let mut m: ffi::Mat = ptr::null_mut();
+        // SAFETY: valid assembled handle; `m` is an out-pointer.
+        chk!(ffi::MatDuplicate(self.m, op, &mut m))?;
+        Matrix::from_raw(m)
+    }
+
+    /// `self += alpha * x`. `same_pattern` promises identical nonzero patterns (fast path);
+    /// otherwise PETSc merges the patterns.
+    pub fn axpy(&mut self, alpha: f64, x: &Matrix, same_pattern: bool) -> Result<()> {
+        let s = if same_pattern {
+            ffi::MatStructure_SAME_NONZERO_PATTERN
+        } else {
+            ffi::MatStructure_DIFFERENT_NONZERO_PATTERN
+        };
+        // SAFETY: valid, distinct handles (`&mut self` vs `&x`).
+        chk!(ffi::MatAXPY(self.m, alpha, x.m, s))
+    }
+
+    /// `self *= alpha`.
+    pub fn scale(&mut self, alpha: f64) -> Result<()> {
+        // SAFETY: valid handle.
+        chk!(ffi::MatScale(self.m, alpha))
+    }
+
+    /// Zeros the given global rows and columns (collective; each rank may list any rows) and
+    /// puts `diag` on their diagonal. With `x` and `b`, fixes `b` so that the solution keeps
+    /// `x`'s values in those rows (Dirichlet conditions, symmetry preserved).
+    pub fn zero_rows_columns(
+        &mut self,
+        rows: &[i32],
+        diag: f64,
+        x: Option<&Vector>,
+        b: Option<&mut Vector>,
+    ) -> Result<()> {
+        let n = to_int(rows.len(), "Matrix::zero_rows_columns rows")?;
+        let xr = x.map_or(ptr::null_mut(), Vector::raw);
+        let br = b.map_or(ptr::null_mut(), |b| b.raw());
+        // SAFETY: valid handles or null (allowed by PETSc); `rows` holds n entries.
+        chk!(ffi::MatZeroRowsColumns(self.m, n, rows.as_ptr(), diag, xr, br))
+    }
+
+    /// Like [`zero_rows_columns`](Matrix::zero_rows_columns) but keeps the columns (breaks
+    /// symmetry; `b[row] = diag * x[row]` when both vectors are given).
+    pub fn zero_rows(
+        &mut self,
+        rows: &[i32],
+        diag: f64,
+        x: Option<&Vector>,
+        b: Option<&mut Vector>,
+    ) -> Result<()> {
+        let n = to_int(rows.len(), "Matrix::zero_rows rows")?;
+        let xr = x.map_or(ptr::null_mut(), Vector::raw);
+        let br = b.map_or(ptr::null_mut(), |b| b.raw());
+        // SAFETY: valid handles or null (allowed by PETSc); `rows` holds n entries.
+        chk!(ffi::MatZeroRows(self.m, n, rows.as_ptr(), diag, xr, br))
+    }
+
+    /// `d = diag(A)`.
+    pub fn get_diagonal(&self, d: &mut Vector) -> Result<()> {
+        // SAFETY: valid handles.
+        chk!(ffi::MatGetDiagonal(self.m, d.raw()))
+    }
+
+    /// Attaches a near null space (e.g. rigid body modes) for algebraic multigrid. PETSc
+    /// keeps its own reference, so `ns` may be dropped afterwards.
+    pub fn set_near_null_space(&mut self, ns: &NullSpace) -> Result<()> {
+        // SAFETY: valid handles; PETSc increments the null space's reference count.
+        chk!(ffi::MatSetNearNullSpace(self.m, ns.sp))
+    }
+
+    /// Whether `A == A^T` up to `tol` (collective; an expensive check for tests).
+    pub fn is_symmetric(&self, tol: f64) -> Result<bool> {
+        let mut flg = ffi::PetscBool_PETSC_FALSE;
+        // SAFETY: valid assembled handle; `flg` is an out-pointer.
+        chk!(ffi::MatIsSymmetric(self.m, tol, &mut flg))?;
+        Ok(flg == ffi::PetscBool_PETSC_TRUE)
+    }
+
+    /// Frobenius norm (collective).
+    pub fn norm_frobenius(&self) -> Result<f64> {
+        let mut n = 0.0;
+        // SAFETY: valid assembled handle; `n` is an out-pointer.
+        chk!(ffi::MatNorm(self.m, ffi::NormType_NORM_FROBENIUS, &mut n))?;
+        Ok(n)
+    }
+
+    /// Global nonzero statistics (collective).
+    pub fn nonzero_info(&self) -> Result<MatNonzeroInfo> {
+        let mut info = ffi::MatInfo::default();
+        // SAFETY: valid handle; `info` is an out-pointer to a MatInfo.
+        chk!(ffi::MatGetInfo(self.m, ffi::MatInfoType_MAT_GLOBAL_SUM, &mut info))?;
+        Ok(MatNonzeroInfo {
+            allocated: info.nz_allocated,
+            used: info.nz_used,
+            mallocs: info.mallocs,
+        })
+    }
+
+    /// Nonzeros allocated, summed over ranks (collective).
+    pub fn info_nonzeros_allocated(&self) -> Result<f64> {
+        Ok(self.nonzero_info()?.allocated)
+    }
+
+    /// Nonzeros used, summed over ranks (collective).
+    pub fn info_nonzeros_used(&self) -> Result<f64> {
+        Ok(self.nonzero_info()?.used)
+    }
+
+    /// Column indices and values of one owned global row (assembled matrix).
+    pub fn get_row(&self, global_row: usize) -> Result<(Vec<i32>, Vec<f64>)> {
+        let (lo, hi) = self.range;
+        if global_row < lo || global_row >= hi {
+            return Err(Error::Solver(format!(
+                "Matrix::get_row: row {global_row} is not owned by this rank (owns {lo}..{hi})"
+            )));
+        }
+        let row = to_int(global_row, "Matrix::get_row row")?;
+        let mut ncols: ffi::PetscInt = 0;
+        let mut cols: *const ffi::PetscInt = ptr::null();
+        let mut vals: *const f64 = ptr::null();
+        // SAFETY: valid assembled handle, owned row; out-pointers are locals.
+        chk!(ffi::MatGetRow(self.m, row, &mut ncols, &mut cols, &mut vals))?;
+        let n = to_usize(ncols);
+        let (c, v) = if n == 0 || cols.is_null() || vals.is_null() {
+            (Vec::new(), Vec::new())
+        } else {
+            // SAFETY: PETSc returned `ncols` entries in each array, valid until MatRestoreRow.
+            unsafe {
+                (
+                    std::slice::from_raw_parts(cols, n).to_vec(),
+                    std::slice::from_raw_parts(vals, n).to_vec(),
+                )
+            }
+        };
+        // SAFETY: restores the row obtained above with the same arguments.
+        chk!(ffi::MatRestoreRow(self.m, row, &mut ncols, &mut cols, &mut vals))?;
+        Ok((c, v))
+    }
+
+    /// Global rows `[lo, hi)` owned by this rank.
+    pub fn ownership_range(&self) -> (usize, usize) {
+        self.range
+    }
+
+    /// Global `(rows, cols)`.
+    pub fn size(&self) -> (usize, usize) {
+        self.size
+    }
+
+    /// Declares the matrix symmetric (or not) for good: `MAT_SYMMETRIC` plus
+    /// `MAT_SYMMETRY_ETERNAL`, so the flag survives reassembly and solvers (Cholesky, CG,
+    /// GAMG) may rely on it.
+    pub fn set_option_symmetric(&mut self, symmetric: bool) -> Result<()> {
+        self.set_option(ffi::MatOption_MAT_SYMMETRIC, symmetric)?;
+        self.set_option(ffi::MatOption_MAT_SYMMETRY_ETERNAL, symmetric)
+    }
+
+    /// Declares the matrix symmetric positive definite for good (`MAT_SPD`, `MAT_SPD_ETERNAL`).
+    pub fn set_option_spd(&mut self, spd: bool) -> Result<()> {
+        self.set_option(ffi::MatOption_MAT_SPD, spd)?;
+        self.set_option(ffi::MatOption_MAT_SPD_ETERNAL, spd)
+    }
+
+    /// Vectors compatible with the matrix: `(x, b)` with `x` laid out like the columns (the
+    /// solution) and `b` like the rows (the right-hand side).
+    pub fn create_vecs(&self) -> Result<(Vector, Vector)> {
+        let mut x: ffi::Vec = ptr::null_mut();
+        let mut b: ffi::Vec = ptr::null_mut();
+        // SAFETY: valid handle; out-pointers.
+        chk!(ffi::MatCreateVecs(self.m, &mut x, &mut b))?;
+        let x = Vector::from_raw(x);
+        let b = Vector::from_raw(b);
+        Ok((x?, b?))
+    }
+}
+
+impl Drop for Matrix {
+    fn drop(&mut self) {
+        if !self.m.is_null() && init::is_live() {
+            // SAFETY: this wrapper owns the handle; destroyed once, while PETSc is live.
+            unsafe { ffi::MatDestroy(&mut self.m) };
+        }
+    }
+}
+
+/// A (near) null space of a matrix (`MatNullSpaceDestroy` on drop).
+pub struct NullSpace {
+    sp: ffi::MatNullSpace,
+}
+
+impl NullSpace {
+    /// Rigid body modes (3 in 2D, 6 in 3D) from the owned nodes' coordinates: `coords` has
+    /// block size = dimension and the same layout as the displacement vector.
+    pub fn rigid_body_modes(coords: &Vector) -> Result<NullSpace> {
+        ensure_live()?;
+        let mut sp: ffi::MatNullSpace = ptr::null_mut();
+        // SAFETY: valid coordinate vector; `sp` is an out-pointer.
+        chk!(ffi::MatNullSpaceCreateRigidBody(coords.raw(), &mut sp))?;
+        Ok(NullSpace { sp })
+    }
+
+    /// The raw handle. Ownership stays here.
+    pub fn raw(&self) -> ffi::MatNullSpace {
+        self.sp
+    }
+
+    /// Number of basis vectors (not counting the constant vector flag).
+    pub fn num_vectors(&self) -> Result<usize> {
+        let mut has_const = ffi::PetscBool_PETSC_FALSE;
+        let mut n: ffi::PetscInt = 0;
+        let mut vecs: *const ffi::Vec = ptr::null();
+        // SAFETY: valid handle; out-pointers; the returned array stays owned by PETSc.
+        chk!(ffi::MatNullSpaceGetVecs(self.sp, &mut has_const, &mut n, &mut vecs))?;
+        Ok(to_usize(n))
+    }
+
+    /// Whether `A v ≈ 0` for every basis vector `v` (collective; for tests).
+    pub fn is_null_space_of(&self, a: &Matrix) -> Result<bool> {
+        let mut flg = ffi::PetscBool_PETSC_FALSE;
+        // SAFETY: valid handles; `flg` is an out-pointer.
+        chk!(ffi::MatNullSpaceTest(self.sp, a.m, &mut flg))?;
+        Ok(flg == ffi::PetscBool_PETSC_TRUE)
+    }
+}
+
+impl Drop for NullSpace {
+    fn drop(&mut self) {
+        if !self.sp.is_null() && init::is_live() {
+            // SAFETY: this wrapper owns one reference; released once, while PETSc is live.
+            unsafe { ffi::MatNullSpaceDestroy(&mut self.sp) };
+        }
+    }
+}

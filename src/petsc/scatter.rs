@@ -1,0 +1,53 @@
+//! Scatters between distributed vectors (PETSc `VecScatter`): to natural (gmsh) node order for
+//! output, and to the ghosted values an element loop needs.
+
+use super::{ensure_live, ffi, init, IndexSet, Vector};
+use crate::error::Result;
+use std::ptr;
+
+/// An owned `VecScatter` from entries `from_idx` of one vector to entries `to_idx` of another
+/// (both global indices, listed by the rank that receives them). `VecScatterDestroy` on drop.
+pub struct Scatter {
+    sc: ffi::VecScatter,
+}
+
+impl Scatter {
+    pub fn new(from: &Vector, from_idx: &[i32], to: &Vector, to_idx: &[i32]) -> Result<Scatter> {
+        ensure_live()?;
+        let is_from = IndexSet::from_global(from_idx)?;
+        let is_to = IndexSet::from_global(to_idx)?;
+        let mut sc: ffi::VecScatter = ptr::null_mut();
+        // SAFETY: all handles are valid; `sc` is an out-pointer. The index sets are copied.
+        chk!(ffi::VecScatterCreate(from.raw(), is_from.raw(), to.raw(), is_to.raw(), &mut sc))?;
+        Ok(Scatter { sc })
+    }
+
+    /// `to[to_idx] = from[from_idx]` (INSERT_VALUES, forward).
+    pub fn forward(&mut self, from: &Vector, to: &mut Vector) -> Result<()> {
+        // SAFETY: the vectors have the layouts the scatter was created with; `&mut` excludes aliasing.
+        chk!(ffi::VecScatterBegin(
+            self.sc,
+            from.raw(),
+            to.raw(),
+            ffi::InsertMode_INSERT_VALUES,
+            ffi::ScatterMode_SCATTER_FORWARD
+        ))?;
+        // SAFETY: as above; completes the scatter begun above.
+        chk!(ffi::VecScatterEnd(
+            self.sc,
+            from.raw(),
+            to.raw(),
+            ffi::InsertMode_INSERT_VALUES,
+            ffi::ScatterMode_SCATTER_FORWARD
+        ))
+    }
+}
+
+impl Drop for Scatter {
+    fn drop(&mut self) {
+        if !self.sc.is_null() && init::is_live() {
+            // SAFETY: this wrapper owns the handle; destroyed once, while PETSc is live.
+            unsafe { ffi::VecScatterDestroy(&mut self.sc) };
+        }
+    }
+}

@@ -1,0 +1,1218 @@
+//! The scene file: a TOML description of one simulation (mesh, material, loads, time stepping,
+//! mass matrix, solver defaults, output, exact solution, contact).
+//!
+//! [`load`] / [`parse`] read it with serde (unknown keys are rejected at every level), validate
+//! every value, compile every expression ([`expr::Expr`]) and resolve mesh paths against the scene
+//! file's folder. Every error is one line that names the key, e.g.
+//! `scene error: beam.toml: material.nu = 0.5 is impossible: Poisson's ratio must be in (-1, 0.5)`.
+//!
+//! Vector-valued keys must have exactly `dim` components, but `dim` is only known after meshing:
+//! call [`Scene::check_dim`] then. [`Scene::effects`] tells what the scene asks to be built.
+//!
+//! ```toml
+//! name = "beam"                       # optional, default: file stem
+//! [mesh]
+//! geo = "../meshes/beam_quad.geo"     # or msh = "file.msh"; exactly one
+//! params = { h = 0.25 }               # geo only: gmsh -setnumber
+//! binary = false                      # geo only
+//! [material]
+//! E = 200.0
+//! nu = 0.3
+//! rho = 1.0
+//! [[dirichlet]]
+//! group = "left"
+//! value = ["0", "0"]                  # optional, default zero
+//! components = ["x", "y"]             # optional, default all
+//! [[neumann]]
+//! group = "top"
+//! traction = ["0", "-1e-3*sin(2*pi*t)"]
+//! [body_force]
+//! value = ["0", "0.02*x*(10-x)*y^2*sin(2*pi*t)"]
+//! [initial]
+//! displacement = ["0", "0"]
+//! velocity = ["0", "0"]
+//! [time]
+//! tau = 1e-5
+//! steps = 250                         # or end = 2.5e-3; exactly one
+//! [mass]
+//! kind = "consistent"                 # consistent | lumped | modified0 | modified1
+//! contact_boundary = "bottom"         # required for modified0/modified1
+//! [solver]
+//! ksp_type = "cg"
+//! pc_type = "jacobi"
+//! rtol = 1e-10
+//! options = "-ksp_norm_type unpreconditioned"
+//! [output]
+//! file = "out/beam.h5"                # default out/<name>.h5, relative to the working directory
+//! every = 1
+//! fields = ["displacement", "velocity"]
+//! progress = true
+//! [exact]
+//! displacement = ["0", "0"]
+//! velocity = ["0", "0"]
+//! gradient = [["0", "0"], ["0", "0"]] # grad[i][j] = d u_i / d x_j
+//! error_steps = [30]                  # default: the last step
+//! [contact]
+//! boundary = "contact"
+//! obstacle = { type = "plane", point = [0.0, 0.0], normal = [0.0, 1.0] }
+//! # obstacle = { type = "sphere", center = [0.0, 2.0], radius = 1.0 }
+//! ```
+//!
+//! Numbers are accepted wherever an expression is (`value = [0, -1.5]`).
+
+pub mod expr;
+
+use crate::error::{Error, Result};
+use expr::{Expr, VecExpr};
+use serde::de::{self, Deserializer, Visitor};
+use serde::Deserialize;
+use std::collections::BTreeMap;
+use std::fmt;
+use std::path::{Path, PathBuf};
+
+// =============================================================================================
+// The validated scene
+
+/// A validated scene. Expressions are compiled; absent optional parts are `None`.
+#[derive(Debug, Clone)]
+pub struct Scene {
+    /// `name` key, default: the scene file's stem.
+    pub name: String,
+    /// The scene file's text, verbatim (e.g. to store alongside the results).
+    pub text: String,
+    /// The scene file (for [`parse`]: `base_dir/name`).
+    pub source: PathBuf,
+    pub mesh: MeshSource,
+    pub material: MaterialSpec,
+    pub dirichlet: Vec<DirichletSpec>,
+    pub neumann: Vec<NeumannSpec>,
+    /// `None` when absent; present but all-zero is kept (see [`Effects::body_force`]).
+    pub body_force: Option<VecExpr>,
+    pub initial_displacement: Option<VecExpr>,
+    pub initial_velocity: Option<VecExpr>,
+    /// Time step, > 0.
+    pub tau: f64,
+    /// Number of time steps, >= 1 (given, or `end / tau`).
+    pub steps: usize,
+    pub mass: MassSpec,
+    pub solver: SolverSpec,
+    pub output: OutputSpec,
+    pub exact: Option<ExactSpec>,
+    pub contact: Option<ContactSpec>,
+}
+
+/// Where the mesh comes from. Paths are resolved against the scene file's folder and exist.
+#[derive(Debug, Clone, PartialEq)]
+pub enum MeshSource {
+    /// A gmsh `.geo` source to mesh, with `-setnumber` parameters (sorted by name).
+    Geo { path: PathBuf, params: Vec<(String, f64)>, binary: bool },
+    /// An existing MSH 4.1 file.
+    Msh { path: PathBuf },
+}
+
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct MaterialSpec {
+    /// Young's modulus, > 0.
+    pub e: f64,
+    /// Poisson's ratio, in (-1, 0.5).
+    pub nu: f64,
+    /// Density, > 0.
+    pub rho: f64,
+}
+
+#[derive(Debug, Clone)]
+pub struct DirichletSpec {
+    /// Physical group name (any dimension).
+    pub group: String,
+    /// Prescribed displacement per component (indexed by displacement component, `dim` long);
+    /// empty = zero.
+    pub value: VecExpr,
+    /// Constrained components (0 = x, 1 = y, 2 = z), sorted, no duplicates. When not given in
+    /// the scene this is `[0, 1, 2]`: use [`DirichletSpec::constrained`] to clip it to `dim`.
+    pub components: Vec<usize>,
+    /// Whether `components` was given in the scene (then [`Scene::check_dim`] checks it).
+    pub components_given: bool,
+}
+
+impl DirichletSpec {
+    /// The constrained components for a `dim`-dimensional mesh.
+    pub fn constrained(&self, dim: usize) -> Vec<usize> {
+        self.components.iter().copied().filter(|&c| c < dim).collect()
+    }
+}
+
+#[derive(Debug, Clone)]
+pub struct NeumannSpec {
+    pub group: String,
+    /// Traction (force per unit boundary measure) per component.
+    pub traction: VecExpr,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum MassKind {
+    Consistent,
+    Lumped,
+    Modified0,
+    Modified1,
+}
+
+impl MassKind {
+    pub fn name(self) -> &'static str {
+        match self {
+            MassKind::Consistent => "consistent",
+            MassKind::Lumped => "lumped",
+            MassKind::Modified0 => "modified0",
+            MassKind::Modified1 => "modified1",
+        }
+    }
+
+    /// The mass-free (modified) kinds, which need a contact boundary.
+    pub fn is_modified(self) -> bool {
+        matches!(self, MassKind::Modified0 | MassKind::Modified1)
+    }
+}
+
+#[derive(Debug, Clone, PartialEq)]
+pub struct MassSpec {
+    pub kind: MassKind,
+    /// Potential contact boundary (physical group); always `Some` for the modified kinds.
+    pub contact_boundary: Option<String>,
+}
+
+/// Defaults for the step operator's KSP; command-line PETSc options still win.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct SolverSpec {
+    pub ksp_type: Option<String>,
+    pub pc_type: Option<String>,
+    /// In (0, 1).
+    pub rtol: Option<f64>,
+    /// Extra PETSc options, split on whitespace.
+    pub options: Vec<String>,
+}
+
+/// A field that can be written to the output file.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Field {
+    Displacement,
+    Velocity,
+}
+
+impl Field {
+    pub fn name(self) -> &'static str {
+        match self {
+            Field::Displacement => "displacement",
+            Field::Velocity => "velocity",
+        }
+    }
+}
+
+#[derive(Debug, Clone, PartialEq)]
+pub struct OutputSpec {
+    /// As given, or `out/<name>.h5`; relative paths are relative to the working directory.
+    pub file: PathBuf,
+    /// Write every k-th step, >= 1.
+    pub every: usize,
+    /// Fields to write, in the order given, without duplicates.
+    pub fields: Vec<Field>,
+    /// Default false.
+    pub progress: bool,
+}
+
+#[derive(Debug, Clone)]
+pub struct ExactSpec {
+    pub displacement: VecExpr,
+    pub velocity: Option<VecExpr>,
+    /// `gradient[i]` = row i: `d u_i / d x_j` for j = 0..dim. `None`: differentiate numerically.
+    pub gradient: Option<Vec<VecExpr>>,
+    /// Steps at which to report errors, sorted, no duplicates, each in 0..=steps
+    /// (default: `[steps]`).
+    pub error_steps: Vec<usize>,
+}
+
+#[derive(Debug, Clone, PartialEq)]
+pub enum Obstacle {
+    /// Half-space bounded by the plane (line in 2D) through `point`; `normal` is unit length.
+    Plane { point: Vec<f64>, normal: Vec<f64> },
+    /// Ball (disk in 2D) with `radius` > 0.
+    Sphere { center: Vec<f64>, radius: f64 },
+}
+
+#[derive(Debug, Clone, PartialEq)]
+pub struct ContactSpec {
+    /// Physical group of the potential contact boundary.
+    pub boundary: String,
+    pub obstacle: Obstacle,
+}
+
+/// What the scene asks the program to build and compute (everything else is skipped).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct Effects {
+    /// A body force is present and not identically zero.
+    pub body_force: bool,
+    pub body_force_time_dependent: bool,
+    /// Some Neumann boundary has a traction that is not identically zero.
+    pub neumann: bool,
+    pub neumann_time_dependent: bool,
+    /// Some Dirichlet boundary prescribes a value that is not identically zero.
+    pub dirichlet_nonzero: bool,
+    pub dirichlet_time_dependent: bool,
+    pub contact: bool,
+    pub exact: bool,
+}
+
+impl Scene {
+    /// What must be built: only what the scene asks for.
+    pub fn effects(&self) -> Effects {
+        let body = self.body_force.as_ref().filter(|b| !b.is_zero());
+        let neumann: Vec<&NeumannSpec> =
+            self.neumann.iter().filter(|n| !n.traction.is_zero()).collect();
+        let dirichlet: Vec<&DirichletSpec> =
+            self.dirichlet.iter().filter(|d| !d.value.is_zero()).collect();
+        Effects {
+            body_force: body.is_some(),
+            body_force_time_dependent: body.is_some_and(|b| b.depends_on_t()),
+            neumann: !neumann.is_empty(),
+            neumann_time_dependent: neumann.iter().any(|n| n.traction.depends_on_t()),
+            dirichlet_nonzero: !dirichlet.is_empty(),
+            dirichlet_time_dependent: dirichlet.iter().any(|d| d.value.depends_on_t()),
+            contact: self.contact.is_some(),
+            exact: self.exact.is_some(),
+        }
+    }
+
+    /// Override one `.geo` parameter from the command line: `NAME=VALUE`, e.g. `h=0.0625`.
+    pub fn set_mesh_param(&mut self, assignment: &str) -> Result<()> {
+        let bad = |m: &str| Err(Error::Usage(format!("--param {assignment}: {m}")));
+        let Some((name, value)) = assignment.split_once('=') else {
+            return bad("expected NAME=VALUE, e.g. h=0.0625");
+        };
+        let Ok(value) = value.trim().parse::<f64>() else {
+            return bad("the value is not a number");
+        };
+        match &mut self.mesh {
+            MeshSource::Geo { params, .. } => {
+                let name = name.trim().to_string();
+                params.retain(|(n, _)| *n != name);
+                params.push((name, value));
+                params.sort_by(|a, b| a.0.cmp(&b.0));
+                Ok(())
+            }
+            MeshSource::Msh { .. } => {
+                bad("the scene reads a .msh file; parameters apply to mesh.geo")
+            }
+        }
+    }
+
+    /// The end time `steps * tau`.
+    pub fn end_time(&self) -> f64 {
+        self.steps as f64 * self.tau
+    }
+
+    /// Checks that every vector-valued key has exactly `dim` components (and that explicitly
+    /// listed Dirichlet components exist in `dim` dimensions).
+    pub fn check_dim(&self, dim: usize) -> Result<()> {
+        let fail = |m: String| Err(Error::Scene(format!("{}: {m}", self.display_name())));
+        if !(2..=3).contains(&dim) {
+            return fail(format!("the mesh is {dim}D: only 2D and 3D meshes are supported"));
+        }
+        let mut keys: Vec<(String, usize)> = Vec::new();
+        for (i, d) in self.dirichlet.iter().enumerate() {
+            if !d.value.is_empty() {
+                keys.push((format!("dirichlet[{i}].value"), d.value.len()));
+            }
+            if d.components_given {
+                if let Some(&c) = d.components.iter().find(|&&c| c >= dim) {
+                    return fail(format!(
+                        "dirichlet[{i}].components includes \"{}\" but the mesh is {dim}D",
+                        ["x", "y", "z"][c.min(2)]
+                    ));
+                }
+            }
+        }
+        for (i, n) in self.neumann.iter().enumerate() {
+            keys.push((format!("neumann[{i}].traction"), n.traction.len()));
+        }
+        let mut opt = |k: &str, v: Option<&VecExpr>| {
+            if let Some(v) = v {
+                keys.push((k.to_string(), v.len()));
+            }
+        };
+        opt("body_force.value", self.body_force.as_ref());
+        opt("initial.displacement", self.initial_displacement.as_ref());
+        opt("initial.velocity", self.initial_velocity.as_ref());
+        if let Some(ex) = &self.exact {
+            opt("exact.displacement", Some(&ex.displacement));
+            opt("exact.velocity", ex.velocity.as_ref());
+            if let Some(g) = &ex.gradient {
+                keys.push(("exact.gradient".to_string(), g.len()));
+                for (i, row) in g.iter().enumerate() {
+                    keys.push((format!("exact.gradient[{i}]"), row.len()));
+                }
+            }
+        }
+        if let Some(c) = &self.contact {
+            match &c.obstacle {
+                Obstacle::Plane { point, normal } => {
+                    keys.push(("contact.obstacle.point".into(), point.len()));
+                    keys.push(("contact.obstacle.normal".into(), normal.len()));
+                }
+                Obstacle::Sphere { center, .. } => {
+                    keys.push(("contact.obstacle.center".into(), center.len()));
+                }
+            }
+        }
+        for (k, n) in keys {
+            if n != dim {
+                let what = if k == "exact.gradient" { "rows" } else { "components" };
+                return fail(format!("{k} has {n} {what} but the mesh is {dim}D"));
+            }
+        }
+        Ok(())
+    }
+
+    fn display_name(&self) -> String {
+        self.source
+            .file_name()
+            .map(|f| f.to_string_lossy().into_owned())
+            .unwrap_or_else(|| self.source.display().to_string())
+    }
+}
+
+// =============================================================================================
+// Loading
+
+/// Reads, parses and validates the scene file at `path`; relative mesh paths are resolved
+/// against the file's folder. Error messages start with `path` as given.
+pub fn load(path: &Path) -> Result<Scene> {
+    let text = std::fs::read_to_string(path).map_err(|e| {
+        Error::Scene(format!("{}: cannot read the scene file: {e}", path.display()))
+    })?;
+    let base = match path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
+        _ => PathBuf::from("."),
+    };
+    let display = path.display().to_string();
+    let mut scene = parse_impl(&text, &display, &base)?;
+    scene.source = path.to_path_buf();
+    Ok(scene)
+}
+
+/// Parses and validates scene `text`. `name` is the file name used in messages and for the
+/// default scene name (its stem); relative mesh paths are resolved against `base_dir`.
+pub fn parse(text: &str, name: &str, base_dir: &Path) -> Result<Scene> {
+    parse_impl(text, name, base_dir)
+}
+
+fn parse_impl(text: &str, name: &str, base_dir: &Path) -> Result<Scene> {
+    let raw: RawScene = toml::from_str(text)
+        .map_err(|e| Error::Scene(format!("{name}: {}", toml_error(text, &e))))?;
+    let stem = Path::new(name)
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_else(|| name.to_string());
+    let mut scene =
+        build(raw, &stem, base_dir).map_err(|m| Error::Scene(format!("{name}: {m}")))?;
+    scene.text = text.to_string();
+    scene.source = base_dir.join(name);
+    Ok(scene)
+}
+
+// =============================================================================================
+// Raw (serde) form
+
+/// An expression as written: a string, or a plain number.
+#[derive(Debug, Clone)]
+enum ExprSrc {
+    Text(String),
+    Num(f64),
+}
+
+impl<'de> Deserialize<'de> for ExprSrc {
+    fn deserialize<D: Deserializer<'de>>(d: D) -> std::result::Result<Self, D::Error> {
+        struct V;
+        impl Visitor<'_> for V {
+            type Value = ExprSrc;
+            fn expecting(&self, f: &mut fmt::Formatter) -> fmt::Result {
+                f.write_str("an expression string or a number")
+            }
+            fn visit_str<E: de::Error>(self, v: &str) -> std::result::Result<ExprSrc, E> {
+                Ok(ExprSrc::Text(v.to_string()))
+            }
+            fn visit_i64<E: de::Error>(self, v: i64) -> std::result::Result<ExprSrc, E> {
+                Ok(ExprSrc::Num(v as f64))
+            }
+            fn visit_u64<E: de::Error>(self, v: u64) -> std::result::Result<ExprSrc, E> {
+                Ok(ExprSrc::Num(v as f64))
+            }
+            fn visit_f64<E: de::Error>(self, v: f64) -> std::result::Result<ExprSrc, E> {
+                Ok(ExprSrc::Num(v))
+            }
+        }
+        d.deserialize_any(V)
+    }
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawScene {
+    name: Option<String>,
+    mesh: RawMesh,
+    material: RawMaterial,
+    #[serde(default)]
+    dirichlet: Vec<RawDirichlet>,
+    #[serde(default)]
+    neumann: Vec<RawNeumann>,
+    body_force: Option<RawBodyForce>,
+    initial: Option<RawInitial>,
+    time: RawTime,
+    mass: Option<RawMass>,
+    solver: Option<RawSolver>,
+    output: Option<RawOutput>,
+    exact: Option<RawExact>,
+    contact: Option<RawContact>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawMesh {
+    geo: Option<String>,
+    msh: Option<String>,
+    params: Option<BTreeMap<String, f64>>,
+    binary: Option<bool>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawMaterial {
+    #[serde(rename = "E")]
+    e: f64,
+    nu: f64,
+    rho: f64,
+}
+
+#[derive(Deserialize, Clone, Copy, PartialEq)]
+#[serde(rename_all = "lowercase")]
+enum Component {
+    X,
+    Y,
+    Z,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawDirichlet {
+    group: String,
+    value: Option<Vec<ExprSrc>>,
+    components: Option<Vec<Component>>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawNeumann {
+    group: String,
+    traction: Vec<ExprSrc>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawBodyForce {
+    value: Vec<ExprSrc>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawInitial {
+    displacement: Option<Vec<ExprSrc>>,
+    velocity: Option<Vec<ExprSrc>>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawTime {
+    tau: f64,
+    steps: Option<i64>,
+    end: Option<f64>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawMass {
+    kind: Option<MassKind>,
+    contact_boundary: Option<String>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawSolver {
+    ksp_type: Option<String>,
+    pc_type: Option<String>,
+    rtol: Option<f64>,
+    options: Option<String>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawOutput {
+    file: Option<String>,
+    every: Option<i64>,
+    fields: Option<Vec<Field>>,
+    progress: Option<bool>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawExact {
+    displacement: Vec<ExprSrc>,
+    velocity: Option<Vec<ExprSrc>>,
+    gradient: Option<Vec<Vec<ExprSrc>>>,
+    error_steps: Option<Vec<i64>>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawContact {
+    boundary: String,
+    obstacle: RawObstacle,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields, tag = "type", rename_all = "lowercase")]
+enum RawObstacle {
+    Plane { point: Vec<f64>, normal: Vec<f64> },
+    Sphere { center: Vec<f64>, radius: f64 },
+}
+
+// =============================================================================================
+// Validation: raw -> Scene. Errors are one line naming the key (without the file name).
+
+type VResult<T> = std::result::Result<T, String>;
+
+fn compile(src: &ExprSrc, key: &str) -> VResult<Expr> {
+    match src {
+        ExprSrc::Num(v) if v.is_finite() => Ok(Expr::constant(*v)),
+        ExprSrc::Num(v) => Err(format!("{key} = {v} is impossible: values must be finite")),
+        ExprSrc::Text(s) => Expr::parse(s).map_err(|m| format!("{key}: {m} (in \"{s}\")")),
+    }
+}
+
+fn compile_vec(v: &[ExprSrc], key: &str) -> VResult<VecExpr> {
+    if v.is_empty() {
+        return Err(format!("{key} is empty: give one expression per component"));
+    }
+    if v.len() > 3 {
+        return Err(format!("{key} has {} components: at most 3 are possible", v.len()));
+    }
+    let exprs = v
+        .iter()
+        .enumerate()
+        .map(|(i, s)| compile(s, &format!("{key}[{i}]")))
+        .collect::<VResult<Vec<_>>>()?;
+    Ok(VecExpr(exprs))
+}
+
+fn group_name(g: String, key: &str) -> VResult<String> {
+    if g.trim().is_empty() {
+        return Err(format!("{key} is empty: give a physical group name"));
+    }
+    Ok(g)
+}
+
+fn point(v: Vec<f64>, key: &str) -> VResult<Vec<f64>> {
+    if !(2..=3).contains(&v.len()) {
+        return Err(format!("{key} has {} components: give 2 (2D) or 3 (3D)", v.len()));
+    }
+    if v.iter().any(|c| !c.is_finite()) {
+        return Err(format!("{key} = {v:?} is impossible: values must be finite"));
+    }
+    Ok(v)
+}
+
+fn build(raw: RawScene, stem: &str, base_dir: &Path) -> VResult<Scene> {
+    let name = raw.name.unwrap_or_else(|| stem.to_string());
+    if name.trim().is_empty() || name.contains('/') || name.contains('\\') {
+        return Err(format!(
+            "name = {name:?} is impossible: it must be non-empty and contain no path separator"
+        ));
+    }
+
+    // --- mesh
+    let m = raw.mesh;
+    let resolve = |p: &str, key: &str| -> VResult<PathBuf> {
+        if p.trim().is_empty() {
+            return Err(format!("{key} is empty: give a file name"));
+        }
+        let full = base_dir.join(p);
+        if !full.is_file() {
+            return Err(format!("{key} = \"{p}\": file not found: {}", full.display()));
+        }
+        Ok(full)
+    };
+    let mesh = match (m.geo, m.msh) {
+        (Some(_), Some(_)) => {
+            return Err("mesh: give exactly one of geo and msh, not both".into());
+        }
+        (None, None) => {
+            return Err(
+                "mesh: give exactly one of geo (a gmsh .geo source) and msh (an MSH 4.1 file)"
+                    .into(),
+            );
+        }
+        (Some(geo), None) => {
+            let path = resolve(&geo, "mesh.geo")?;
+            let mut params = Vec::new();
+            for (k, v) in m.params.unwrap_or_default() {
+                if k.is_empty() || !k.chars().all(|c| c.is_ascii_alphanumeric() || c == '_') {
+                    return Err(format!(
+                        "mesh.params: \"{k}\" is not a valid gmsh parameter name (letters, digits, _)"
+                    ));
+                }
+                if !v.is_finite() {
+                    return Err(format!(
+                        "mesh.params.{k} = {v} is impossible: values must be finite"
+                    ));
+                }
+                params.push((k, v));
+            }
+            MeshSource::Geo { path, params, binary: m.binary.unwrap_or(false) }
+        }
+        (None, Some(msh)) => {
+            if m.params.is_some() {
+                return Err(
+                    "mesh.params only applies to mesh.geo (gmsh -setnumber), not to mesh.msh"
+                        .into(),
+                );
+            }
+            if m.binary.is_some() {
+                return Err(
+                    "mesh.binary only applies to mesh.geo (the format gmsh writes), not to mesh.msh"
+                        .into(),
+                );
+            }
+            MeshSource::Msh { path: resolve(&msh, "mesh.msh")? }
+        }
+    };
+
+    // --- material
+    let mat = raw.material;
+    if !(mat.e > 0.0 && mat.e.is_finite()) {
+        return Err(format!("material.E = {} is impossible: Young's modulus must be > 0", mat.e));
+    }
+    if !(mat.nu > -1.0 && mat.nu < 0.5) {
+        return Err(format!(
+            "material.nu = {} is impossible: Poisson's ratio must be in (-1, 0.5)",
+            mat.nu
+        ));
+    }
+    if !(mat.rho > 0.0 && mat.rho.is_finite()) {
+        return Err(format!("material.rho = {} is impossible: the density must be > 0", mat.rho));
+    }
+    let material = MaterialSpec { e: mat.e, nu: mat.nu, rho: mat.rho };
+
+    // --- boundary conditions and loads
+    let mut dirichlet = Vec::new();
+    for (i, d) in raw.dirichlet.into_iter().enumerate() {
+        let key = format!("dirichlet[{i}]");
+        let group = group_name(d.group, &format!("{key}.group"))?;
+        let value = match d.value {
+            Some(v) => compile_vec(&v, &format!("{key}.value"))?,
+            None => VecExpr::default(),
+        };
+        let components_given = d.components.is_some();
+        let components = match d.components {
+            None => vec![0, 1, 2],
+            Some(cs) => {
+                if cs.is_empty() {
+                    return Err(format!(
+                        "{key}.components is empty: list some of \"x\", \"y\", \"z\" or leave it out (all)"
+                    ));
+                }
+                let mut idx: Vec<usize> = cs.iter().map(|&c| c as usize).collect();
+                idx.sort_unstable();
+                if idx.windows(2).any(|w| w[0] == w[1]) {
+                    return Err(format!("{key}.components lists a component twice"));
+                }
+                idx
+            }
+        };
+        dirichlet.push(DirichletSpec { group, value, components, components_given });
+    }
+    let mut neumann = Vec::new();
+    for (i, n) in raw.neumann.into_iter().enumerate() {
+        let key = format!("neumann[{i}]");
+        neumann.push(NeumannSpec {
+            group: group_name(n.group, &format!("{key}.group"))?,
+            traction: compile_vec(&n.traction, &format!("{key}.traction"))?,
+        });
+    }
+    let body_force = match raw.body_force {
+        Some(b) => Some(compile_vec(&b.value, "body_force.value")?),
+        None => None,
+    };
+    let (mut initial_displacement, mut initial_velocity) = (None, None);
+    if let Some(init) = raw.initial {
+        if let Some(d) = init.displacement {
+            initial_displacement = Some(compile_vec(&d, "initial.displacement")?);
+        }
+        if let Some(v) = init.velocity {
+            initial_velocity = Some(compile_vec(&v, "initial.velocity")?);
+        }
+    }
+
+    // --- time
+    let t = raw.time;
+    if !(t.tau > 0.0 && t.tau.is_finite()) {
+        return Err(format!("time.tau = {} is impossible: the time step must be > 0", t.tau));
+    }
+    let steps = match (t.steps, t.end) {
+        (Some(_), Some(_)) => {
+            return Err("time: give exactly one of steps and end, not both".into());
+        }
+        (None, None) => {
+            return Err(
+                "time: give the number of steps (time.steps) or the end time (time.end)".into()
+            );
+        }
+        (Some(s), None) => {
+            if s < 1 {
+                return Err(format!(
+                    "time.steps = {s} is impossible: the number of steps must be >= 1"
+                ));
+            }
+            s as usize
+        }
+        (None, Some(end)) => {
+            if !(end > 0.0 && end.is_finite()) {
+                return Err(format!("time.end = {end} is impossible: the end time must be > 0"));
+            }
+            let ratio = end / t.tau;
+            let n = ratio.round();
+            if n < 1.0 {
+                return Err(format!(
+                    "time.end = {end} is impossible: it is shorter than one step (time.tau = {})",
+                    t.tau
+                ));
+            }
+            if (ratio - n).abs() > 1e-9 * ratio {
+                return Err(format!(
+                    "time.end = {end} is impossible: it is not a whole number of steps of time.tau = {} (end/tau = {ratio})",
+                    t.tau
+                ));
+            }
+            if n > 1e15 {
+                return Err(format!("time.end = {end}: too many steps ({n})"));
+            }
+            n as usize
+        }
+    };
+
+    // --- mass
+    let (kind, contact_boundary) = match raw.mass {
+        Some(m) => (m.kind.unwrap_or(MassKind::Consistent), m.contact_boundary),
+        None => (MassKind::Consistent, None),
+    };
+    let contact_boundary = match contact_boundary {
+        Some(g) => Some(group_name(g, "mass.contact_boundary")?),
+        None => None,
+    };
+    if kind.is_modified() && contact_boundary.is_none() {
+        return Err(format!(
+            "mass.kind = {} needs mass.contact_boundary: the mass-free layer is built along the potential contact boundary",
+            kind.name()
+        ));
+    }
+    let mass = MassSpec { kind, contact_boundary };
+
+    // --- solver
+    let solver = match raw.solver {
+        None => SolverSpec::default(),
+        Some(s) => {
+            if let Some(r) = s.rtol {
+                if !(r > 0.0 && r < 1.0) {
+                    return Err(format!(
+                        "solver.rtol = {r} is impossible: the relative tolerance must be in (0, 1)"
+                    ));
+                }
+            }
+            for (k, v) in [("ksp_type", &s.ksp_type), ("pc_type", &s.pc_type)] {
+                if let Some(v) = v {
+                    if v.trim().is_empty() || v.contains(char::is_whitespace) {
+                        return Err(format!(
+                            "solver.{k} = {v:?} is impossible: give one PETSc type name"
+                        ));
+                    }
+                }
+            }
+            SolverSpec {
+                ksp_type: s.ksp_type,
+                pc_type: s.pc_type,
+                rtol: s.rtol,
+                options: s
+                    .options
+                    .map(|o| o.split_whitespace().map(str::to_string).collect())
+                    .unwrap_or_default(),
+            }
+        }
+    };
+
+    // --- output
+    let o =
+        raw.output.unwrap_or(RawOutput { file: None, every: None, fields: None, progress: None });
+    let every = o.every.unwrap_or(1);
+    if every < 1 {
+        return Err(format!(
+            "output.every = {every} is impossible: write every k-th step with k >= 1"
+        ));
+    }
+    let file = match o.file {
+        Some(f) if f.trim().is_empty() => {
+            return Err("output.file is empty: give a file name".into());
+        }
+        Some(f) => PathBuf::from(f),
+        None => PathBuf::from("out").join(format!("{name}.h5")),
+    };
+    let mut fields = Vec::new();
+    for f in o.fields.unwrap_or_else(|| vec![Field::Displacement, Field::Velocity]) {
+        if !fields.contains(&f) {
+            fields.push(f);
+        }
+    }
+    let output =
+        OutputSpec { file, every: every as usize, fields, progress: o.progress.unwrap_or(true) };
+
+    // --- exact solution
+    let exact = match raw.exact {
+        None => None,
+        Some(ex) => {
+            let displacement = compile_vec(&ex.displacement, "exact.displacement")?;
+            let velocity = match ex.velocity {
+                Some(v) => Some(compile_vec(&v, "exact.velocity")?),
+                None => None,
+            };
+            let gradient = match ex.gradient {
+                None => None,
+                Some(rows) => {
+                    if rows.is_empty() {
+                        return Err("exact.gradient is empty: give one row per displacement component, or leave it out".into());
+                    }
+                    let mut g = Vec::new();
+                    for (i, r) in rows.iter().enumerate() {
+                        g.push(compile_vec(r, &format!("exact.gradient[{i}]"))?);
+                    }
+                    Some(g)
+                }
+            };
+            let mut error_steps = Vec::new();
+            for s in ex.error_steps.unwrap_or_else(|| vec![steps as i64]) {
+                if s < 0 || s as u64 > steps as u64 {
+                    return Err(format!(
+                        "exact.error_steps contains {s}, which is impossible: steps run from 0 to time.steps = {steps}"
+                    ));
+                }
+                error_steps.push(s as usize);
+            }
+            error_steps.sort_unstable();
+            error_steps.dedup();
+            Some(ExactSpec { displacement, velocity, gradient, error_steps })
+        }
+    };
+
+    // --- contact
+    let contact = match raw.contact {
+        None => None,
+        Some(c) => {
+            let boundary = group_name(c.boundary, "contact.boundary")?;
+            let obstacle = match c.obstacle {
+                RawObstacle::Plane { point: p, normal } => {
+                    let p = point(p, "contact.obstacle.point")?;
+                    let n = point(normal, "contact.obstacle.normal")?;
+                    let norm = n.iter().map(|c| c * c).sum::<f64>().sqrt();
+                    if norm <= 0.0 {
+                        return Err(format!(
+                            "contact.obstacle.normal = {n:?} is impossible: the normal must be nonzero"
+                        ));
+                    }
+                    Obstacle::Plane { point: p, normal: n.iter().map(|c| c / norm).collect() }
+                }
+                RawObstacle::Sphere { center, radius } => {
+                    let center = point(center, "contact.obstacle.center")?;
+                    if !(radius > 0.0 && radius.is_finite()) {
+                        return Err(format!(
+                            "contact.obstacle.radius = {radius} is impossible: the radius must be > 0"
+                        ));
+                    }
+                    Obstacle::Sphere { center, radius }
+                }
+            };
+            Some(ContactSpec { boundary, obstacle })
+        }
+    };
+
+    Ok(Scene {
+        name,
+        text: String::new(),
+        source: PathBuf::new(),
+        mesh,
+        material,
+        dirichlet,
+        neumann,
+        body_force,
+        initial_displacement,
+        initial_velocity,
+        tau: t.tau,
+        steps,
+        mass,
+        solver,
+        output,
+        exact,
+        contact,
+    })
+}
+
+// =============================================================================================
+// Reducing toml/serde errors to one line with the key path
+
+/// Turns a toml error (multi-line, with a caret display) into one line naming the key path and
+/// the line number.
+fn toml_error(text: &str, e: &toml::de::Error) -> String {
+    let msg =
+        e.message().lines().map(str::trim).filter(|l| !l.is_empty()).collect::<Vec<_>>().join("; ");
+    let span = e.span().unwrap_or(0..0);
+    let loc = locate(text, span.start);
+    let at = format!(" (line {})", loc.line);
+
+    let is_data = [
+        "unknown field",
+        "missing field",
+        "invalid type",
+        "invalid value",
+        "unknown variant",
+        "invalid length",
+        "duplicate field",
+    ]
+    .iter()
+    .any(|p| msg.starts_with(p));
+    if !is_data {
+        return format!("invalid TOML: {msg} (line {}, column {})", loc.line, loc.column);
+    }
+
+    let spanned = text.get(span.clone()).unwrap_or("");
+    let whole_doc = span.start == 0 && (span.end == 0 || span.end >= text.trim_end().len());
+    // Key path of the value the span points at.
+    let value_path = || -> String {
+        if whole_doc {
+            return String::new();
+        }
+        if loc.on_header {
+            return loc.table.clone();
+        }
+        let mut parts: Vec<String> = Vec::new();
+        if !loc.table.is_empty() {
+            parts.push(loc.table.clone());
+        }
+        parts.extend(loc.inline.iter().cloned());
+        match &loc.key {
+            Some(k) => parts.push(k.clone()),
+            None => {
+                if let Some(k) = &loc.previous_key {
+                    parts.push(k.clone());
+                }
+            }
+        }
+        parts.join(".")
+    };
+    let join = |a: &str, b: &str| {
+        if a.is_empty() {
+            b.to_string()
+        } else {
+            format!("{a}.{b}")
+        }
+    };
+
+    if let Some(rest) = msg.strip_prefix("unknown field ") {
+        let (field, allowed) = split_expected(rest);
+        let base = if loc.on_header {
+            // `[unknown]` or `[known.unknown]`: the parent of the header's table.
+            let t = loc.table.split('[').next().unwrap_or("");
+            t.rsplit_once('.').map(|(p, _)| p.to_string()).unwrap_or_default()
+        } else if spanned.trim_matches(|c| c == '"' || c == '\'') == field {
+            // The span is the key itself.
+            let mut parts: Vec<String> = Vec::new();
+            if !loc.table.is_empty() {
+                parts.push(loc.table.clone());
+            }
+            parts.extend(loc.inline.iter().cloned());
+            parts.join(".")
+        } else {
+            value_path()
+        };
+        return format!("unknown key \"{}\" (allowed: {allowed}){at}", join(&base, &field));
+    }
+    if let Some(rest) = msg.strip_prefix("missing field ") {
+        let field = rest.trim_matches('`');
+        return format!("missing key \"{}\"{at}", join(&value_path(), field));
+    }
+    if let Some(rest) = msg.strip_prefix("unknown variant ") {
+        let (v, allowed) = split_expected(rest);
+        let path = value_path();
+        let path = if path.is_empty() { "value".into() } else { path };
+        return format!("{path} = \"{v}\" is not allowed (allowed: {allowed}){at}");
+    }
+    if let Some(rest) = msg.strip_prefix("invalid type: ") {
+        let path = value_path();
+        let rest = rest
+            .replace("expected f64", "expected a number")
+            .replace("expected i64", "expected an integer");
+        return format!("{path} has the wrong type: {rest}{at}");
+    }
+    let path = value_path();
+    if path.is_empty() {
+        format!("{msg}{at}")
+    } else {
+        format!("{path}: {msg}{at}")
+    }
+}
+
+/// "`f`, expected one of `a`, `b`" -> ("f", "a, b").
+fn split_expected(rest: &str) -> (String, String) {
+    let (name, tail) = rest.split_once(", expected").unwrap_or((rest, ""));
+    let name = name.trim().trim_matches('`').to_string();
+    let tail = tail.trim();
+    let tail = tail.strip_prefix("one of").unwrap_or(tail);
+    let allowed = if tail.is_empty() || rest.contains("there are no fields") {
+        "none".to_string()
+    } else {
+        tail.replace(" or ", ", ")
+            .split(',')
+            .map(|s| s.trim().trim_matches('`'))
+            .filter(|s| !s.is_empty())
+            .collect::<Vec<_>>()
+            .join(", ")
+    };
+    (name, allowed)
+}
+
+/// Where a byte offset is in the TOML text, as far as a light scan can tell.
+#[derive(Debug, Default)]
+struct Location {
+    /// 1-based.
+    line: usize,
+    /// 1-based, in characters.
+    column: usize,
+    /// Current table path (`material`, `dirichlet[1]`), empty at the root.
+    table: String,
+    /// The line is a table header.
+    on_header: bool,
+    /// Enclosing inline-table keys on this line, outermost first.
+    inline: Vec<String>,
+    /// The key whose value the offset is in (on this line).
+    key: Option<String>,
+    /// If no key is on this line (multi-line array): the last key that started a line above.
+    previous_key: Option<String>,
+}
+
+fn locate(text: &str, offset: usize) -> Location {
+    let offset = offset.min(text.len());
+    let mut loc = Location { line: 1, column: 1, ..Default::default() };
+    let mut counts: BTreeMap<String, usize> = BTreeMap::new();
+    let mut line_start = 0;
+    for (n, line) in text.split_inclusive('\n').enumerate() {
+        let line_end = line_start + line.len();
+        let last = line_end > offset || line_end == text.len();
+        let trimmed = line.trim_start();
+        let header = trimmed.starts_with('[');
+        if header {
+            let body = strip_comment(trimmed).trim();
+            if let Some(inner) = body.strip_prefix("[[") {
+                let name = inner.trim_end_matches(']').trim().to_string();
+                let c = counts.entry(name.clone()).or_insert(0);
+                loc.table = format!("{name}[{c}]");
+                *c += 1;
+            } else {
+                loc.table = body.trim_start_matches('[').trim_end_matches(']').trim().to_string();
+            }
+            loc.previous_key = None;
+        } else if let Some(k) = leading_key(trimmed) {
+            if !last {
+                loc.previous_key = Some(k);
+            }
+        }
+        if last {
+            loc.line = n + 1;
+            let prefix = &text[line_start..offset.max(line_start).min(line_end)];
+            loc.column = prefix.chars().count() + 1;
+            loc.on_header = header;
+            if !header {
+                let (inline, key) = scan_keys(prefix);
+                loc.inline = inline;
+                loc.key = key;
+            }
+            break;
+        }
+        line_start = line_end;
+    }
+    loc
+}
+
+fn strip_comment(s: &str) -> &str {
+    // Good enough for headers and keys (no '#' inside quoted header names).
+    s.split('#').next().unwrap_or(s)
+}
+
+/// `key = ...` at the start of a line -> `key`.
+fn leading_key(s: &str) -> Option<String> {
+    let (k, _) = s.split_once('=')?;
+    let k = k.trim();
+    if k.is_empty() || !k.chars().all(|c| c.is_ascii_alphanumeric() || "_-.\"' ".contains(c)) {
+        return None;
+    }
+    Some(k.replace(['"', '\'', ' '], ""))
+}
+
+/// Scans a line prefix for `key =` assignments and inline-table braces; returns the enclosing
+/// inline-table keys and the key whose value the prefix ends in.
+fn scan_keys(prefix: &str) -> (Vec<String>, Option<String>) {
+    let mut stack: Vec<String> = Vec::new();
+    let mut key: Option<String> = None;
+    let mut word = String::new();
+    let mut quote: Option<char> = None;
+    for c in prefix.chars() {
+        if let Some(q) = quote {
+            if c == q {
+                quote = None;
+            }
+            continue;
+        }
+        match c {
+            '"' | '\'' => {
+                quote = Some(c);
+                word.clear();
+            }
+            '#' => break,
+            '=' => {
+                if !word.is_empty() {
+                    key = Some(std::mem::take(&mut word));
+                }
+            }
+            '{' => {
+                if let Some(k) = key.take() {
+                    stack.push(k);
+                }
+                word.clear();
+            }
+            '}' => {
+                key = stack.pop();
+                word.clear();
+            }
+            '[' | ']' => {}
+            c if c.is_ascii_alphanumeric() || c == '_' || c == '-' || c == '.' => word.push(c),
+            c if c.is_whitespace() => {}
+            _ => word.clear(),
+        }
+    }
+    (stack, key)
+}
+
+#[cfg(test)]
+mod tests;

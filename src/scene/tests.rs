@@ -1,0 +1,561 @@
+use super::*;
+use std::sync::atomic::{AtomicUsize, Ordering};
+
+/// A fresh folder with `meshes/beam.geo` and `meshes/beam.msh`, and scenes in `scenes/`.
+fn workspace() -> PathBuf {
+    static N: AtomicUsize = AtomicUsize::new(0);
+    let dir = std::env::temp_dir().join(format!(
+        "scenedev-test-{}-{}",
+        std::process::id(),
+        N.fetch_add(1, Ordering::SeqCst)
+    ));
+    std::fs::create_dir_all(dir.join("meshes")).unwrap();
+    std::fs::create_dir_all(dir.join("scenes")).unwrap();
+    std::fs::write(dir.join("meshes/beam.geo"), "// geo\n").unwrap();
+    std::fs::write(dir.join("meshes/beam.msh"), "$MeshFormat\n4.1 0 8\n$EndMeshFormat\n").unwrap();
+    dir
+}
+
+const FULL: &str = r#"
+name = "beam"
+
+[mesh]
+geo = "../meshes/beam.geo"
+params = { h = 0.25, n = 4 }
+binary = true
+
+[material]
+E = 200.0
+nu = 0.3
+rho = 1.0
+
+[[dirichlet]]
+group = "left"
+value = ["0", "0"]
+components = ["y", "x"]
+
+[[dirichlet]]
+group = "clamp"
+value = [0, "1e-3*t"]
+
+[[neumann]]
+group = "top"
+traction = ["0", "-1e-3*sin(2*pi*t)"]
+
+[body_force]
+value = ["0", "0.02*x*(10-x)*y^2*sin(2*pi*t)"]
+
+[initial]
+displacement = ["0", "0"]
+velocity = ["0", "x*(10-x)"]
+
+[time]
+tau = 1e-5
+end = 2.5e-3
+
+[mass]
+kind = "modified1"
+contact_boundary = "bottom"
+
+[solver]
+ksp_type = "cg"
+pc_type = "jacobi"
+rtol = 1e-10
+options = "-ksp_norm_type  unpreconditioned -ksp_monitor"
+
+[output]
+file = "results/beam.h5"
+every = 5
+fields = ["velocity"]
+progress = true
+
+[exact]
+displacement = ["0", "x*t"]
+velocity = ["0", "x"]
+gradient = [["0", "0"], ["t", "0"]]
+error_steps = [30, 10, 30]
+
+[contact]
+boundary = "contact"
+obstacle = { type = "plane", point = [0.0, -1.0], normal = [0.0, 2.0] }
+"#;
+
+const MINIMAL: &str = r#"
+[mesh]
+msh = "../meshes/beam.msh"
+[material]
+E = 1
+nu = 0.25
+rho = 2
+[time]
+tau = 0.1
+steps = 10
+"#;
+
+fn parse_in(dir: &Path, text: &str) -> Result<Scene> {
+    parse(text, "beam.toml", &dir.join("scenes"))
+}
+
+fn err_of(text: &str) -> String {
+    let dir = workspace();
+    match parse_in(&dir, text) {
+        Ok(_) => panic!("accepted:\n{text}"),
+        Err(e) => {
+            let m = e.to_string();
+            assert!(!m.contains('\n'), "multi-line message: {m:?}");
+            assert!(m.starts_with("scene error: beam.toml: "), "{m}");
+            m
+        }
+    }
+}
+
+fn assert_err(text: &str, needles: &[&str]) {
+    let m = err_of(text);
+    for n in needles {
+        assert!(m.contains(n), "message {m:?} lacks {n:?}");
+    }
+}
+
+/// MINIMAL with `from` replaced by `to` (which must occur).
+fn minimal_with(from: &str, to: &str) -> String {
+    assert!(MINIMAL.contains(from), "{from}");
+    MINIMAL.replacen(from, to, 1)
+}
+
+fn full_with(from: &str, to: &str) -> String {
+    assert!(FULL.contains(from), "{from}");
+    FULL.replacen(from, to, 1)
+}
+
+#[test]
+fn full_scene_round_trips() {
+    let dir = workspace();
+    let s = parse_in(&dir, FULL).unwrap();
+    assert_eq!(s.name, "beam");
+    assert_eq!(s.text, FULL);
+    assert_eq!(s.source, dir.join("scenes").join("beam.toml"));
+    match &s.mesh {
+        MeshSource::Geo { path, params, binary } => {
+            assert_eq!(path, &dir.join("scenes").join("../meshes/beam.geo"));
+            assert!(path.is_file());
+            assert_eq!(params, &vec![("h".to_string(), 0.25), ("n".to_string(), 4.0)]);
+            assert!(*binary);
+        }
+        m => panic!("{m:?}"),
+    }
+    assert_eq!(s.material, MaterialSpec { e: 200.0, nu: 0.3, rho: 1.0 });
+    assert_eq!(s.dirichlet.len(), 2);
+    assert_eq!(s.dirichlet[0].group, "left");
+    assert_eq!(s.dirichlet[0].components, vec![0, 1]);
+    assert!(s.dirichlet[0].components_given);
+    assert!(s.dirichlet[0].value.is_zero());
+    assert_eq!(s.dirichlet[1].components, vec![0, 1, 2]);
+    assert!(!s.dirichlet[1].components_given);
+    assert_eq!(s.dirichlet[1].constrained(2), vec![0, 1]);
+    assert_eq!(s.dirichlet[1].value.eval([0.0; 3], 2.0), [0.0, 2e-3, 0.0]);
+    assert_eq!(s.neumann.len(), 1);
+    assert_eq!(s.neumann[0].group, "top");
+    let tr = s.neumann[0].traction.eval([0.0; 3], 0.25);
+    assert!((tr[1] + 1e-3).abs() < 1e-15);
+    let b = s.body_force.as_ref().unwrap();
+    let (x, y, t) = (3.0, 0.5, 0.1);
+    let want = 0.02 * x * (10.0 - x) * y * y * (2.0 * std::f64::consts::PI * t).sin();
+    assert!((b.eval([x, y, 0.0], t)[1] - want).abs() < 1e-15);
+    assert!(s.initial_displacement.as_ref().unwrap().is_zero());
+    assert_eq!(s.initial_velocity.as_ref().unwrap().eval([2.0, 0.0, 0.0], 0.0), [0.0, 16.0, 0.0]);
+    assert_eq!(s.tau, 1e-5);
+    assert_eq!(s.steps, 250);
+    assert!((s.end_time() - 2.5e-3).abs() < 1e-15);
+    assert_eq!(s.mass.kind, MassKind::Modified1);
+    assert_eq!(s.mass.kind.name(), "modified1");
+    assert_eq!(s.mass.contact_boundary.as_deref(), Some("bottom"));
+    assert_eq!(
+        s.solver,
+        SolverSpec {
+            ksp_type: Some("cg".into()),
+            pc_type: Some("jacobi".into()),
+            rtol: Some(1e-10),
+            options: vec![
+                "-ksp_norm_type".into(),
+                "unpreconditioned".into(),
+                "-ksp_monitor".into()
+            ],
+        }
+    );
+    assert_eq!(
+        s.output,
+        OutputSpec {
+            file: PathBuf::from("results/beam.h5"),
+            every: 5,
+            fields: vec![Field::Velocity],
+            progress: true,
+        }
+    );
+    let ex = s.exact.as_ref().unwrap();
+    assert_eq!(ex.displacement.eval([2.0, 0.0, 0.0], 3.0), [0.0, 6.0, 0.0]);
+    assert!(ex.velocity.is_some());
+    let g = ex.gradient.as_ref().unwrap();
+    assert_eq!(g.len(), 2);
+    assert_eq!(g[1].eval([0.0; 3], 7.0), [7.0, 0.0, 0.0]);
+    assert_eq!(ex.error_steps, vec![10, 30]);
+    let c = s.contact.as_ref().unwrap();
+    assert_eq!(c.boundary, "contact");
+    assert_eq!(c.obstacle, Obstacle::Plane { point: vec![0.0, -1.0], normal: vec![0.0, 1.0] });
+    s.check_dim(2).unwrap();
+}
+
+#[test]
+fn minimal_scene_defaults() {
+    let dir = workspace();
+    let s = parse_in(&dir, MINIMAL).unwrap();
+    assert_eq!(s.name, "beam"); // file stem
+    assert_eq!(s.mesh, MeshSource::Msh { path: dir.join("scenes").join("../meshes/beam.msh") });
+    assert!(s.dirichlet.is_empty() && s.neumann.is_empty());
+    assert!(s.body_force.is_none());
+    assert!(s.initial_displacement.is_none() && s.initial_velocity.is_none());
+    assert_eq!(s.steps, 10);
+    assert_eq!(s.mass.kind, MassKind::Consistent);
+    assert_eq!(s.mass.contact_boundary, None);
+    assert_eq!(s.solver, SolverSpec::default());
+    assert_eq!(s.output.file, PathBuf::from("out/beam.h5"));
+    assert_eq!(s.output.every, 1);
+    assert_eq!(s.output.fields, vec![Field::Displacement, Field::Velocity]);
+    assert!(!s.output.progress);
+    assert!(s.exact.is_none() && s.contact.is_none());
+    assert_eq!(s.effects(), Effects::default());
+    s.check_dim(2).unwrap();
+    s.check_dim(3).unwrap();
+}
+
+#[test]
+fn load_from_file() {
+    let dir = workspace();
+    let path = dir.join("scenes").join("cantilever.toml");
+    std::fs::write(&path, MINIMAL).unwrap();
+    let s = load(&path).unwrap();
+    assert_eq!(s.name, "cantilever");
+    assert_eq!(s.source, path);
+    assert_eq!(s.text, MINIMAL);
+    assert_eq!(s.output.file, PathBuf::from("out/cantilever.h5"));
+    let missing = load(&dir.join("scenes/nope.toml")).unwrap_err().to_string();
+    assert!(missing.contains("nope.toml: cannot read the scene file"), "{missing}");
+    std::fs::write(&path, "[material]\nE = 1\nnu = 0.7\nrho = 1\n").unwrap();
+    let m = load(&path).unwrap_err().to_string();
+    assert!(m.contains("cantilever.toml: missing key \"mesh\""), "{m}");
+}
+
+#[test]
+fn defaults_for_exact_and_mass() {
+    let dir = workspace();
+    let text =
+        format!("{MINIMAL}\n[exact]\ndisplacement = [\"x\", 0]\n[mass]\nkind = \"lumped\"\n");
+    let s = parse_in(&dir, &text).unwrap();
+    assert_eq!(s.exact.as_ref().unwrap().error_steps, vec![10]);
+    assert!(s.exact.as_ref().unwrap().gradient.is_none());
+    assert_eq!(s.mass.kind, MassKind::Lumped);
+    let s = parse_in(&dir, &format!("{MINIMAL}\n[mass]\n")).unwrap();
+    assert_eq!(s.mass.kind, MassKind::Consistent);
+}
+
+#[test]
+fn sphere_obstacle() {
+    let dir = workspace();
+    let text = format!(
+        "{MINIMAL}\n[contact]\nboundary = \"c\"\nobstacle = {{ type = \"sphere\", center = [0, 2, 0], radius = 1.5 }}\n"
+    );
+    let s = parse_in(&dir, &text).unwrap();
+    assert_eq!(
+        s.contact.as_ref().unwrap().obstacle,
+        Obstacle::Sphere { center: vec![0.0, 2.0, 0.0], radius: 1.5 }
+    );
+    assert!(s.effects().contact);
+    s.check_dim(3).unwrap();
+    let m = s.check_dim(2).unwrap_err().to_string();
+    assert!(m.contains("contact.obstacle.center has 3 components but the mesh is 2D"), "{m}");
+    // As a sub-table instead of an inline table.
+    let text = format!(
+        "{MINIMAL}\n[contact]\nboundary = \"c\"\n[contact.obstacle]\ntype = \"sphere\"\ncenter = [0, 2]\nradius = 1\n"
+    );
+    parse_in(&dir, &text).unwrap();
+}
+
+#[test]
+fn unknown_keys() {
+    assert_err(
+        &format!("materail = 3\n{MINIMAL}"),
+        &["unknown key \"materail\"", "allowed: name, mesh, material, dirichlet"],
+    );
+    let m = err_of(&minimal_with("[material]", "[materail]\nE=1\n[material]"));
+    assert!(m.contains("unknown key \"materail\""), "{m}");
+    assert_err(
+        &minimal_with("rho = 2", "rho = 2\nrho2 = 3"),
+        &["unknown key \"material.rho2\" (allowed: E, nu, rho)", "(line 8)"],
+    );
+    assert_err(
+        &minimal_with("E = 1", "e = 1"),
+        &["unknown key \"material.e\" (allowed: E, nu, rho)"],
+    );
+    assert_err(
+        &full_with("group = \"clamp\"", "group = \"clamp\"\nvalues = [1]"),
+        &["unknown key \"dirichlet[1].values\"", "allowed: group, value, components"],
+    );
+    assert_err(
+        &full_with("normal = [0.0, 2.0]", "normal = [0.0, 2.0], foo = 1"),
+        &["unknown key \"contact.obstacle.foo\"", "allowed: point, normal"],
+    );
+    assert_err(
+        &full_with("params = { h = 0.25, n = 4 }", "param = { h = 0.25 }"),
+        &["unknown key \"mesh.param\"", "allowed: geo, msh, params, binary"],
+    );
+    assert_err(
+        &full_with("progress = true", "progres = true"),
+        &["unknown key \"output.progres\""],
+    );
+}
+
+#[test]
+fn wrong_types_and_values() {
+    assert_err(
+        &minimal_with("E = 1", "E = \"big\""),
+        &["material.E has the wrong type", "expected a number", "(line 5)"],
+    );
+    assert_err(
+        &minimal_with("steps = 10", "steps = 2.5"),
+        &["time.steps has the wrong type", "expected an integer"],
+    );
+    assert_err(
+        &full_with("value = [0, \"1e-3*t\"]", "value = [0, true]"),
+        &["dirichlet[1].value has the wrong type", "expression string or a number"],
+    );
+    assert_err(
+        &full_with("kind = \"modified1\"", "kind = \"heavy\""),
+        &[
+            "mass.kind = \"heavy\" is not allowed",
+            "allowed: consistent, lumped, modified0, modified1",
+        ],
+    );
+    assert_err(
+        &full_with("fields = [\"velocity\"]", "fields = [\"velocity\", \"stress\"]"),
+        &["output.fields = \"stress\" is not allowed", "allowed: displacement, velocity"],
+    );
+    assert_err(
+        &full_with("components = [\"y\", \"x\"]", "components = [\"w\"]"),
+        &["dirichlet[0].components = \"w\" is not allowed", "allowed: x, y, z"],
+    );
+    assert_err(
+        &full_with("type = \"plane\"", "type = \"cone\""),
+        &["contact.obstacle", "\"cone\" is not allowed", "allowed: plane, sphere"],
+    );
+    assert_err(&minimal_with("rho = 2\n", ""), &["missing key \"material.rho\""]);
+    assert_err(
+        &full_with("traction = [\"0\", \"-1e-3*sin(2*pi*t)\"]", ""),
+        &["missing key \"neumann[0].traction\""],
+    );
+    assert_err(
+        &full_with(", normal = [0.0, 2.0]", ""),
+        &["missing key \"contact.obstacle.normal\""],
+    );
+    assert_err(&MINIMAL.replace("[time]\ntau = 0.1\nsteps = 10\n", ""), &["missing key \"time\""]);
+    assert_err("[mesh\n", &["invalid TOML", "line 1"]);
+    // A misplaced key lands in the table above it, and the message says so.
+    assert_err(
+        &minimal_with("[material]", "materail = 3\n[material]"),
+        &["unknown key \"mesh.materail\" (allowed: geo, msh, params, binary)"],
+    );
+    assert_err(
+        &minimal_with("rho = 2", "rho = 2\nrho = 3"),
+        &["invalid TOML", "duplicate key", "line 8"],
+    );
+}
+
+#[test]
+fn impossible_values() {
+    let cases: &[(&str, &str, &[&str])] = &[
+        ("E = 1", "E = 0", &["material.E = 0 is impossible", "> 0"]),
+        ("E = 1", "E = -3", &["material.E = -3 is impossible"]),
+        (
+            "nu = 0.25",
+            "nu = 0.5",
+            &["material.nu = 0.5 is impossible: Poisson's ratio must be in (-1, 0.5)"],
+        ),
+        ("nu = 0.25", "nu = -1", &["material.nu = -1 is impossible"]),
+        ("nu = 0.25", "nu = nan", &["material.nu = NaN is impossible"]),
+        ("rho = 2", "rho = 0", &["material.rho = 0 is impossible"]),
+        ("tau = 0.1", "tau = 0", &["time.tau = 0 is impossible: the time step must be > 0"]),
+        ("steps = 10", "steps = 0", &["time.steps = 0 is impossible", ">= 1"]),
+        ("steps = 10", "steps = -4", &["time.steps = -4 is impossible"]),
+        ("steps = 10", "steps = 10\nend = 1.0", &["time: give exactly one of steps and end"]),
+        ("steps = 10", "", &["time: give the number of steps", "time.end"]),
+        ("steps = 10", "end = 1.05", &["time.end = 1.05 is impossible", "whole number of steps"]),
+        ("steps = 10", "end = 0", &["time.end = 0 is impossible"]),
+        ("steps = 10", "end = 0.01", &["time.end = 0.01 is impossible", "shorter than one step"]),
+        (
+            "msh = \"../meshes/beam.msh\"",
+            "msh = \"../meshes/beam.msh\"\ngeo = \"../meshes/beam.geo\"",
+            &["mesh: give exactly one of geo and msh"],
+        ),
+        (
+            "msh = \"../meshes/beam.msh\"",
+            "binary = true",
+            &["mesh: give exactly one of geo", "msh"],
+        ),
+        (
+            "msh = \"../meshes/beam.msh\"",
+            "msh = \"../meshes/nope.msh\"",
+            &["mesh.msh = \"../meshes/nope.msh\": file not found: ", "meshes/nope.msh"],
+        ),
+        (
+            "msh = \"../meshes/beam.msh\"",
+            "geo = \"nope.geo\"",
+            &["mesh.geo = \"nope.geo\": file not found", "scenes/nope.geo"],
+        ),
+        (
+            "msh = \"../meshes/beam.msh\"",
+            "msh = \"../meshes/beam.msh\"\nparams = { h = 1 }",
+            &["mesh.params only applies to mesh.geo"],
+        ),
+        (
+            "msh = \"../meshes/beam.msh\"",
+            "msh = \"../meshes/beam.msh\"\nbinary = false",
+            &["mesh.binary only applies to mesh.geo"],
+        ),
+    ];
+    for (from, to, needles) in cases {
+        assert_err(&minimal_with(from, to), needles);
+    }
+    let more = [
+        "[mass]\nkind = \"modified0\"\n",
+        "[output]\nevery = 0\n",
+        "[solver]\nrtol = 1.5\n",
+        "[exact]\ndisplacement = [\"0\", \"0\"]\nerror_steps = [11]\n",
+        "[exact]\ndisplacement = [\"0\", \"0\"]\nerror_steps = [-1]\n",
+        "[contact]\nboundary = \"c\"\nobstacle = { type = \"plane\", point = [0, 0], normal = [0, 0] }\n",
+        "[contact]\nboundary = \"c\"\nobstacle = { type = \"sphere\", center = [0, 0], radius = 0 }\n",
+        "[contact]\nboundary = \"c\"\nobstacle = { type = \"sphere\", center = [0], radius = 1 }\n",
+        "[[dirichlet]]\ngroup = \"\"\n",
+        "[[dirichlet]]\ngroup = \"a\"\ncomponents = [\"x\", \"x\"]\n",
+        "[body_force]\nvalue = []\n",
+        "[body_force]\nvalue = [1, 2, 3, 4]\n",
+    ];
+    let needles: [&[&str]; 12] = [
+        &["mass.kind = modified0 needs mass.contact_boundary: the mass-free layer is built along the potential contact boundary"],
+        &["output.every = 0 is impossible"],
+        &["solver.rtol = 1.5 is impossible", "(0, 1)"],
+        &["exact.error_steps contains 11", "time.steps = 10"],
+        &["exact.error_steps contains -1"],
+        &["contact.obstacle.normal = [0.0, 0.0] is impossible: the normal must be nonzero"],
+        &["contact.obstacle.radius = 0 is impossible: the radius must be > 0"],
+        &["contact.obstacle.center has 1 components"],
+        &["dirichlet[0].group is empty"],
+        &["dirichlet[0].components lists a component twice"],
+        &["body_force.value is empty"],
+        &["body_force.value has 4 components"],
+    ];
+    for (extra, needles) in more.iter().zip(needles.iter()) {
+        assert_err(&format!("{MINIMAL}\n{extra}"), needles);
+    }
+}
+
+#[test]
+fn bad_expressions_name_key_and_index() {
+    assert_err(
+        &full_with(
+            "traction = [\"0\", \"-1e-3*sin(2*pi*t)\"]",
+            "traction = [\"0\", \"3*sinn(t)\"]",
+        ),
+        &["neumann[0].traction[1]: unknown function 'sinn' at column 3"],
+    );
+    assert_err(
+        &full_with("value = [\"0\", \"0.02*x", "value = [\"q\", \"0.02*x"),
+        &["body_force.value[0]: unknown variable 'q' at column 1"],
+    );
+    assert_err(
+        &full_with("velocity = [\"0\", \"x*(10-x)\"]", "velocity = [\"0\", \"x*(10-x))\"]"),
+        &["initial.velocity[1]: unmatched ')' at column 9"],
+    );
+    assert_err(
+        &full_with(
+            "gradient = [[\"0\", \"0\"], [\"t\", \"0\"]]",
+            "gradient = [[\"0\", \"0\"], [\"t\", \"1+\"]]",
+        ),
+        &["exact.gradient[1][1]: unexpected end of expression"],
+    );
+    assert_err(
+        &full_with("value = [0, \"1e-3*t\"]", "value = [0, \"\"]"),
+        &["dirichlet[1].value[1]: empty expression"],
+    );
+}
+
+#[test]
+fn check_dim_names_the_key() {
+    let dir = workspace();
+    let s = parse_in(&dir, FULL).unwrap();
+    let m = s.check_dim(3).unwrap_err().to_string();
+    assert!(m.starts_with("scene error: beam.toml: "), "{m}");
+    assert!(m.contains("has 2 components but the mesh is 3D"), "{m}");
+    assert!(s.check_dim(1).is_err());
+
+    let text = format!("{MINIMAL}\n[initial]\nvelocity = [\"0\", \"0\", \"1\"]\n");
+    let s = parse_in(&dir, &text).unwrap();
+    s.check_dim(3).unwrap();
+    let m = s.check_dim(2).unwrap_err().to_string();
+    assert!(m.contains("initial.velocity has 3 components but the mesh is 2D"), "{m}");
+
+    let text = format!("{MINIMAL}\n[[dirichlet]]\ngroup = \"a\"\ncomponents = [\"z\"]\n");
+    let s = parse_in(&dir, &text).unwrap();
+    s.check_dim(3).unwrap();
+    let m = s.check_dim(2).unwrap_err().to_string();
+    assert!(m.contains("dirichlet[0].components includes \"z\" but the mesh is 2D"), "{m}");
+
+    let text =
+        format!("{MINIMAL}\n[exact]\ndisplacement = [0, 0]\ngradient = [[0, 0], [0, 0], [0, 0]]\n");
+    let m = parse_in(&dir, &text).unwrap().check_dim(2).unwrap_err().to_string();
+    assert!(m.contains("exact.gradient has 3 rows but the mesh is 2D"), "{m}");
+    let text = format!("{MINIMAL}\n[exact]\ndisplacement = [0, 0]\ngradient = [[0, 0], [0]]\n");
+    let m = parse_in(&dir, &text).unwrap().check_dim(2).unwrap_err().to_string();
+    assert!(m.contains("exact.gradient[1] has 1 components"), "{m}");
+}
+
+#[test]
+fn effects_follow_the_scene() {
+    let dir = workspace();
+    let s = parse_in(&dir, FULL).unwrap();
+    assert_eq!(
+        s.effects(),
+        Effects {
+            body_force: true,
+            body_force_time_dependent: true,
+            neumann: true,
+            neumann_time_dependent: true,
+            dirichlet_nonzero: true,
+            dirichlet_time_dependent: true,
+            contact: true,
+            exact: true,
+        }
+    );
+    let text = format!(
+        "{MINIMAL}\n[body_force]\nvalue = [0, \"0.0\"]\n[[neumann]]\ngroup = \"top\"\ntraction = [\"0\", \"-2*x\"]\n[[neumann]]\ngroup = \"side\"\ntraction = [0, 0]\n[[dirichlet]]\ngroup = \"left\"\n[[dirichlet]]\ngroup = \"right\"\nvalue = [\"0\", \"0.1\"]\n"
+    );
+    let s = parse_in(&dir, &text).unwrap();
+    assert!(s.body_force.as_ref().unwrap().is_zero());
+    assert_eq!(
+        s.effects(),
+        Effects {
+            body_force: false,
+            body_force_time_dependent: false,
+            neumann: true,
+            neumann_time_dependent: false,
+            dirichlet_nonzero: true,
+            dirichlet_time_dependent: false,
+            contact: false,
+            exact: false,
+        }
+    );
+}
+
+#[test]
+fn error_paths_in_multiline_arrays() {
+    let text =
+        format!("{MINIMAL}\n[[neumann]]\ngroup = \"top\"\ntraction = [\n  \"0\",\n  false,\n]\n");
+    assert_err(&text, &["neumann[0].traction has the wrong type", "(line 16)"]);
+}

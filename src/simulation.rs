@@ -1,0 +1,776 @@
+//! One run of a scene, top to bottom: scene -> mesh -> partition -> assemble A, M, loads ->
+//! step operator (set up once) -> initial energy -> time loop (solve, energies, output,
+//! progress) -> summary. Like deal.II's tutorials, the type has `setup`, `assemble`,
+//! `solve_step`, `output`, `run`.
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use mpi::collective::SystemOperation;
+use mpi::topology::SimpleCommunicator;
+use mpi::traits::*;
+
+use crate::assembly::{self, Loads};
+use crate::console::{Console, Progress};
+use crate::error::{Error, Result};
+use crate::fem::{self, kernels};
+use crate::io::{natural_range, Output, OutputPlan};
+use crate::mass::mass_matrix;
+use crate::mesh::Mesh;
+use crate::partition::Partition;
+use crate::petsc::{Matrix, NullSpace, Scatter, Vector};
+use crate::scene::{Field, MeshSource, Scene};
+use crate::time::{energies, StepOperator, StepSolverDefaults};
+
+/// What the command line adds to a scene.
+#[derive(Debug, Clone, Default)]
+pub struct RunOptions {
+    pub output: Option<PathBuf>,
+    pub overwrite: bool,
+    /// Override the scene's number of steps.
+    pub steps: Option<usize>,
+    pub quiet: bool,
+    /// Print the energies of every step.
+    pub verbose: bool,
+    /// Do not write the HDF5 file.
+    pub no_output: bool,
+}
+
+/// Wall time of the phases of a run, in seconds (max over ranks).
+#[derive(Debug, Clone, Default, serde::Serialize)]
+pub struct Timings {
+    pub mesh: f64,
+    pub partition: f64,
+    pub assembly: f64,
+    pub setup: f64,
+    pub stepping: f64,
+    pub output: f64,
+}
+
+/// Errors of the displacement against the scene's exact solution at one step.
+#[derive(Debug, Clone, Copy, serde::Serialize)]
+pub struct ErrorSample {
+    pub step: usize,
+    pub time: f64,
+    pub l2: f64,
+    pub h1_semi: f64,
+}
+
+/// What a finished run reports (written by `--summary FILE` as TOML).
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct RunSummary {
+    pub n_nodes: usize,
+    pub n_dofs: usize,
+    pub steps: usize,
+    pub timings: Timings,
+    pub ksp_iterations: usize,
+    pub energy_initial: f64,
+    pub energy_final: f64,
+    pub external_work: f64,
+    /// max_n |E^n - E^0 - W^n| / max_n E^n: the integrator's energy balance.
+    pub energy_balance: f64,
+    /// max_n |E^n - E^0| / E^0.
+    pub energy_drift: f64,
+    pub errors: Vec<ErrorSample>,
+    pub output: Option<PathBuf>,
+    /// Wall time of one MatMult with the step operator (the floor of a step's cost).
+    pub matmult_seconds: f64,
+    /// Peak resident memory summed over the ranks, in MiB.
+    pub peak_memory_mib: f64,
+    pub ranks: usize,
+    /// Final displacement in natural node order (this rank's block) for checks.
+    #[serde(skip)]
+    pub final_u_natural: Vec<f64>,
+}
+
+/// Mesh the scene's geometry (gmsh on rank 0, others wait) and read it on every rank.
+pub fn load_mesh(world: &SimpleCommunicator, scene: &Scene) -> Result<Mesh> {
+    let rank = world.rank();
+    let path = match &scene.mesh {
+        MeshSource::Msh { path } => path.clone(),
+        MeshSource::Geo { path, params, binary } => {
+            let cache = path.parent().unwrap_or(Path::new(".")).join(".cache");
+            let dim_guess = 3; // gmsh -3 meshes the highest dimension present in the .geo
+            let mut result = Ok(PathBuf::new());
+            if rank == 0 {
+                result = crate::mesh::gmsh::mesh_geo(path, params, dim_guess, *binary, &cache);
+            }
+            let mut ok = i32::from(result.is_ok());
+            world.process_at_rank(0).broadcast_into(&mut ok);
+            if ok == 0 {
+                return Err(result.err().unwrap_or_else(|| {
+                    Error::Mesh(format!("meshing {} failed on rank 0", path.display()))
+                }));
+            }
+            // The others find rank 0's mesh in the cache (same key, no second gmsh run).
+            match result {
+                Ok(p) if rank == 0 => p,
+                _ => crate::mesh::gmsh::mesh_geo(path, params, dim_guess, *binary, &cache)?,
+            }
+        }
+    };
+    let mesh = crate::mesh::msh::read_msh(&path)?;
+    crate::mesh::check::check_geometry(&mesh)?;
+    Ok(mesh)
+}
+
+pub struct Simulation<'a> {
+    world: &'a SimpleCommunicator,
+    console: &'a Console,
+    pub scene: Scene,
+    opts: RunOptions,
+    pub mesh: Mesh,
+    pub part: Partition,
+    rank: usize,
+    size: usize,
+    pub timings: Timings,
+    // Operators (built once).
+    pub a: Option<Matrix>,
+    pub m: Option<Matrix>,
+    loads: Option<Loads>,
+    op: Option<StepOperator>,
+    dirichlet: Vec<(i32, usize, usize, usize)>, // (dof, node, comp, spec)
+    // State.
+    pub u: Option<Vector>,
+    pub v: Option<Vector>,
+    natural: Option<(Scatter, Vector)>,
+    local_view: Option<(Scatter, Vector, Vec<usize>)>,
+    output: Option<Output>,
+}
+
+fn max_over_ranks(world: &SimpleCommunicator, x: f64) -> f64 {
+    let mut y = 0.0;
+    world.all_reduce_into(&x, &mut y, SystemOperation::max());
+    y
+}
+
+fn sum_over_ranks(world: &SimpleCommunicator, x: f64) -> f64 {
+    let mut y = 0.0;
+    world.all_reduce_into(&x, &mut y, SystemOperation::sum());
+    y
+}
+
+impl<'a> Simulation<'a> {
+    /// Scene, mesh and partition.
+    pub fn setup(
+        world: &'a SimpleCommunicator,
+        console: &'a Console,
+        scene: Scene,
+        opts: RunOptions,
+    ) -> Result<Simulation<'a>> {
+        let rank = world.rank() as usize;
+        let size = world.size() as usize;
+        let t0 = Instant::now();
+        let mesh = load_mesh(world, &scene)?;
+        scene.check_dim(mesh.dim)?;
+        let t_mesh = t0.elapsed().as_secs_f64();
+        let t1 = Instant::now();
+        let part = Partition::new(&mesh, rank, size)?;
+        let t_part = t1.elapsed().as_secs_f64();
+        let timings = Timings {
+            mesh: max_over_ranks(world, t_mesh),
+            partition: max_over_ranks(world, t_part),
+            ..Default::default()
+        };
+        Ok(Simulation {
+            world,
+            console,
+            scene,
+            opts,
+            mesh,
+            part,
+            rank,
+            size,
+            timings,
+            a: None,
+            m: None,
+            loads: None,
+            op: None,
+            dirichlet: Vec::new(),
+            u: None,
+            v: None,
+            natural: None,
+            local_view: None,
+            output: None,
+        })
+    }
+
+    pub fn n_steps(&self) -> usize {
+        self.opts.steps.unwrap_or(self.scene.steps)
+    }
+
+    /// Stiffness, mass, loads, Dirichlet DOFs, and the step operator with its solver.
+    pub fn assemble(&mut self) -> Result<()> {
+        let t0 = Instant::now();
+        let mesh = &self.mesh;
+        let part = &self.part;
+        let mat = fem::Material::from_young_poisson(
+            self.scene.material.e,
+            self.scene.material.nu,
+            self.scene.material.rho,
+        );
+        let a = assembly::assemble_matrix(mesh, part, |c, xy, out| {
+            kernels::stiffness(mesh.cells[c].kind, xy, &mat, out)
+                .map_err(|e| Error::Mesh(format!("{e} (gmsh element tag {})", mesh.cells[c].tag)))
+        })?;
+        let m = mass_matrix(mesh, part, mat.rho, self.scene.mass.kind)?;
+        let neumann: Vec<(String, crate::scene::expr::VecExpr)> =
+            self.scene.neumann.iter().map(|n| (n.group.clone(), n.traction.clone())).collect();
+        let loads = Loads::new(mesh, part, self.scene.body_force.as_ref(), &neumann)?;
+
+        // Dirichlet DOFs owned by this rank (later specs override earlier ones on shared nodes).
+        let mut dir: std::collections::BTreeMap<i32, (usize, usize, usize)> = Default::default();
+        for (si, d) in self.scene.dirichlet.iter().enumerate() {
+            let comps = d.constrained(mesh.dim);
+            for v in mesh.group_nodes(&d.group)? {
+                if part.owns(v) {
+                    for &c in &comps {
+                        dir.insert(part.dof(v, c) as i32, (v, c, si));
+                    }
+                }
+            }
+        }
+        self.dirichlet = dir.into_iter().map(|(k, (v, c, s))| (k, v, c, s)).collect();
+        let t_asm = t0.elapsed().as_secs_f64();
+
+        let t1 = Instant::now();
+        let nonzero_dirichlet = self.scene.dirichlet.iter().any(|d| !d.value.is_zero());
+        let null_space = self.near_null_space()?;
+        let mut defaults = StepSolverDefaults::default();
+        if let Some(k) = &self.scene.solver.ksp_type {
+            defaults.ksp_type = k.clone();
+        }
+        if let Some(p) = &self.scene.solver.pc_type {
+            defaults.pc_type = p.clone();
+        }
+        if let Some(r) = self.scene.solver.rtol {
+            defaults.rtol = r;
+        }
+        let dofs: Vec<i32> = self.dirichlet.iter().map(|d| d.0).collect();
+        let op = StepOperator::new(
+            &m,
+            &a,
+            self.scene.tau,
+            dofs,
+            nonzero_dirichlet,
+            Some(&null_space),
+            &defaults,
+        )?;
+        let t_setup = t1.elapsed().as_secs_f64();
+        self.timings.assembly = max_over_ranks(self.world, t_asm);
+        self.timings.setup = max_over_ranks(self.world, t_setup);
+        self.a = Some(a);
+        self.m = Some(m);
+        self.loads = Some(loads);
+        self.op = Some(op);
+        Ok(())
+    }
+
+    /// Rigid-body modes from the owned nodes' coordinates (for algebraic multigrid).
+    fn near_null_space(&self) -> Result<NullSpace> {
+        let mut coords = assembly::new_vector(&self.part)?;
+        let dim = self.part.dim;
+        coords.with_local_slice_mut(|x| {
+            for (i, &v) in self.part.owned_nodes.iter().enumerate() {
+                for c in 0..dim {
+                    x[i * dim + c] = self.mesh.coords[v][c];
+                }
+            }
+        })?;
+        NullSpace::rigid_body_modes(&coords)
+    }
+
+    /// Scatter from the solver's layout to this rank's block of natural (gmsh) node order.
+    fn natural_scatter(&self, x: &Vector) -> Result<(Scatter, Vector)> {
+        let dim = self.part.dim;
+        let (lo, hi) = natural_range(self.mesh.n_nodes(), self.rank, self.size);
+        let y = Vector::new_mpi((hi - lo) * dim, self.part.n_global_dofs(), dim)?;
+        let mut from = Vec::with_capacity((hi - lo) * dim);
+        let mut to = Vec::with_capacity((hi - lo) * dim);
+        for node in lo..hi {
+            for c in 0..dim {
+                from.push(self.part.dof(node, c) as i32);
+                to.push((node * dim + c) as i32);
+            }
+        }
+        let sc = Scatter::new(x, &from, &y, &to)?;
+        Ok((sc, y))
+    }
+
+    /// This rank's natural block of `x` (interlaced components).
+    pub fn to_natural(&mut self, x: &Vector) -> Result<Vec<f64>> {
+        if self.natural.is_none() {
+            self.natural = Some(self.natural_scatter(x)?);
+        }
+        let (sc, y) = self.natural.as_mut().expect("natural scatter");
+        sc.forward(x, y)?;
+        let mut out = Vec::new();
+        y.with_local_slice(|s| out.extend_from_slice(s))?;
+        Ok(out)
+    }
+
+    /// Values of `x` at the nodes of this rank's cells (ghosts included), for element loops.
+    fn local_values(&mut self, x: &Vector) -> Result<(Vec<f64>, Vec<usize>)> {
+        if self.local_view.is_none() {
+            let dim = self.part.dim;
+            let mut nodes: Vec<usize> = self
+                .part
+                .local_cells
+                .iter()
+                .flat_map(|&c| self.mesh.cells[c].nodes().iter().copied())
+                .collect();
+            nodes.sort_unstable();
+            nodes.dedup();
+            let mut slot = vec![usize::MAX; self.mesh.n_nodes()];
+            let mut from = Vec::with_capacity(nodes.len() * dim);
+            for (i, &v) in nodes.iter().enumerate() {
+                slot[v] = i;
+                for c in 0..dim {
+                    from.push(self.part.dof(v, c) as i32);
+                }
+            }
+            // A distributed vector holding, on each rank, the values its cells touch.
+            let k = from.len();
+            let mut offset = 0usize;
+            self.world.scan_into(&k, &mut offset, SystemOperation::sum());
+            let total = sum_over_ranks(self.world, k as f64) as usize;
+            let y = Vector::new_mpi(k, total, 1)?;
+            let first = offset - k;
+            let to: Vec<i32> = (first..first + k).map(|i| i as i32).collect();
+            let sc = Scatter::new(x, &from, &y, &to)?;
+            self.local_view = Some((sc, y, slot));
+        }
+        let (sc, y, slot) = self.local_view.as_mut().expect("local view");
+        sc.forward(x, y)?;
+        let mut vals = Vec::new();
+        y.with_local_slice(|s| vals.extend_from_slice(s))?;
+        Ok((vals, slot.clone()))
+    }
+
+    /// L2 and H1-seminorm errors of `u` against the scene's exact displacement at time t.
+    pub fn exact_errors(&mut self, u: &Vector, t: f64) -> Result<Option<(f64, f64)>> {
+        let Some(exact) = self.scene.exact.clone() else { return Ok(None) };
+        let (vals, slot) = self.local_values(u)?;
+        let dim = self.part.dim;
+        let disp = &exact.displacement;
+        let grad = exact.gradient.as_ref();
+        let f = |x: [f64; 3]| -> ([f64; 3], [[f64; 3]; 3]) {
+            let val = disp.eval(x, t);
+            let mut g = [[0.0; 3]; 3];
+            match grad {
+                Some(rows) => {
+                    for i in 0..dim {
+                        let r = rows[i].eval(x, t);
+                        g[i][..dim].copy_from_slice(&r[..dim]);
+                    }
+                }
+                None => {
+                    // Central differences: O(h^2) = 1e-12 relative, far below discretization error.
+                    for j in 0..dim {
+                        let hstep = 1e-6 * (1.0 + x[j].abs());
+                        let (mut xp, mut xm) = (x, x);
+                        xp[j] += hstep;
+                        xm[j] -= hstep;
+                        let (fp, fm) = (disp.eval(xp, t), disp.eval(xm, t));
+                        for i in 0..dim {
+                            g[i][j] = (fp[i] - fm[i]) / (2.0 * hstep);
+                        }
+                    }
+                }
+            }
+            (val, g)
+        };
+        let (mut l2, mut h1) = (0.0, 0.0);
+        let mut xy = [[0.0; 3]; 8];
+        let mut ue = [0.0; assembly::MAX_EDOFS];
+        for &c in &self.part.local_cells {
+            let cell = &self.mesh.cells[c];
+            let n = assembly::cell_coords(&self.mesh, cell, &mut xy);
+            for (i, &v) in cell.nodes().iter().enumerate() {
+                for k in 0..dim {
+                    ue[i * dim + k] = vals[slot[v] * dim + k];
+                }
+            }
+            let (a, b) = kernels::error_sq(cell.kind, &xy[..n], &ue[..n * dim], &f, 6);
+            l2 += a;
+            h1 += b;
+        }
+        let l2 = sum_over_ranks(self.world, l2).sqrt();
+        let h1 = sum_over_ranks(self.world, h1).sqrt();
+        Ok(Some((l2, h1)))
+    }
+
+    fn settings(&self, op: &StepOperator) -> Vec<(String, String)> {
+        vec![
+            ("ranks".into(), self.size.to_string()),
+            ("dim".into(), self.mesh.dim.to_string()),
+            ("nodes".into(), self.mesh.n_nodes().to_string()),
+            ("dofs".into(), self.part.n_global_dofs().to_string()),
+            ("mass".into(), self.scene.mass.kind.name().to_string()),
+            ("tau".into(), format!("{:e}", self.scene.tau)),
+            ("steps".into(), self.n_steps().to_string()),
+            ("ksp_type".into(), op.ksp.ksp_type().unwrap_or_default()),
+            ("pc_type".into(), op.ksp.pc_type().unwrap_or_default()),
+            ("metis_seed".into(), crate::partition::METIS_SEED.to_string()),
+        ]
+    }
+
+    /// The whole time loop. Returns the summary; on error the output file is marked failed.
+    pub fn run(&mut self) -> Result<RunSummary> {
+        let result = self.time_loop();
+        if let Err(e) = &result {
+            if let Some(out) = self.output.as_mut() {
+                let _ = out.finish(&format!("failed: {e}"));
+            }
+        }
+        result
+    }
+
+    fn time_loop(&mut self) -> Result<RunSummary> {
+        let tau = self.scene.tau;
+        let n_steps = self.n_steps();
+        let (a, m) = (self.a.take().expect("assembled"), self.m.take().expect("assembled"));
+        let loads = self.loads.take().expect("assembled");
+        let mut op = self.op.take().expect("assembled");
+
+        // Initial state: nodal interpolants of the scene's initial fields.
+        let mut u = match &self.scene.initial_displacement {
+            Some(e) => assembly::interpolate(&self.mesh, &self.part, e, 0.0)?,
+            None => assembly::new_vector(&self.part)?,
+        };
+        let mut v = match &self.scene.initial_velocity {
+            Some(e) => assembly::interpolate(&self.mesh, &self.part, e, 0.0)?,
+            None => assembly::new_vector(&self.part)?,
+        };
+        let lo = self.part.first_dof();
+        self.apply_dirichlet_values(&mut u, 0.0, lo)?;
+        let mut du = u.duplicate()?;
+        let mut mv = u.duplicate()?;
+        let mut au = u.duplicate()?;
+        let mut rhs = u.duplicate()?;
+        let mut f_now = u.duplicate()?;
+        let mut f_next = u.duplicate()?;
+        let mut f_half = u.duplicate()?;
+        let mut dir_du =
+            if op.k_free.is_some() { Some((u.duplicate()?, u.duplicate()?)) } else { None };
+        if loads.present {
+            loads.assemble(&self.mesh, &self.part, 0.0, &mut f_now)?;
+            f_next.copy_from(&f_now)?;
+        }
+
+        // Output file.
+        if !self.opts.no_output {
+            let t0 = Instant::now();
+            let path = self.opts.output.clone().unwrap_or_else(|| self.scene.output.file.clone());
+            let plan = OutputPlan {
+                displacement: self.scene.output.fields.contains(&Field::Displacement),
+                velocity: self.scene.output.fields.contains(&Field::Velocity),
+                every: self.scene.output.every,
+            };
+            let settings = self.settings(&op);
+            self.output = Some(Output::create(
+                &path,
+                self.world,
+                self.rank,
+                self.size,
+                &self.mesh,
+                &self.part.cell_rank,
+                &self.scene.text,
+                &settings,
+                plan,
+                self.opts.overwrite,
+            )?);
+            self.timings.output += t0.elapsed().as_secs_f64();
+        }
+
+        // Initial energy.
+        m.mult(&v, &mut mv)?;
+        a.mult(&u, &mut au)?;
+        let (ek, ep) = energies(&u, &v, &mv, &au)?;
+        let e0 = ek + ep;
+        let mut work = 0.0;
+        let mut e_max = e0.abs();
+        let mut balance: f64 = 0.0;
+        let mut drift: f64 = 0.0;
+        self.write_step(0, 0.0, &u, &v, ek, ep, work)?;
+        if self.opts.verbose {
+            self.console.say(format!(
+                "step 0  t = 0  kinetic {ek:.10e}  potential {ep:.10e}  total {e0:.10e}"
+            ));
+        }
+        let mut errors = Vec::new();
+        let error_steps: Vec<usize> = match &self.scene.exact {
+            Some(ex) if !ex.error_steps.is_empty() => ex.error_steps.clone(),
+            Some(_) => vec![n_steps],
+            None => vec![],
+        };
+        if error_steps.contains(&0) {
+            if let Some((l2, h1)) = self.exact_errors(&u, 0.0)? {
+                errors.push(ErrorSample { step: 0, time: 0.0, l2, h1_semi: h1 });
+            }
+        }
+
+        let mut progress = Progress::new(self.console, n_steps, self.scene.output.progress);
+        let mut its_total = 0usize;
+        let t_loop = Instant::now();
+        let mut t_out = 0.0;
+        for n in 0..n_steps {
+            let t_next = (n + 1) as f64 * tau;
+            // f^{n+1/2} = (f(t_n) + f(t_{n+1}))/2
+            if loads.present {
+                if loads.time_dependent {
+                    loads.assemble(&self.mesh, &self.part, t_next, &mut f_next)?;
+                }
+                f_half.waxpy(1.0, &f_now, &f_next)?;
+                f_half.scale(0.5)?;
+            }
+            // rhs = 2 f^{n+1/2} + (4/tau) M v^n - 2 A u^n   (mv, au hold M v^n, A u^n)
+            rhs.copy_from(&mv)?;
+            rhs.scale(4.0 / tau)?;
+            rhs.axpy(-2.0, &au)?;
+            if loads.present {
+                rhs.axpy(2.0, &f_half)?;
+            }
+            // Dirichlet rows: du_D = g(t_{n+1}) - u^n_D.
+            self.dirichlet_rhs(&mut op, &u, &mut rhs, &mut dir_du, t_next, lo)?;
+            let info = op.ksp.solve(&rhs, &mut du)?;
+            its_total += info.iterations;
+            if loads.present {
+                work += f_half.dot(&du)?;
+            }
+            u.axpy(1.0, &du)?;
+            // v^{n+1} = 2 du / tau - v^n
+            v.scale(-1.0)?;
+            v.axpy(2.0 / tau, &du)?;
+            if loads.present {
+                std::mem::swap(&mut f_now, &mut f_next);
+                if !loads.time_dependent {
+                    f_next.copy_from(&f_now)?;
+                }
+            }
+            m.mult(&v, &mut mv)?;
+            a.mult(&u, &mut au)?;
+            let (ek, ep) = energies(&u, &v, &mv, &au)?;
+            let e = ek + ep;
+            e_max = e_max.max(e.abs());
+            balance = balance.max((e - e0 - work).abs() / e_max.max(f64::MIN_POSITIVE));
+            if e0 != 0.0 {
+                drift = drift.max(((e - e0) / e0).abs());
+            }
+            if self.opts.verbose {
+                self.console.say(format!(
+                    "step {}  t = {t_next:.6e}  kinetic {ek:.10e}  potential {ep:.10e}  total {e:.10e}  external work {work:.10e}  ksp its {}",
+                    n + 1,
+                    info.iterations
+                ));
+            }
+            let t0 = Instant::now();
+            self.write_step(n + 1, t_next, &u, &v, ek, ep, work)?;
+            t_out += t0.elapsed().as_secs_f64();
+            if error_steps.contains(&(n + 1)) {
+                if let Some((l2, h1)) = self.exact_errors(&u, t_next)? {
+                    errors.push(ErrorSample { step: n + 1, time: t_next, l2, h1_semi: h1 });
+                }
+            }
+            progress.update(n + 1, t_next, balance);
+        }
+        progress.finish();
+        let stepping = t_loop.elapsed().as_secs_f64() - t_out;
+        self.timings.stepping = max_over_ranks(self.world, stepping);
+        self.timings.output = max_over_ranks(self.world, self.timings.output + t_out);
+        let (ek, ep) = energies(&u, &v, &mv, &au)?;
+        let final_u_natural = self.to_natural(&u)?;
+        let matmult_seconds = self.time_matmult(&op.k, &v, &mut rhs)?;
+        let peak_memory_mib = sum_over_ranks(self.world, peak_rss_mib());
+        let summary = RunSummary {
+            n_nodes: self.mesh.n_nodes(),
+            n_dofs: self.part.n_global_dofs(),
+            steps: n_steps,
+            timings: self.timings.clone(),
+            ksp_iterations: its_total,
+            energy_initial: e0,
+            energy_final: ek + ep,
+            external_work: work,
+            energy_balance: balance,
+            energy_drift: drift,
+            errors,
+            output: self.output.as_ref().map(|o| o.path().to_path_buf()),
+            matmult_seconds,
+            peak_memory_mib,
+            ranks: self.size,
+            final_u_natural,
+        };
+        if let Some(out) = self.output.as_mut() {
+            let mut s = format!(
+                "steps = {}\nksp_iterations = {}\nenergy_initial = {:e}\nenergy_final = {:e}\nexternal_work = {:e}\nenergy_balance = {:e}\n",
+                summary.steps, its_total, e0, ek + ep, work, balance
+            );
+            for er in &summary.errors {
+                s += &format!("error_step_{} = l2 {:e} h1_semi {:e}\n", er.step, er.l2, er.h1_semi);
+            }
+            let t = &self.timings;
+            let timing = format!(
+                "mesh = {:e}\npartition = {:e}\nassembly = {:e}\nsetup = {:e}\nstepping = {:e}\noutput = {:e}\n",
+                t.mesh, t.partition, t.assembly, t.setup, t.stepping, t.output
+            );
+            out.set_attr("summary", &s)?;
+            out.set_attr("timings", &timing)?;
+            out.finish("finished")?;
+        }
+        self.u = Some(u);
+        self.v = Some(v);
+        self.a = Some(a);
+        self.m = Some(m);
+        self.op = Some(op);
+        Ok(summary)
+    }
+
+    /// Mean wall time of one `y = K x` (max over ranks), timed after the run: the unit in which
+    /// the benchmark expresses the cost of a step.
+    fn time_matmult(&self, k: &Matrix, x: &Vector, y: &mut Vector) -> Result<f64> {
+        let reps = 20;
+        k.mult(x, y)?;
+        self.world.barrier();
+        let t0 = Instant::now();
+        for _ in 0..reps {
+            k.mult(x, y)?;
+        }
+        let dt = t0.elapsed().as_secs_f64() / reps as f64;
+        Ok(max_over_ranks(self.world, dt))
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    fn write_step(
+        &mut self,
+        step: usize,
+        t: f64,
+        u: &Vector,
+        v: &Vector,
+        ek: f64,
+        ep: f64,
+        work: f64,
+    ) -> Result<()> {
+        if self.output.is_none() {
+            return Ok(());
+        }
+        let fields_due = self.output.as_ref().is_some_and(|o| o.wants_fields(step));
+        let (un, vn) =
+            if fields_due { (self.to_natural(u)?, self.to_natural(v)?) } else { (vec![], vec![]) };
+        let out = self.output.as_mut().expect("output");
+        out.write_energy(step, t, ek, ep, work)?;
+        if fields_due {
+            out.write_fields(step, t, &un, &vn)?;
+        }
+        Ok(())
+    }
+
+    /// Set u's Dirichlet DOFs to their prescribed values at time t.
+    fn apply_dirichlet_values(&self, u: &mut Vector, t: f64, lo: usize) -> Result<()> {
+        if self.dirichlet.is_empty() {
+            return Ok(());
+        }
+        let specs = &self.scene.dirichlet;
+        u.with_local_slice_mut(|x| {
+            for &(dof, node, comp, s) in &self.dirichlet {
+                x[dof as usize - lo] = specs[s].value.eval(self.mesh.coords[node], t)[comp];
+            }
+        })
+    }
+
+    /// Constrained rows of the right-hand side: `diag * du_D` with `du_D = g(t_{n+1}) - u^n_D`;
+    /// for non-zero values the known columns `K[:, D] du_D` move to the right-hand side.
+    fn dirichlet_rhs(
+        &self,
+        op: &mut StepOperator,
+        u: &Vector,
+        rhs: &mut Vector,
+        work: &mut Option<(Vector, Vector)>,
+        t_next: f64,
+        lo: usize,
+    ) -> Result<()> {
+        if self.dirichlet.is_empty() {
+            return Ok(());
+        }
+        let specs = &self.scene.dirichlet;
+        let mut du_d = vec![0.0; self.dirichlet.len()];
+        if let Some((w, kw)) = work.as_mut() {
+            u.with_local_slice(|x| {
+                for (i, &(dof, node, comp, s)) in self.dirichlet.iter().enumerate() {
+                    let g = specs[s].value.eval(self.mesh.coords[node], t_next)[comp];
+                    du_d[i] = g - x[dof as usize - lo];
+                }
+            })?;
+            w.zero()?;
+            w.with_local_slice_mut(|x| {
+                for (i, &(dof, ..)) in self.dirichlet.iter().enumerate() {
+                    x[dof as usize - lo] = du_d[i];
+                }
+            })?;
+            op.k_free.as_ref().expect("unconstrained operator").mult(w, kw)?;
+            rhs.axpy(-1.0, kw)?;
+        }
+        let diag = op.dirichlet_diag;
+        rhs.with_local_slice_mut(|x| {
+            for (i, &(dof, ..)) in self.dirichlet.iter().enumerate() {
+                x[dof as usize - lo] = diag * du_d[i];
+            }
+        })
+    }
+}
+
+/// Peak resident set size of this process (VmHWM), in MiB; 0 where /proc is unavailable.
+pub fn peak_rss_mib() -> f64 {
+    std::fs::read_to_string("/proc/self/status")
+        .ok()
+        .and_then(|s| {
+            s.lines()
+                .find(|l| l.starts_with("VmHWM:"))
+                .and_then(|l| l.split_whitespace().nth(1).and_then(|k| k.parse::<f64>().ok()))
+        })
+        .map(|kib| kib / 1024.0)
+        .unwrap_or(0.0)
+}
+
+/// Human summary lines of a run (printed by rank 0 through the console).
+pub fn summary_lines(sim: &Simulation, s: &RunSummary) -> Vec<String> {
+    let t = &s.timings;
+    let mut lines = vec![
+        format!(
+            "{}: {}D, {} nodes, {} DOFs, {} cells on {} rank(s); mass {}",
+            sim.scene.name,
+            sim.mesh.dim,
+            s.n_nodes,
+            s.n_dofs,
+            sim.mesh.cells.len(),
+            sim.size,
+            sim.scene.mass.kind.name()
+        ),
+        format!(
+            "{} steps of tau = {:e} to t = {:e}: {:.3} s stepping ({:.3} ms/step), {:.2} KSP iterations/step",
+            s.steps,
+            sim.scene.tau,
+            s.steps as f64 * sim.scene.tau,
+            t.stepping,
+            1e3 * t.stepping / s.steps.max(1) as f64,
+            s.ksp_iterations as f64 / s.steps.max(1) as f64
+        ),
+        format!(
+            "time: mesh {:.3} s, partition {:.3} s, assembly {:.3} s, solver setup {:.3} s, output {:.3} s",
+            t.mesh, t.partition, t.assembly, t.setup, t.output
+        ),
+        format!(
+            "energy: initial {:.10e}, final {:.10e}, external work {:.6e}; balance |E^n - E^0 - W^n|/max E = {:.2e}",
+            s.energy_initial, s.energy_final, s.external_work, s.energy_balance
+        ),
+    ];
+    for e in &s.errors {
+        lines.push(format!(
+            "error at step {} (t = {:.6e}): L2 {:.6e}, H1-seminorm {:.6e}",
+            e.step, e.time, e.l2, e.h1_semi
+        ));
+    }
+    if let Some(p) = &s.output {
+        lines.push(format!("output: {}", p.display()));
+    }
+    lines
+}

@@ -1,0 +1,64 @@
+//! Bad input gets a one-line error naming the culprit and a non-zero exit code, never a panic.
+
+mod common;
+use common::*;
+
+fn expect_error(args: &[&str], culprit: &str) {
+    let o = massfree(0, args);
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success(), "expected failure for {args:?}");
+    assert!(!stderr.contains("panicked"), "panic for {args:?}: {stderr}");
+    let lines: Vec<&str> = stderr.lines().filter(|l| !l.trim().is_empty()).collect();
+    assert_eq!(lines.len(), 1, "not one line for {args:?}: {stderr}");
+    assert!(lines[0].contains(culprit), "{:?} does not name {culprit:?}", lines[0]);
+}
+
+fn beam_with(dir: &std::path::Path, from: &str, to: &str) -> String {
+    scene_variant("beam.toml", dir, &[(from, to)]).display().to_string()
+}
+
+#[test]
+fn scene_errors_name_the_key() {
+    let dir = scratch("bad-scene");
+    expect_error(&["run", &beam_with(&dir, "E = 200.0", "E = -200.0")], "E");
+    expect_error(&["run", &beam_with(&dir, "nu = 0.3", "nu = 0.5")], "nu");
+    expect_error(&["run", &beam_with(&dir, "tau = 1e-5", "tau = 0.0")], "tau");
+    expect_error(&["run", &beam_with(&dir, "tau = 1e-5", "tau = -1e-5")], "tau");
+    expect_error(&["run", &beam_with(&dir, "[material]", "[materail]")], "materail");
+    expect_error(&["run", &beam_with(&dir, "group = \"top\"", "group = \"roof\"")], "roof");
+}
+
+#[test]
+fn missing_scene_file_is_an_error() {
+    expect_error(&["run", "/nonexistent/scene.toml"], "/nonexistent/scene.toml");
+}
+
+#[test]
+fn malformed_msh_is_an_error() {
+    let dir = scratch("bad-msh");
+    let msh = dir.join("broken.msh");
+    std::fs::write(&msh, "$MeshFormat\n4.1 0 8\n$EndMeshFormat\n$Nodes\n1 2 1 2\n2 1 0 2\n1\n")
+        .unwrap();
+    let text = std::fs::read_to_string(repo().join("scenes/beam.toml")).unwrap();
+    let text = text.replace(
+        "geo = \"../meshes/beam_quad.geo\"\nparams = { h = 0.125 }",
+        &format!("msh = \"{}\"", msh.display()),
+    );
+    let scene = dir.join("beam.toml");
+    std::fs::write(&scene, text).unwrap();
+    expect_error(&["run", &scene.display().to_string()], "broken.msh");
+}
+
+#[test]
+fn bad_petsc_option_value_is_an_error_not_a_panic() {
+    let dir = scratch("bad-petsc");
+    let scene = scene_variant("beam.toml", &dir, &[("steps = 250", "steps = 2")]);
+    let o = massfree(
+        0,
+        &["run", &scene.display().to_string(), "--no-output", "--", "-step_ksp_type", "nonsense"],
+    );
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success());
+    assert!(!stderr.contains("panicked"), "{stderr}");
+    assert!(stderr.contains("massfree: PETSc error"), "{stderr}");
+}

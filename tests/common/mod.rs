@@ -1,0 +1,120 @@
+//! Shared helpers of the integration tests: scene variants, runs of the real binary under
+//! mpirun, and reading back summaries and HDF5 output.
+#![allow(dead_code)]
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+use std::sync::atomic::{AtomicUsize, Ordering};
+
+pub fn repo() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
+
+pub fn bin() -> PathBuf {
+    PathBuf::from(env!("CARGO_BIN_EXE_massfree"))
+}
+
+/// A fresh folder for one test's files under target/test-runs.
+pub fn scratch(name: &str) -> PathBuf {
+    static N: AtomicUsize = AtomicUsize::new(0);
+    let k = N.fetch_add(1, Ordering::SeqCst);
+    let dir = repo().join("target/test-runs").join(format!("{name}-{}-{k}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+/// Write a variant of a shipped scene: mesh paths made absolute, text replacements applied.
+pub fn scene_variant(base: &str, dir: &Path, replace: &[(&str, &str)]) -> PathBuf {
+    let mut text = std::fs::read_to_string(repo().join("scenes").join(base)).unwrap();
+    text = text.replace("\"../meshes/", &format!("\"{}/meshes/", repo().display()));
+    for (a, b) in replace {
+        assert!(text.contains(a), "scene {base} has no {a:?}");
+        text = text.replace(a, b);
+    }
+    let path = dir.join(base);
+    std::fs::write(&path, text).unwrap();
+    path
+}
+
+/// Write a scene from text (mesh paths relative to the repo's meshes/ made absolute).
+pub fn scene_text(dir: &Path, name: &str, text: &str) -> PathBuf {
+    let text = text.replace("\"../meshes/", &format!("\"{}/meshes/", repo().display()));
+    let path = dir.join(name);
+    std::fs::write(&path, text).unwrap();
+    path
+}
+
+/// `mpirun -n ranks massfree args...` (ranks = 0: the binary alone, as a singleton).
+pub fn massfree(ranks: usize, args: &[&str]) -> Output {
+    let mut cmd = if ranks == 0 {
+        Command::new(bin())
+    } else {
+        let mut c = Command::new("mpirun");
+        c.args(["--oversubscribe", "-n", &ranks.to_string()]).arg(bin());
+        c
+    };
+    cmd.args(args)
+        .env("OMPI_ALLOW_RUN_AS_ROOT", "1")
+        .env("OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1")
+        .env("OMPI_MCA_btl_vader_single_copy_mechanism", "none")
+        .env("OMPI_MCA_rmaps_base_oversubscribe", "1")
+        .env("RUST_BACKTRACE", "0");
+    cmd.output().expect("failed to start massfree")
+}
+
+/// Run a scene and return the parsed summary; panics with the program's output on failure.
+pub fn run_scene(ranks: usize, scene: &Path, extra: &[&str]) -> toml::Table {
+    let dir = scene.parent().unwrap();
+    let stem = scene.file_stem().unwrap().to_string_lossy().to_string();
+    let summary = dir.join(format!("{stem}-{ranks}.summary.toml"));
+    let out = dir.join(format!("{stem}-{ranks}.h5"));
+    let mut args = vec![
+        "run".to_string(),
+        scene.display().to_string(),
+        "--quiet".into(),
+        "--overwrite".into(),
+        "--output".into(),
+        out.display().to_string(),
+        "--summary".into(),
+        summary.display().to_string(),
+    ];
+    args.extend(extra.iter().map(|s| s.to_string()));
+    let argv: Vec<&str> = args.iter().map(|s| s.as_str()).collect();
+    let o = massfree(ranks, &argv);
+    assert!(
+        o.status.success(),
+        "massfree failed on {ranks} rank(s):\nstdout:\n{}\nstderr:\n{}",
+        String::from_utf8_lossy(&o.stdout),
+        String::from_utf8_lossy(&o.stderr)
+    );
+    let text = std::fs::read_to_string(&summary).unwrap();
+    text.parse::<toml::Table>().unwrap()
+}
+
+pub fn f(t: &toml::Table, key: &str) -> f64 {
+    match &t[key] {
+        toml::Value::Float(x) => *x,
+        toml::Value::Integer(i) => *i as f64,
+        v => panic!("{key} is {v:?}"),
+    }
+}
+
+/// (step, l2, h1_semi) of the summary's error samples.
+pub fn errors(t: &toml::Table) -> Vec<(usize, f64, f64)> {
+    t.get("errors")
+        .and_then(|e| e.as_array())
+        .map(|a| {
+            a.iter()
+                .map(|e| {
+                    let e = e.as_table().unwrap();
+                    (f(e, "step") as usize, f(e, "l2"), f(e, "h1_semi"))
+                })
+                .collect()
+        })
+        .unwrap_or_default()
+}
+
+pub fn rel_diff(a: f64, b: f64) -> f64 {
+    (a - b).abs() / a.abs().max(b.abs()).max(1e-300)
+}
