@@ -13,8 +13,8 @@ pub enum Error {
     Mesh(String),
     /// Partitioning (METIS) failures.
     Partition(String),
-    /// A PETSc call returned a non-zero error code.
-    Petsc { call: String, code: i32, location: String },
+    /// A PETSc call returned a non-zero error code; `message` is PETSc's own explanation.
+    Petsc { call: String, code: i32, location: String, message: String },
     /// A solver did not converge or a numerical invariant broke.
     Solver(String),
     /// Reading or writing files (HDF5, PNG, CSV, ...).
@@ -30,8 +30,12 @@ impl fmt::Display for Error {
             Error::Scene(m) => write!(f, "scene error: {m}"),
             Error::Mesh(m) => write!(f, "mesh error: {m}"),
             Error::Partition(m) => write!(f, "partition error: {m}"),
-            Error::Petsc { call, code, location } => {
-                write!(f, "PETSc error {code} in {call} at {location}")
+            Error::Petsc { call, code, location, message } => {
+                write!(f, "PETSc error {code} in {call} at {location}")?;
+                if !message.is_empty() {
+                    write!(f, ": {message}")?;
+                }
+                Ok(())
             }
             Error::Solver(m) => write!(f, "solver error: {m}"),
             Error::Io(m) => write!(f, "I/O error: {m}"),

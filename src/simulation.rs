@@ -533,7 +533,10 @@ impl<'a> Simulation<'a> {
             }
             // Dirichlet rows: du_D = g(t_{n+1}) - u^n_D.
             self.dirichlet_rhs(&mut op, &u, &mut rhs, &mut dir_du, t_next, lo)?;
-            let info = op.ksp.solve(&rhs, &mut du)?;
+            let info = op.ksp.solve(&rhs, &mut du).map_err(|e| match e {
+                Error::Solver(m) => Error::Solver(format!("step {} (t = {t_next:e}): {m}", n + 1)),
+                other => other,
+            })?;
             its_total += info.iterations;
             if loads.present {
                 work += f_half.dot(&du)?;

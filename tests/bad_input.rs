@@ -52,7 +52,11 @@ fn malformed_msh_is_an_error() {
 #[test]
 fn bad_petsc_option_value_is_an_error_not_a_panic() {
     let dir = scratch("bad-petsc");
-    let scene = scene_variant("beam.toml", &dir, &[("steps = 250", "steps = 2")]);
+    let scene = scene_variant(
+        "beam.toml",
+        &dir,
+        &[("steps = 250", "steps = 2"), ("error_steps = [30, 250]", "error_steps = [2]")],
+    );
     let o = massfree(
         0,
         &["run", &scene.display().to_string(), "--no-output", "--", "-step_ksp_type", "nonsense"],

@@ -123,3 +123,14 @@ fn more_ranks_than_cells_is_an_error() {
     let e = Partition::new(&mesh, 0, 2).unwrap_err();
     assert!(e.to_string().contains("fewer than the 2 ranks"), "{e}");
 }
+
+#[test]
+fn metis_repeats_itself() {
+    let mesh = quad_mesh(20, 10);
+    let a = massfree::partition::partition_cells(&mesh, 3).unwrap();
+    let b = massfree::partition::partition_cells(&mesh, 3).unwrap();
+    let c = massfree::partition::partition_cells(&mesh, 2).unwrap();
+    let d = massfree::partition::partition_cells(&mesh, 3).unwrap();
+    assert_eq!(a, b);
+    assert_eq!(a, d, "{c:?}");
+}

@@ -2,8 +2,8 @@
 //! process and `cargo test` runs tests on threads, so every PETSc check lives in the single
 //! `#[test]` below, which runs them in order and reports all failures together.
 
-use petscdev::error::{Error, Result};
-use petscdev::petsc::{
+use massfree::error::{Error, Result};
+use massfree::petsc::{
     memory_current, memory_maximum, wtime, IndexSet, Ksp, LogStage, Matrix, NullSpace, Petsc,
     Vector,
 };
@@ -221,10 +221,10 @@ fn check_error_paths(petsc: &Petsc) -> Result<()> {
     let x = Vector::new_mpi(N / 2, N / 2, 1)?;
     let mut y = Vector::new_mpi(N, N, 1)?;
     match petsc.with_quiet_errors(|| a.mult(&x, &mut y)) {
-        Err(Error::Petsc { call, code, location }) => {
+        Err(Error::Petsc { call, code, location, message }) => {
             ensure(call == "MatMult" && code != 0, || format!("{call} {code}"))?;
             ensure(location.starts_with("src/petsc/mat.rs:"), || location.clone())?;
-            println!("expected error: {}", Error::Petsc { call, code, location });
+            println!("expected error: {}", Error::Petsc { call, code, location, message });
         }
         other => return Err(fail(format!("MatMult size mismatch gave {other:?}"))),
     }

@@ -55,6 +55,10 @@ pub fn node_cells(mesh: &Mesh) -> (Vec<usize>, Vec<usize>) {
     (count, list)
 }
 
+/// METIS keeps its random-number state in globals: calls from several threads (tests) must
+/// not interleave, or the "fixed seed" partition changes.
+static METIS_LOCK: std::sync::Mutex<()> = std::sync::Mutex::new(());
+
 /// METIS k-way partition of the cells' dual graph (cells adjacent when they share a facet).
 pub fn partition_cells(mesh: &Mesh, nparts: usize) -> Result<Vec<usize>> {
     let ne = mesh.cells.len();
@@ -75,6 +79,7 @@ pub fn partition_cells(mesh: &Mesh, nparts: usize) -> Result<Vec<usize>> {
     }
     // Facet neighbours: 2 shared nodes in 2D (an edge), 3 in 3D (a triangle or part of a quad face).
     let ncommon = if mesh.dim == 2 { 2 } else { 3 };
+    let _guard = METIS_LOCK.lock().unwrap_or_else(|e| e.into_inner());
     let dual = metis::mesh_to_dual(&eptr, &eind, ncommon)
         .map_err(|e| Error::Partition(format!("METIS_MeshToDual failed: {e}")))?;
     let mut part: Vec<metis::Idx> = vec![0; ne];

@@ -58,6 +58,7 @@ impl Petsc {
                 call: "PetscInitialize (already initialized or finalized in this process)".into(),
                 code: 73,
                 location: format!("{}:{}", file!(), line!()),
+                message: String::new(),
             });
         }
 
@@ -73,6 +74,10 @@ impl Petsc {
         // SAFETY: argc/argv describe NUL-terminated strings kept alive in the returned guard;
         // PETSc does not write through argv; a NULL file means "no options file".
         chk!(ffi::PetscInitialize(&mut argc, &mut argv_ptr, ptr::null(), help.as_ptr()))?;
+        // Errors come back as `Result`s with PETSc's message in them: keep PETSc from printing
+        // its multi-line traceback (the command line's -on_error_* options still apply).
+        // SAFETY: PetscReturnErrorHandler has the handler signature; PETSc is initialized.
+        chk!(ffi::PetscPushErrorHandler(Some(ffi::PetscReturnErrorHandler), ptr::null_mut()))?;
         // Needed for memory_maximum() to report anything.
         // SAFETY: PETSc is initialized.
         chk!(ffi::PetscMemorySetGetMaximumUsage())?;

@@ -50,7 +50,39 @@ pub fn check(code: ffi::PetscErrorCode, call: &str, file: &str, line: u32) -> Re
         return Ok(());
     }
     let call = call.rsplit("::").next().unwrap_or(call).trim();
-    Err(Error::Petsc { call: call.to_owned(), code, location: format!("{file}:{line}") })
+    Err(Error::Petsc {
+        call: call.to_owned(),
+        code,
+        location: format!("{file}:{line}"),
+        message: error_message(code),
+    })
+}
+
+/// PETSc's text for an error: the specific message of the failing call if PETSc recorded one
+/// (e.g. "Unable to find requested KSP type nonsense"), else the generic text of the code.
+fn error_message(code: ffi::PetscErrorCode) -> String {
+    let mut text: *const std::os::raw::c_char = std::ptr::null();
+    let mut specific: *mut std::os::raw::c_char = std::ptr::null_mut();
+    // SAFETY: PetscErrorMessage only writes the two out-pointers, which point to static or
+    // PETSc-owned strings that stay valid while we copy them.
+    let ok = unsafe { ffi::PetscErrorMessage(code, &mut text, &mut specific) } == 0;
+    let read = |p: *const std::os::raw::c_char| {
+        if p.is_null() {
+            String::new()
+        } else {
+            // SAFETY: non-null, NUL-terminated C string from PETSc.
+            unsafe { CStr::from_ptr(p) }.to_string_lossy().trim().replace('\n', " ")
+        }
+    };
+    if !ok {
+        return String::new();
+    }
+    let s = read(specific);
+    if s.is_empty() {
+        read(text)
+    } else {
+        s
+    }
 }
 
 /// Converts a size or index to a 32-bit `PetscInt`, failing instead of truncating.
@@ -96,6 +128,7 @@ pub(crate) fn ensure_live() -> Result<()> {
             call: "PetscInitialized (Petsc::init not called, or PETSc already finalized)".into(),
             code: 73, // PETSC_ERR_ORDER: object in wrong state
             location: format!("{}:{}", file!(), line!()),
+            message: String::new(),
         })
     }
 }

@@ -220,7 +220,7 @@ fn minimal_scene_defaults() {
     assert_eq!(s.output.file, PathBuf::from("out/beam.h5"));
     assert_eq!(s.output.every, 1);
     assert_eq!(s.output.fields, vec![Field::Displacement, Field::Velocity]);
-    assert!(!s.output.progress);
+    assert!(s.output.progress, "progress is on by default (only rank 0 on a terminal shows a bar)");
     assert!(s.exact.is_none() && s.contact.is_none());
     assert_eq!(s.effects(), Effects::default());
     s.check_dim(2).unwrap();

@@ -83,8 +83,11 @@ impl StepOperator {
             ksp.set_pc_factor_solver_type(s)?;
         }
         ksp.set_tolerances(Some(defaults.rtol), Some(1e-50), None, Some(10_000))?;
-        ksp.set_initial_guess_nonzero(true)?;
         ksp.set_from_options()?;
+        // The previous step's increment is a good first guess for an iterative solver (du
+        // changes smoothly in time); a direct solve (preonly) must start from zero.
+        let iterative = ksp.ksp_type()? != "preonly";
+        ksp.set_initial_guess_nonzero(iterative)?;
         ksp.set_up()?;
         Ok(StepOperator { tau, k, k_free, dirichlet_dofs, dirichlet_diag, ksp })
     }
