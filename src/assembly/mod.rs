@@ -7,7 +7,7 @@ use crate::error::Result;
 use crate::mesh::{Element, Mesh};
 use crate::partition::Partition;
 use crate::petsc::{Matrix, Vector};
-use crate::scene::expr::VecExpr;
+use crate::scene::expr::{Expr, VecExpr};
 
 /// Largest element: 8 nodes x 3 components.
 pub const MAX_EDOFS: usize = 24;
@@ -93,60 +93,33 @@ pub fn interpolate(mesh: &Mesh, part: &Partition, f: &VecExpr, t: f64) -> Result
 
 /// External loads of the scene: body force over the cells, tractions over boundary elements.
 /// `assemble(t)` gives the load vector `f(t) = int N f dx + int_{Gamma_N} N g ds`.
+///
+/// When every load expression separates as `sum_k s_k(t) g_k(x)` (the usual case: steady,
+/// ramped or harmonic loads), each `int N g_k` is assembled once and a step only combines
+/// the vectors; otherwise the expressions are integrated at every step.
 pub struct Loads {
-    body_force: Option<VecExpr>,
-    /// (boundary element index, traction) pairs this rank integrates.
-    tractions: Vec<(usize, usize)>,
-    traction_exprs: Vec<VecExpr>,
+    general: LoadIntegrals,
+    /// (time factor, assembled space part) when the loads separate.
+    separated: Option<Vec<(Expr, Vector)>>,
     /// Whether `f` changes in time (else it is assembled once).
     pub time_dependent: bool,
     pub present: bool,
 }
 
+/// Load expressions and the boundary elements this rank integrates them over.
+struct LoadIntegrals {
+    body_force: Option<VecExpr>,
+    /// (boundary element index, traction index) pairs this rank integrates.
+    tractions: Vec<(usize, usize)>,
+    traction_exprs: Vec<VecExpr>,
+}
+
 /// Quadrature order for loads given as general expressions.
 const LOAD_QUADRATURE_ORDER: usize = 4;
 
-impl Loads {
-    pub fn new(
-        mesh: &Mesh,
-        part: &Partition,
-        body_force: Option<&VecExpr>,
-        neumann: &[(String, VecExpr)],
-    ) -> Result<Loads> {
-        let body_force = body_force.filter(|f| !f.is_zero()).cloned();
-        let mut tractions = Vec::new();
-        let mut traction_exprs = Vec::new();
-        let mut time_dependent = body_force.as_ref().is_some_and(|f| f.depends_on_t());
-        for (group, g) in neumann {
-            let pg = mesh.group(group)?;
-            if pg.dim + 1 != mesh.dim {
-                return Err(crate::error::Error::Scene(format!(
-                    "neumann group \"{group}\" has dimension {}, but tractions act on boundary groups of dimension {}",
-                    pg.dim,
-                    mesh.dim - 1
-                )));
-            }
-            if g.is_zero() {
-                continue;
-            }
-            time_dependent |= g.depends_on_t();
-            let k = traction_exprs.len();
-            traction_exprs.push(g.clone());
-            for (bi, e) in mesh.boundary.iter().enumerate() {
-                if e.kind.dim() == pg.dim
-                    && pg.entities.contains(&e.entity)
-                    && boundary_rank(part, e) == part.rank
-                {
-                    tractions.push((bi, k));
-                }
-            }
-        }
-        let present = body_force.is_some() || !traction_exprs.is_empty();
-        Ok(Loads { body_force, tractions, traction_exprs, time_dependent, present })
-    }
-
+impl LoadIntegrals {
     /// Assemble f(t) into `out` (overwritten).
-    pub fn assemble(&self, mesh: &Mesh, part: &Partition, t: f64, out: &mut Vector) -> Result<()> {
+    fn assemble(&self, mesh: &Mesh, part: &Partition, t: f64, out: &mut Vector) -> Result<()> {
         out.zero()?;
         let dim = part.dim;
         let mut xy = [[0.0; 3]; 8];
@@ -185,5 +158,153 @@ impl Loads {
             out.set_values(&dofs, &fe[..n * dim], true)?;
         }
         out.assemble()
+    }
+}
+
+/// Split every component of the load expressions by time factor: for each distinct `s_k(t)`,
+/// the space parts (body force, then one per traction) as expressions; None if some
+/// expression does not separate.
+#[allow(clippy::type_complexity)]
+fn separate_loads(
+    dim: usize,
+    body: Option<&VecExpr>,
+    tractions: &[VecExpr],
+) -> Option<Vec<(String, Vec<Vec<String>>)>> {
+    use std::collections::BTreeMap;
+    let sources: Vec<&VecExpr> = body.into_iter().chain(tractions.iter()).collect();
+    // time factor -> per source, per component, list of signed space terms
+    let mut groups: BTreeMap<String, Vec<Vec<Vec<String>>>> = BTreeMap::new();
+    for (si, src) in sources.iter().enumerate() {
+        for c in 0..dim.min(src.0.len()) {
+            for term in crate::scene::separate::separate(src.0[c].source())? {
+                let entry = groups
+                    .entry(term.time.clone())
+                    .or_insert_with(|| vec![vec![Vec::new(); dim]; sources.len()]);
+                let sign = if term.sign < 0.0 { "-" } else { "+" };
+                entry[si][c].push(format!("{sign}{}", term.space));
+            }
+        }
+    }
+    Some(
+        groups
+            .into_iter()
+            .map(|(time, per_source)| {
+                let exprs = per_source
+                    .into_iter()
+                    .map(|comps| {
+                        comps
+                            .into_iter()
+                            .map(|t| if t.is_empty() { "0".to_string() } else { t.join(" ") })
+                            .collect()
+                    })
+                    .collect();
+                (time, exprs)
+            })
+            .collect(),
+    )
+}
+
+impl Loads {
+    pub fn new(
+        mesh: &Mesh,
+        part: &Partition,
+        body_force: Option<&VecExpr>,
+        neumann: &[(String, VecExpr)],
+    ) -> Result<Loads> {
+        let body_force = body_force.filter(|f| !f.is_zero()).cloned();
+        let mut tractions = Vec::new();
+        let mut traction_exprs = Vec::new();
+        let mut time_dependent = body_force.as_ref().is_some_and(|f| f.depends_on_t());
+        for (group, g) in neumann {
+            let pg = mesh.group(group)?;
+            if pg.dim + 1 != mesh.dim {
+                return Err(crate::error::Error::Scene(format!(
+                    "neumann group \"{group}\" has dimension {}, but tractions act on boundary groups of dimension {}",
+                    pg.dim,
+                    mesh.dim - 1
+                )));
+            }
+            if g.is_zero() {
+                continue;
+            }
+            time_dependent |= g.depends_on_t();
+            let k = traction_exprs.len();
+            traction_exprs.push(g.clone());
+            for (bi, e) in mesh.boundary.iter().enumerate() {
+                if e.kind.dim() == pg.dim
+                    && pg.entities.contains(&e.entity)
+                    && boundary_rank(part, e) == part.rank
+                {
+                    tractions.push((bi, k));
+                }
+            }
+        }
+        let present = body_force.is_some() || !traction_exprs.is_empty();
+        let general = LoadIntegrals { body_force, tractions, traction_exprs };
+        let mut separated = None;
+        if present && time_dependent {
+            let groups =
+                separate_loads(mesh.dim, general.body_force.as_ref(), &general.traction_exprs);
+            if let Some(groups) = groups {
+                let mut parts = Vec::new();
+                for (time, exprs) in groups {
+                    let parse = |v: &Vec<String>| -> Result<VecExpr> {
+                        v.iter()
+                            .map(|s| Expr::parse(s))
+                            .collect::<std::result::Result<Vec<_>, _>>()
+                            .map(VecExpr)
+                            .map_err(|e| crate::error::Error::Scene(format!("separated load: {e}")))
+                    };
+                    let mut it = exprs.iter();
+                    let body = match general.body_force {
+                        Some(_) => Some(parse(it.next().expect("body part"))?),
+                        None => None,
+                    };
+                    let traction_exprs = it.map(parse).collect::<Result<Vec<_>>>()?;
+                    let space = LoadIntegrals {
+                        body_force: body,
+                        tractions: general.tractions.clone(),
+                        traction_exprs,
+                    };
+                    let mut f = new_vector(part)?;
+                    space.assemble(mesh, part, 0.0, &mut f)?;
+                    let s = Expr::parse(&time)
+                        .map_err(|e| crate::error::Error::Scene(format!("separated load: {e}")))?;
+                    parts.push((s, f));
+                }
+                separated = Some(parts);
+            }
+        }
+        Ok(Loads { general, separated, time_dependent, present })
+    }
+
+    /// f(t) integrated from the expressions themselves (what the separated form must equal).
+    pub fn assemble_integrated(
+        &self,
+        mesh: &Mesh,
+        part: &Partition,
+        t: f64,
+        out: &mut Vector,
+    ) -> Result<()> {
+        self.general.assemble(mesh, part, t, out)
+    }
+
+    /// Whether the loads are combined from pre-assembled space parts each step.
+    pub fn is_separated(&self) -> bool {
+        self.separated.is_some()
+    }
+
+    /// Assemble f(t) into `out` (overwritten).
+    pub fn assemble(&self, mesh: &Mesh, part: &Partition, t: f64, out: &mut Vector) -> Result<()> {
+        match &self.separated {
+            Some(parts) => {
+                out.zero()?;
+                for (s, f) in parts {
+                    out.axpy(s.eval([0.0; 3], t), f)?;
+                }
+                Ok(())
+            }
+            None => self.general.assemble(mesh, part, t, out),
+        }
     }
 }

@@ -45,6 +45,16 @@ impl Ksp {
         Ok(out)
     }
 
+    /// Changes the options prefix (also of the PC); the next `set_from_options` reads options
+    /// with the new prefix.
+    pub fn set_options_prefix(&mut self, prefix: &str) -> Result<()> {
+        let p = cstring(prefix)?;
+        // SAFETY: valid handle and C string (PETSc copies it).
+        chk!(ffi::KSPSetOptionsPrefix(self.ksp, p.as_ptr()))?;
+        self.prefix = prefix.to_owned();
+        Ok(())
+    }
+
     /// The raw handle. Ownership stays here.
     pub fn raw(&self) -> ffi::KSP {
         self.ksp

@@ -61,6 +61,7 @@
 //! Numbers are accepted wherever an expression is (`value = [0, -1.5]`).
 
 pub mod expr;
+pub mod separate;
 
 use crate::error::{Error, Result};
 use expr::{Expr, VecExpr};

@@ -17,7 +17,7 @@ use crate::error::Result;
 use crate::petsc::{Ksp, Matrix, NullSpace, Vector};
 
 /// Solver defaults for the step operator, applied before `KSPSetFromOptions` so that the
-/// command line (prefix `step_`) and plain `-ksp_*` options win.
+/// command line wins: plain `-ksp_*`/`-pc_*` options, and `-step_ksp_*`/`-step_pc_*` over them.
 #[derive(Debug, Clone)]
 pub struct StepSolverDefaults {
     pub ksp_type: String,
@@ -75,7 +75,9 @@ impl StepOperator {
         if let Some(ns) = near_null_space {
             k.set_near_null_space(ns)?;
         }
-        let mut ksp = Ksp::new("step_")?;
+        // Built without a prefix first so the plain -ksp_*/-pc_* options (the main solver's)
+        // apply; then the prefix step_ is set and -step_ksp_*/-step_pc_* override them.
+        let mut ksp = Ksp::new("")?;
         ksp.set_operators(&k, &k)?;
         ksp.set_type(&defaults.ksp_type)?;
         ksp.set_pc_type(&defaults.pc_type)?;
@@ -83,6 +85,8 @@ impl StepOperator {
             ksp.set_pc_factor_solver_type(s)?;
         }
         ksp.set_tolerances(Some(defaults.rtol), Some(1e-50), None, Some(10_000))?;
+        ksp.set_from_options()?;
+        ksp.set_options_prefix("step_")?;
         ksp.set_from_options()?;
         // The previous step's increment is a good first guess for an iterative solver (du
         // changes smoothly in time); a direct solve (preonly) must start from zero.

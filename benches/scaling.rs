@@ -1,0 +1,229 @@
+//! The backbone benchmark: for the beam (2D, Q1) and the block (3D, Q1) at several sizes up to
+//! about 10^6 DOFs, on 1 and 2 ranks: DOFs, assembly time, operator setup time, time per step,
+//! KSP iterations per step, peak memory, and each step's cost in MatMults with the step
+//! operator (timed in the same run: the floor of a step's cost). Also compares step solvers.
+//!
+//! Run with `./run bench` (it builds the release binary first). `--quick` runs the small sizes
+//! only. The Markdown tables go to stdout and to target/bench/scaling.md.
+
+use std::path::PathBuf;
+use std::process::Command;
+
+struct Case {
+    scene: &'static str,
+    h: &'static str,
+    steps: usize,
+    ranks: usize,
+    solver: &'static [&'static str],
+    label: &'static str,
+}
+
+fn repo() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
+
+fn run(case: &Case) -> Result<toml::Table, String> {
+    let out = repo().join("target/bench");
+    std::fs::create_dir_all(&out).map_err(|e| e.to_string())?;
+    let summary = out.join(format!("summary-{}-{}-{}.toml", case.label, case.h, case.ranks));
+    let _ = std::fs::remove_file(&summary);
+    let mut cmd = Command::new("mpirun");
+    cmd.args(["--oversubscribe", "-n", &case.ranks.to_string()])
+        .arg(repo().join("target/release/massfree"))
+        .arg("run")
+        .arg(repo().join("scenes").join(case.scene))
+        .args(["--quiet", "--no-output", "--param", &format!("h={}", case.h)])
+        .args(["--steps", &case.steps.to_string(), "--summary"])
+        .arg(&summary)
+        .env("OMPI_ALLOW_RUN_AS_ROOT", "1")
+        .env("OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1")
+        .env("OMPI_MCA_btl_vader_single_copy_mechanism", "none");
+    if !case.solver.is_empty() {
+        cmd.arg("--").args(case.solver);
+    }
+    let o = cmd.output().map_err(|e| e.to_string())?;
+    if !o.status.success() {
+        return Err(String::from_utf8_lossy(&o.stderr)
+            .lines()
+            .last()
+            .unwrap_or("failed")
+            .to_string());
+    }
+    let text = std::fs::read_to_string(&summary).map_err(|e| e.to_string())?;
+    text.parse::<toml::Table>().map_err(|e| e.to_string())
+}
+
+fn num(t: &toml::Table, k: &str) -> f64 {
+    match t.get(k) {
+        Some(toml::Value::Float(x)) => *x,
+        Some(toml::Value::Integer(i)) => *i as f64,
+        _ => f64::NAN,
+    }
+}
+
+fn timing(t: &toml::Table, k: &str) -> f64 {
+    t.get("timings").and_then(|v| v.as_table()).map(|tt| num(tt, k)).unwrap_or(f64::NAN)
+}
+
+struct Row {
+    label: String,
+    ranks: usize,
+    dofs: f64,
+    assembly: f64,
+    setup: f64,
+    per_step: f64,
+    its: f64,
+    mem: f64,
+    matmults: f64,
+}
+
+fn row(case: &Case, t: &toml::Table) -> Row {
+    let steps = num(t, "steps");
+    let per_step = timing(t, "stepping") / steps;
+    Row {
+        label: case.label.to_string(),
+        ranks: case.ranks,
+        dofs: num(t, "n_dofs"),
+        assembly: timing(t, "assembly"),
+        setup: timing(t, "setup"),
+        per_step,
+        its: num(t, "ksp_iterations") / steps,
+        mem: num(t, "peak_memory_mib"),
+        matmults: per_step / num(t, "matmult_seconds"),
+    }
+}
+
+fn main() {
+    let quick = std::env::args().any(|a| a == "--quick");
+    let cg_jacobi: &[&str] = &[];
+    let cases_2d: &[&str] = if quick {
+        &["0.0625", "0.03125"]
+    } else {
+        &["0.03125", "0.015625", "0.0078125", "0.004464285714285714"]
+    };
+    let cases_3d: &[&str] =
+        if quick { &["0.25", "0.125"] } else { &["0.125", "0.0625", "0.03125"] };
+    let mut cases = vec![];
+    for &h in cases_2d {
+        for ranks in [1, 2] {
+            cases.push(Case {
+                scene: "beam.toml",
+                h,
+                steps: 20,
+                ranks,
+                solver: cg_jacobi,
+                label: "beam 2D Q1",
+            });
+        }
+    }
+    for &h in cases_3d {
+        for ranks in [1, 2] {
+            cases.push(Case {
+                scene: "block_hex.toml",
+                h,
+                steps: 10,
+                ranks,
+                solver: cg_jacobi,
+                label: "block 3D Q1",
+            });
+        }
+    }
+    let solver_h = if quick { "0.03125" } else { "0.0078125" };
+    let solvers: [(&str, &[&str]); 4] = [
+        ("cg + jacobi (default)", &[]),
+        ("cg + gamg", &["-ksp_type", "cg", "-pc_type", "gamg"]),
+        ("cg + bjacobi/icc", &["-ksp_type", "cg", "-pc_type", "bjacobi", "-sub_pc_type", "icc"]),
+        (
+            "cholesky (mumps)",
+            &[
+                "-ksp_type",
+                "preonly",
+                "-pc_type",
+                "cholesky",
+                "-pc_factor_mat_solver_type",
+                "mumps",
+            ],
+        ),
+    ];
+    let mut md = String::new();
+    let machine = std::fs::read_to_string("/proc/cpuinfo")
+        .ok()
+        .and_then(|s| {
+            s.lines()
+                .find(|l| l.starts_with("model name"))
+                .map(|l| l.split(':').nth(1).unwrap_or("").trim().to_string())
+        })
+        .unwrap_or_default();
+    md += &format!(
+        "Machine: {machine}, {} cores\n\n",
+        std::thread::available_parallelism().map(|n| n.get()).unwrap_or(0)
+    );
+    md += "| case | ranks | DOFs | assembly s | setup s | ms/step | KSP its/step | step / MatMult | peak MiB (sum) | efficiency 2 ranks |\n";
+    md += "|---|---|---|---|---|---|---|---|---|---|\n";
+    let mut last_one_rank: Option<f64> = None;
+    for case in &cases {
+        eprintln!("bench: {} h = {} on {} rank(s)", case.label, case.h, case.ranks);
+        match run(case) {
+            Ok(t) => {
+                let r = row(case, &t);
+                let eff = if r.ranks == 1 {
+                    last_one_rank = Some(r.per_step);
+                    String::from("-")
+                } else {
+                    last_one_rank
+                        .map(|t1| format!("{:.0}%", 100.0 * t1 / (2.0 * r.per_step)))
+                        .unwrap_or_default()
+                };
+                md += &format!(
+                    "| {} | {} | {:.0} | {:.3} | {:.3} | {:.2} | {:.1} | {:.1} | {:.0} | {} |\n",
+                    r.label,
+                    r.ranks,
+                    r.dofs,
+                    r.assembly,
+                    r.setup,
+                    1e3 * r.per_step,
+                    r.its,
+                    r.matmults,
+                    r.mem,
+                    eff
+                );
+            }
+            Err(e) => {
+                md += &format!("| {} h={} | {} | failed: {e} |\n", case.label, case.h, case.ranks)
+            }
+        }
+        print!("{}", md.lines().last().map(|l| format!("{l}\n")).unwrap_or_default());
+    }
+    md += "\nStep solvers on the beam, h = ";
+    md += solver_h;
+    md += ", 2 ranks, 20 steps:\n\n| solver | DOFs | setup s | ms/step | KSP its/step | step / MatMult |\n|---|---|---|---|---|---|\n";
+    for (name, opts) in solvers {
+        let case = Case {
+            scene: "beam.toml",
+            h: solver_h,
+            steps: 20,
+            ranks: 2,
+            solver: opts,
+            label: "solver",
+        };
+        eprintln!("bench: solver {name}");
+        match run(&case) {
+            Ok(t) => {
+                let r = row(&case, &t);
+                md += &format!(
+                    "| {name} | {:.0} | {:.3} | {:.2} | {:.1} | {:.1} |\n",
+                    r.dofs,
+                    r.setup,
+                    1e3 * r.per_step,
+                    r.its,
+                    r.matmults
+                );
+            }
+            Err(e) => md += &format!("| {name} | failed: {e} |\n"),
+        }
+    }
+    let path = repo().join("target/bench/scaling.md");
+    let _ = std::fs::create_dir_all(path.parent().unwrap());
+    std::fs::write(&path, &md).unwrap();
+    println!("\n{md}\nwritten to {}", path.display());
+}
