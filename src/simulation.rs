@@ -78,6 +78,9 @@ pub struct RunSummary {
     /// Peak resident memory summed over the ranks, in MiB.
     pub peak_memory_mib: f64,
     pub ranks: usize,
+    /// The step solver as PETSc finally configured it (defaults < scene < command line).
+    pub ksp_type: String,
+    pub pc_type: String,
     /// Final displacement in natural node order (this rank's block) for checks.
     #[serde(skip)]
     pub final_u_natural: Vec<f64>,
@@ -246,6 +249,7 @@ impl<'a> Simulation<'a> {
         if let Some(r) = self.scene.solver.rtol {
             defaults.rtol = r;
         }
+        apply_scene_options(&self.scene.solver.options)?;
         let dofs: Vec<i32> = self.dirichlet.iter().map(|d| d.0).collect();
         let op = StepOperator::new(
             &m,
@@ -601,6 +605,8 @@ impl<'a> Simulation<'a> {
             matmult_seconds,
             peak_memory_mib,
             ranks: self.size,
+            ksp_type: op.ksp.ksp_type()?,
+            pc_type: op.ksp.pc_type()?,
             final_u_natural,
         };
         if let Some(out) = self.output.as_mut() {
@@ -719,6 +725,29 @@ impl<'a> Simulation<'a> {
             }
         })
     }
+}
+
+/// The scene's extra PETSc options (`solver.options`), entered only where the command line
+/// did not set the same option: the command line wins.
+fn apply_scene_options(tokens: &[String]) -> Result<()> {
+    let mut i = 0;
+    while i < tokens.len() {
+        let name = &tokens[i];
+        if !name.starts_with('-') || name.parse::<f64>().is_ok() {
+            return Err(Error::Scene(format!(
+                "solver.options: expected an option name starting with '-', found \"{name}\""
+            )));
+        }
+        let value = tokens
+            .get(i + 1)
+            .filter(|v| !v.starts_with('-') || v.parse::<f64>().is_ok())
+            .map(|v| v.as_str());
+        i += if value.is_some() { 2 } else { 1 };
+        if !crate::petsc::Petsc::options_has(name)? {
+            crate::petsc::Petsc::options_set(name, value)?;
+        }
+    }
+    Ok(())
 }
 
 /// Peak resident set size of this process (VmHWM), in MiB; 0 where /proc is unavailable.
