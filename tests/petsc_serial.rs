@@ -137,7 +137,7 @@ fn check_matrix_ops() -> Result<()> {
 
     let mut m = a.duplicate(true)?;
     m.scale(2.0)?;
-    m.axpy(-2.0, &a, true)?;
+    m.axpy(-2.0, &a, massfree::petsc::Pattern::Same)?;
     ensure(m.norm_frobenius()? == 0.0, || "duplicate/scale/axpy".into())?;
     let z = a.duplicate(false)?;
     ensure(z.norm_frobenius()? == 0.0, || "duplicate(false) copied values".into())?;

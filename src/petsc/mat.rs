@@ -16,6 +16,14 @@ pub struct MatNonzeroInfo {
 }
 
 /// An owned square AIJ matrix on `PETSC_COMM_WORLD` (`MatDestroy` on drop).
+/// How the nonzero pattern of a matrix relates to another's (PETSc `MatStructure`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Pattern {
+    Same,
+    Subset,
+    Different,
+}
+
 pub struct Matrix {
     m: ffi::Mat,
     range: (usize, usize),
@@ -145,13 +153,13 @@ impl Matrix {
         Matrix::from_raw(m)
     }
 
-    /// `self += alpha * x`. `same_pattern` promises identical nonzero patterns (fast path);
-    /// otherwise PETSc merges the patterns.
-    pub fn axpy(&mut self, alpha: f64, x: &Matrix, same_pattern: bool) -> Result<()> {
-        let s = if same_pattern {
-            ffi::MatStructure_SAME_NONZERO_PATTERN
-        } else {
-            ffi::MatStructure_DIFFERENT_NONZERO_PATTERN
+    /// `self += alpha * x`. `pattern` states how x's nonzero pattern relates to self's:
+    /// `Same` and `Subset` are fast paths (no new allocation); `Different` merges patterns.
+    pub fn axpy(&mut self, alpha: f64, x: &Matrix, pattern: Pattern) -> Result<()> {
+        let s = match pattern {
+            Pattern::Same => ffi::MatStructure_SAME_NONZERO_PATTERN,
+            Pattern::Subset => ffi::MatStructure_SUBSET_NONZERO_PATTERN,
+            Pattern::Different => ffi::MatStructure_DIFFERENT_NONZERO_PATTERN,
         };
         // SAFETY: valid, distinct handles (`&mut self` vs `&x`).
         chk!(ffi::MatAXPY(self.m, alpha, x.m, s))

@@ -39,7 +39,7 @@ pub use init::Petsc;
 pub use is::IndexSet;
 pub use ksp::{Ksp, SolveInfo};
 pub use log::{memory_current, memory_maximum, wtime, LogStage};
-pub use mat::{MatNonzeroInfo, Matrix, NullSpace};
+pub use mat::{MatNonzeroInfo, Matrix, NullSpace, Pattern};
 pub use scatter::Scatter;
 pub use vec::Vector;
 
