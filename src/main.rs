@@ -49,6 +49,9 @@ enum Command {
         /// Override a mesh parameter of the scene's .geo, e.g. --param h=0.0625 (repeatable).
         #[arg(long = "param", value_name = "NAME=VALUE")]
         params: Vec<String>,
+        /// Override the scene's mass treatment: consistent, lumped, modified0, modified1.
+        #[arg(long, value_name = "KIND")]
+        mass: Option<String>,
         /// Write the run's summary (sizes, timings, energies, errors) to this TOML file.
         #[arg(long, value_name = "FILE")]
         summary: Option<PathBuf>,
@@ -71,6 +74,7 @@ fn run(cli: Cli, universe: &mpi::environment::Universe) -> Result<()> {
             quiet,
             verbose,
             params,
+            mass,
             summary: summary_file,
             petsc,
         } => {
@@ -84,6 +88,9 @@ fn run(cli: Cli, universe: &mpi::environment::Universe) -> Result<()> {
             let mut scene = massfree::scene::load(&scene)?;
             for p in &params {
                 scene.set_mesh_param(p)?;
+            }
+            if let Some(kind) = &mass {
+                scene.set_mass_kind(kind)?;
             }
             let opts = RunOptions { output, overwrite, steps, quiet, verbose, no_output };
             let mut sim = Simulation::setup(&world, &console, scene, opts)?;

@@ -15,7 +15,7 @@ use crate::console::{Console, Progress};
 use crate::error::{Error, Result};
 use crate::fem::{self, kernels};
 use crate::io::{natural_range, Output, OutputPlan};
-use crate::mass::mass_matrix;
+use crate::mass::{build_layer, mass_matrix, MassFreeLayer};
 use crate::mesh::Mesh;
 use crate::partition::Partition;
 use crate::petsc::{Matrix, NullSpace, Scatter, Vector};
@@ -81,6 +81,11 @@ pub struct RunSummary {
     /// The step solver as PETSc finally configured it (defaults < scene < command line).
     pub ksp_type: String,
     pub pc_type: String,
+    pub mass_kind: String,
+    /// Contact nodes and layer cells of the mass-free layer (0 without one).
+    pub layer_contact_nodes: usize,
+    pub layer_cells: usize,
+    pub mass: MassCheck,
     /// Final displacement in natural node order (this rank's block) for checks.
     #[serde(skip)]
     pub final_u_natural: Vec<f64>,
@@ -139,6 +144,22 @@ pub struct Simulation<'a> {
     natural: Option<(Scatter, Vector)>,
     local_view: Option<(Scatter, Vector, Vec<usize>)>,
     output: Option<Output>,
+    /// The mass-free layer (modified mass kinds only).
+    pub layer: Option<MassFreeLayer>,
+    pub mass_check: Option<MassCheck>,
+}
+
+/// Mass-matrix diagnostics (see `check_mass`), per displacement component.
+#[derive(Debug, Clone, Default, serde::Serialize)]
+pub struct MassCheck {
+    pub total_mass: Vec<f64>,
+    pub first_moment: Vec<f64>,
+    pub second_moment: Vec<f64>,
+    /// max |(M 1)_q| over contact DOFs q (exactly zero for the mass-free layer).
+    pub contact_row_max: f64,
+    /// M r for r_i = sin(i + 1) (natural DOF order), this rank's natural block.
+    #[serde(skip)]
+    pub probe: Vec<f64>,
 }
 
 fn max_over_ranks(world: &SimpleCommunicator, x: f64) -> f64 {
@@ -195,6 +216,8 @@ impl<'a> Simulation<'a> {
             natural: None,
             local_view: None,
             output: None,
+            layer: None,
+            mass_check: None,
         })
     }
 
@@ -216,7 +239,9 @@ impl<'a> Simulation<'a> {
             kernels::stiffness(mesh.cells[c].kind, xy, &mat, out)
                 .map_err(|e| Error::Mesh(format!("{e} (gmsh element tag {})", mesh.cells[c].tag)))
         })?;
-        let m = mass_matrix(mesh, part, mat.rho, self.scene.mass.kind)?;
+        let layer =
+            build_layer(mesh, self.scene.mass.kind, self.scene.mass.contact_boundary.as_deref())?;
+        let m = mass_matrix(mesh, part, mat.rho, self.scene.mass.kind, layer.as_ref())?;
         let neumann: Vec<(String, crate::scene::expr::VecExpr)> =
             self.scene.neumann.iter().map(|n| (n.group.clone(), n.traction.clone())).collect();
         let loads = Loads::new(mesh, part, self.scene.body_force.as_ref(), &neumann)?;
@@ -263,11 +288,72 @@ impl<'a> Simulation<'a> {
         let t_setup = t1.elapsed().as_secs_f64();
         self.timings.assembly = max_over_ranks(self.world, t_asm);
         self.timings.setup = max_over_ranks(self.world, t_setup);
+        self.mass_check = Some(self.check_mass(&m, layer.as_ref())?);
         self.a = Some(a);
         self.m = Some(m);
         self.loads = Some(loads);
         self.op = Some(op);
+        self.layer = layer;
         Ok(())
+    }
+
+    /// Mass-matrix diagnostics, computed once: total mass, first and second moments per
+    /// component (`1^T M 1`, `x^T M 1`, `x^T M x` with x the nodal coordinates in one
+    /// component), and the largest entry of `M 1` on contact DOFs (zero for M_H).
+    fn check_mass(&mut self, m: &Matrix, layer: Option<&MassFreeLayer>) -> Result<MassCheck> {
+        let dim = self.part.dim;
+        let mut check = MassCheck::default();
+        let mut one = assembly::new_vector(&self.part)?;
+        let mut x = one.duplicate()?;
+        let mut y = one.duplicate()?;
+        for c in 0..dim {
+            let owned = &self.part.owned_nodes;
+            one.zero()?;
+            one.with_local_slice_mut(|s| {
+                for i in 0..owned.len() {
+                    s[i * dim + c] = 1.0;
+                }
+            })?;
+            x.zero()?;
+            x.with_local_slice_mut(|s| {
+                for (i, &v) in owned.iter().enumerate() {
+                    s[i * dim + c] = self.mesh.coords[v][c];
+                }
+            })?;
+            m.mult(&one, &mut y)?;
+            check.total_mass.push(one.dot(&y)?);
+            check.first_moment.push(x.dot(&y)?);
+            let contact_max = match layer.map(|l| &l.contact_nodes) {
+                Some(nodes) => {
+                    let lo = self.part.first_dof();
+                    let mut mx: f64 = 0.0;
+                    y.with_local_slice(|s| {
+                        for &v in nodes {
+                            if self.part.owns(v) {
+                                mx = mx.max(s[self.part.dof(v, c) - lo].abs());
+                            }
+                        }
+                    })?;
+                    max_over_ranks(self.world, mx)
+                }
+                None => 0.0,
+            };
+            check.contact_row_max = check.contact_row_max.max(contact_max);
+            m.mult(&x, &mut y)?;
+            check.second_moment.push(x.dot(&y)?);
+        }
+        // The probe: M applied to r_i = sin(i + 1), i the natural (gmsh-order) DOF index.
+        let owned = self.part.owned_nodes.clone();
+        x.with_local_slice_mut(|s| {
+            for (i, &v) in owned.iter().enumerate() {
+                for c in 0..dim {
+                    s[i * dim + c] = ((v * dim + c + 1) as f64).sin();
+                }
+            }
+        })?;
+        m.mult(&x, &mut y)?;
+        check.probe = self.to_natural(&y)?;
+        Ok(check)
     }
 
     /// Rigid-body modes from the owned nodes' coordinates (for algebraic multigrid).
@@ -411,6 +497,21 @@ impl<'a> Simulation<'a> {
             ("nodes".into(), self.mesh.n_nodes().to_string()),
             ("dofs".into(), self.part.n_global_dofs().to_string()),
             ("mass".into(), self.scene.mass.kind.name().to_string()),
+            (
+                "contact_boundary".into(),
+                self.scene.mass.contact_boundary.clone().unwrap_or_else(|| "none".into()),
+            ),
+            (
+                "mass_free_layer".into(),
+                match &self.layer {
+                    Some(l) => format!(
+                        "{} contact nodes, {} layer cells",
+                        l.n_contact_nodes(),
+                        l.n_layer_cells()
+                    ),
+                    None => "none".into(),
+                },
+            ),
             ("tau".into(), format!("{:e}", self.scene.tau)),
             ("steps".into(), self.n_steps().to_string()),
             ("ksp_type".into(), op.ksp.ksp_type().unwrap_or_default()),
@@ -484,6 +585,14 @@ impl<'a> Simulation<'a> {
                 plan,
                 self.opts.overwrite,
             )?);
+            if let (Some(out), Some(mc)) = (self.output.as_mut(), self.mass_check.as_ref()) {
+                out.write_mass_check(
+                    &mc.total_mass,
+                    &mc.first_moment,
+                    &mc.second_moment,
+                    &mc.probe,
+                )?;
+            }
             self.timings.output += t0.elapsed().as_secs_f64();
         }
 
@@ -607,6 +716,10 @@ impl<'a> Simulation<'a> {
             ranks: self.size,
             ksp_type: op.ksp.ksp_type()?,
             pc_type: op.ksp.pc_type()?,
+            mass_kind: self.scene.mass.kind.name().to_string(),
+            layer_contact_nodes: self.layer.as_ref().map_or(0, |l| l.n_contact_nodes()),
+            layer_cells: self.layer.as_ref().map_or(0, |l| l.n_layer_cells()),
+            mass: self.mass_check.clone().unwrap_or_default(),
             final_u_natural,
         };
         if let Some(out) = self.output.as_mut() {
@@ -768,14 +881,23 @@ pub fn summary_lines(sim: &Simulation, s: &RunSummary) -> Vec<String> {
     let t = &s.timings;
     let mut lines = vec![
         format!(
-            "{}: {}D, {} nodes, {} DOFs, {} cells on {} rank(s); mass {}",
+            "{}: {}D, {} nodes, {} DOFs, {} cells on {} rank(s); mass {}{}",
             sim.scene.name,
             sim.mesh.dim,
             s.n_nodes,
             s.n_dofs,
             sim.mesh.cells.len(),
             sim.size,
-            sim.scene.mass.kind.name()
+            sim.scene.mass.kind.name(),
+            match &sim.layer {
+                Some(l) => format!(
+                    " (mass-free layer along \"{}\": {} contact nodes, {} layer cells)",
+                    sim.scene.mass.contact_boundary.as_deref().unwrap_or(""),
+                    l.n_contact_nodes(),
+                    l.n_layer_cells()
+                ),
+                None => String::new(),
+            }
         ),
         format!(
             "{} steps of tau = {:e} to t = {:e}: {:.3} s stepping ({:.3} ms/step), {:.2} KSP iterations/step",

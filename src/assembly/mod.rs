@@ -51,17 +51,36 @@ pub fn assemble_matrix<F>(mesh: &Mesh, part: &Partition, mut kernel: F) -> Resul
 where
     F: FnMut(usize, &[[f64; 3]], &mut [f64]) -> Result<()>,
 {
+    assemble_blocks(mesh, part, |c, xy, _nodes, vals| {
+        let nd = xy.len() * part.dim;
+        vals.resize(nd * nd, 0.0);
+        kernel(c, xy, vals)
+    })
+}
+
+/// The general form: for each of this rank's cells the kernel may replace the node list
+/// (pre-filled with the cell's nodes) by the nodes its block couples, e.g. the source nodes of
+/// the mass-free layer's `E_K^T M_K E_K`, and writes the matching dense block into `vals`
+/// ((nodes.len() dim)^2, row-major, interlaced). The matrix pattern is that of nodes sharing a
+/// cell: a block coupling other node pairs is a PETSc error (new nonzero), which asserts it.
+pub fn assemble_blocks<F>(mesh: &Mesh, part: &Partition, mut kernel: F) -> Result<Matrix>
+where
+    F: FnMut(usize, &[[f64; 3]], &mut Vec<usize>, &mut Vec<f64>) -> Result<()>,
+{
     let mut mat = new_matrix(mesh, part)?;
     let mut xy = [[0.0; 3]; 8];
-    let mut ke = [0.0; MAX_EDOFS * MAX_EDOFS];
+    let mut nodes = Vec::with_capacity(8);
+    let mut vals = Vec::with_capacity(MAX_EDOFS * MAX_EDOFS);
     let mut dofs = Vec::with_capacity(MAX_EDOFS);
     for &c in &part.local_cells {
         let cell = &mesh.cells[c];
         let n = cell_coords(mesh, cell, &mut xy);
-        let nd = n * part.dim;
-        kernel(c, &xy[..n], &mut ke[..nd * nd])?;
-        node_dofs(part, cell.nodes(), &mut dofs);
-        mat.set_values(&dofs, &dofs, &ke[..nd * nd], true)?;
+        nodes.clear();
+        nodes.extend_from_slice(cell.nodes());
+        kernel(c, &xy[..n], &mut nodes, &mut vals)?;
+        node_dofs(part, &nodes, &mut dofs);
+        debug_assert_eq!(vals.len(), dofs.len() * dofs.len());
+        mat.set_values(&dofs, &dofs, &vals, true)?;
     }
     mat.assemble()?;
     Ok(mat)

@@ -59,6 +59,7 @@ pub struct Output {
     energy: [Dataset; 6],
     n_fields_written: usize,
     n_energies_written: usize,
+    n_nodes: usize,
 }
 
 fn write_str_attr(loc: &hdf5::Location, name: &str, value: &str, path: &Path) -> Result<()> {
@@ -218,6 +219,7 @@ impl Output {
             energy,
             n_fields_written: 0,
             n_energies_written: 0,
+            n_nodes: n,
         })
     }
 
@@ -281,6 +283,43 @@ impl Output {
             }
         }
         self.n_energies_written += 1;
+        Ok(())
+    }
+
+    /// The mass matrix's diagnostics: `/mass/{total_mass,first_moment,second_moment}` [dim] and
+    /// `/mass/probe` [nodes, dim] (`M r`, r_i = sin(i+1) in natural DOF order). Collective.
+    pub fn write_mass_check(
+        &mut self,
+        total: &[f64],
+        first: &[f64],
+        second: &[f64],
+        probe: &[f64],
+    ) -> Result<()> {
+        let path = self.path.clone();
+        let g = self.file.create_group("mass").map_err(|e| h5err(&path, "create /mass", e))?;
+        for (name, vals) in
+            [("total_mass", total), ("first_moment", first), ("second_moment", second)]
+        {
+            let ds = g
+                .new_dataset::<f64>()
+                .shape((vals.len(),))
+                .create(name)
+                .map_err(|e| h5err(&path, &format!("create /mass/{name}"), e))?;
+            if self.rank == 0 {
+                ds.write(vals).map_err(|e| h5err(&path, &format!("write /mass/{name}"), e))?;
+            }
+        }
+        let nodes = self.n_nodes;
+        let ds = g
+            .new_dataset::<f64>()
+            .shape((nodes, self.dim))
+            .create("probe")
+            .map_err(|e| h5err(&path, "create /mass/probe", e))?;
+        let (lo, hi) = self.range;
+        let arr = ndarray::Array2::from_shape_vec((hi - lo, self.dim), probe.to_vec())
+            .map_err(|_| Error::Io("probe: block size mismatch".into()))?;
+        ds.write_slice(&arr, ndarray::s![lo..hi, ..])
+            .map_err(|e| h5err(&path, "write /mass/probe", e))?;
         Ok(())
     }
 

@@ -172,6 +172,14 @@ impl MassKind {
     pub fn is_modified(self) -> bool {
         matches!(self, MassKind::Modified0 | MassKind::Modified1)
     }
+
+    pub const ALL: [MassKind; 4] =
+        [MassKind::Consistent, MassKind::Lumped, MassKind::Modified0, MassKind::Modified1];
+
+    /// The kind called `name` (as in scenes: consistent, lumped, modified0, modified1).
+    pub fn from_name(name: &str) -> Option<MassKind> {
+        MassKind::ALL.into_iter().find(|k| k.name() == name)
+    }
 }
 
 #[derive(Debug, Clone, PartialEq)]
@@ -304,6 +312,24 @@ impl Scene {
                 bad("the scene reads a .msh file; parameters apply to mesh.geo")
             }
         }
+    }
+
+    /// Override the mass treatment from the command line (`--mass modified1`); the same rule
+    /// as in the scene: a modified mass needs `mass.contact_boundary`.
+    pub fn set_mass_kind(&mut self, name: &str) -> Result<()> {
+        let kind = MassKind::from_name(name).ok_or_else(|| {
+            Error::Usage(format!(
+                "--mass {name}: unknown mass kind (allowed: consistent, lumped, modified0, modified1)"
+            ))
+        })?;
+        if kind.is_modified() && self.mass.contact_boundary.is_none() {
+            return Err(Error::Usage(format!(
+                "--mass {name} needs mass.contact_boundary in the scene {}: the mass-free layer is built along the potential contact boundary",
+                self.display_name()
+            )));
+        }
+        self.mass.kind = kind;
+        Ok(())
     }
 
     /// The end time `steps * tau`.
