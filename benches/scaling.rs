@@ -16,6 +16,7 @@ struct Case {
     ranks: usize,
     solver: &'static [&'static str],
     label: &'static str,
+    mass: &'static str,
 }
 
 fn repo() -> PathBuf {
@@ -25,7 +26,8 @@ fn repo() -> PathBuf {
 fn run(case: &Case) -> Result<toml::Table, String> {
     let out = repo().join("target/bench");
     std::fs::create_dir_all(&out).map_err(|e| e.to_string())?;
-    let summary = out.join(format!("summary-{}-{}-{}.toml", case.label, case.h, case.ranks));
+    let summary =
+        out.join(format!("summary-{}-{}-{}-{}.toml", case.label, case.h, case.ranks, case.mass));
     let _ = std::fs::remove_file(&summary);
     let mut cmd = Command::new("mpirun");
     cmd.args(["--oversubscribe", "-n", &case.ranks.to_string()])
@@ -33,7 +35,7 @@ fn run(case: &Case) -> Result<toml::Table, String> {
         .arg("run")
         .arg(repo().join("scenes").join(case.scene))
         .args(["--quiet", "--no-output", "--param", &format!("h={}", case.h)])
-        .args(["--steps", &case.steps.to_string(), "--summary"])
+        .args(["--steps", &case.steps.to_string(), "--mass", case.mass, "--summary"])
         .arg(&summary)
         .env("OMPI_ALLOW_RUN_AS_ROOT", "1")
         .env("OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1")
@@ -113,6 +115,7 @@ fn main() {
                 ranks,
                 solver: cg_jacobi,
                 label: "beam 2D Q1",
+                mass: "consistent",
             });
         }
     }
@@ -125,6 +128,7 @@ fn main() {
                 ranks,
                 solver: cg_jacobi,
                 label: "block 3D Q1",
+                mass: "consistent",
             });
         }
     }
@@ -205,6 +209,7 @@ fn main() {
             ranks: 2,
             solver: opts,
             label: "solver",
+            mass: "consistent",
         };
         eprintln!("bench: solver {name}");
         match run(&case) {
@@ -220,6 +225,53 @@ fn main() {
                 );
             }
             Err(e) => md += &format!("| {name} | failed: {e} |\n"),
+        }
+    }
+    // Mass kinds side by side (issue: modified mass costs nothing extra): the same mesh, the
+    // same solver; the median of 3 repetitions of each phase.
+    let mass_sizes: &[&str] =
+        if quick { &["0.03125"] } else { &["0.015625", "0.004464285714285714"] };
+    md += "\nMass kinds on the beam (Q1, 2 ranks, 20 steps, median of 3 runs; ratios to consistent):\n\n| DOFs | mass | assembly s | setup s | ms/step | KSP its/step | assembly ratio | step ratio |\n|---|---|---|---|---|---|---|---|\n";
+    for &h in mass_sizes {
+        let mut base: Option<(f64, f64)> = None;
+        for mass in ["consistent", "lumped", "modified0", "modified1"] {
+            let case = Case {
+                scene: "beam.toml",
+                h,
+                steps: 20,
+                ranks: 2,
+                solver: cg_jacobi,
+                label: "mass",
+                mass,
+            };
+            eprintln!("bench: mass {mass} h = {h}");
+            let mut rows = vec![];
+            for _ in 0..3 {
+                match run(&case) {
+                    Ok(t) => rows.push(row(&case, &t)),
+                    Err(e) => eprintln!("bench: {mass} failed: {e}"),
+                }
+            }
+            if rows.is_empty() {
+                md += &format!("| h={h} | {mass} | failed |\n");
+                continue;
+            }
+            let med = |f: &dyn Fn(&Row) -> f64| {
+                let mut v: Vec<f64> = rows.iter().map(f).collect();
+                v.sort_by(|a, b| a.partial_cmp(b).unwrap());
+                v[v.len() / 2]
+            };
+            let (asm, setup, step, its) =
+                (med(&|r| r.assembly), med(&|r| r.setup), med(&|r| r.per_step), med(&|r| r.its));
+            let (ra, rs) = match base {
+                None => {
+                    base = Some((asm, step));
+                    (1.0, 1.0)
+                }
+                Some((a0, s0)) => (asm / a0, step / s0),
+            };
+            md += &format!("| {:.0} | {mass} | {asm:.3} | {setup:.3} | {:.2} | {its:.1} | {ra:.2} | {rs:.2} |\n", rows[0].dofs, 1e3 * step);
+            print!("{}", md.lines().last().map(|l| format!("{l}\n")).unwrap_or_default());
         }
     }
     let path = repo().join("target/bench/scaling.md");

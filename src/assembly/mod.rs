@@ -36,7 +36,7 @@ pub fn node_dofs(part: &Partition, nodes: &[usize], out: &mut Vec<i32>) {
 /// An empty distributed matrix with the pattern of "nodes sharing a cell", block size dim.
 pub fn new_matrix(mesh: &Mesh, part: &Partition) -> Result<Matrix> {
     let (d, o) = part.preallocation(mesh);
-    Matrix::new_aij(part.n_owned_dofs(), part.n_global_dofs(), part.dim, &d, &o)
+    Matrix::new_aij(part.n_owned_dofs(), part.n_global_dofs(), part.dim, d, o)
 }
 
 /// A distributed vector with this partition's layout.

@@ -109,9 +109,12 @@ fn facet_key(cell_nodes: &[usize], local: &[usize]) -> FacetKey {
 /// Cells on each side of a facet: `(first, second, count)`.
 type FacetCells = HashMap<FacetKey, (usize, usize, usize)>;
 
-fn facet_map(mesh: &Mesh) -> FacetCells {
+/// The facets of the given cells. Built only over the contact layer and its neighbours (the
+/// only facets the layer needs), so its cost follows the layer's size, not the mesh's.
+fn facet_map(mesh: &Mesh, cells: &[usize]) -> FacetCells {
     let mut map: FacetCells = HashMap::new();
-    for (c, e) in mesh.cells.iter().enumerate() {
+    for &c in cells {
+        let e = &mesh.cells[c];
         for f in e.kind.facets() {
             let entry = map.entry(facet_key(e.nodes(), f)).or_insert((c, usize::MAX, 0));
             if entry.2 == 1 {
@@ -256,7 +259,26 @@ impl MassFreeLayer {
 
         // The contact group must lie on the boundary: each of its elements is a facet of
         // exactly one cell.
-        let facets = facet_map(mesh);
+        // Cells near the contact boundary: those sharing a node with a cell that has a contact
+        // node. Every facet a contact facet or a layer cell can share lies among their facets.
+        let mut near_contact = vec![false; mesh.n_nodes()];
+        for e in &elems {
+            for &n in e.nodes() {
+                near_contact[n] = true;
+            }
+        }
+        let mut near_layer = vec![false; mesh.n_nodes()];
+        for cell in &mesh.cells {
+            if cell.nodes().iter().any(|&n| near_contact[n]) {
+                for &n in cell.nodes() {
+                    near_layer[n] = true;
+                }
+            }
+        }
+        let ring: Vec<usize> = (0..mesh.cells.len())
+            .filter(|&c| mesh.cells[c].nodes().iter().any(|&n| near_layer[n]))
+            .collect();
+        let facets = facet_map(mesh, &ring);
         for e in &elems {
             let all: Vec<usize> = (0..e.kind.n_nodes()).collect();
             let key = facet_key(e.nodes(), &all);

@@ -30,6 +30,8 @@ pub struct Partition {
     pub owned_nodes: Vec<usize>,
     /// Cells this rank assembles.
     pub local_cells: Vec<usize>,
+    /// `preallocation` computed once (every matrix shares the pattern).
+    prealloc: std::sync::OnceLock<(Vec<i32>, Vec<i32>)>,
 }
 
 /// Node -> cells adjacency in CSR form (offsets of length n_nodes + 1).
@@ -140,6 +142,7 @@ impl Partition {
             node_offsets,
             owned_nodes,
             local_cells,
+            prealloc: std::sync::OnceLock::new(),
         }
     }
 
@@ -170,7 +173,11 @@ impl Partition {
 
     /// Exact preallocation for a matrix coupling nodes that share a cell: per owned DOF row,
     /// the number of columns in the diagonal block (owned by this rank) and off it.
-    pub fn preallocation(&self, mesh: &Mesh) -> (Vec<i32>, Vec<i32>) {
+    pub fn preallocation(&self, mesh: &Mesh) -> &(Vec<i32>, Vec<i32>) {
+        self.prealloc.get_or_init(|| self.compute_preallocation(mesh))
+    }
+
+    fn compute_preallocation(&self, mesh: &Mesh) -> (Vec<i32>, Vec<i32>) {
         let (off, list) = node_cells(mesh);
         let (lo, hi) = (self.node_offsets[self.rank], self.node_offsets[self.rank + 1]);
         let mut mark = vec![usize::MAX; mesh.n_nodes()];
