@@ -96,7 +96,11 @@ fn row(case: &Case, t: &toml::Table) -> Row {
 }
 
 fn main() {
-    let quick = std::env::args().any(|a| a == "--quick");
+    let args: Vec<String> = std::env::args().collect();
+    let quick = args.iter().any(|a| a == "--quick");
+    // --only scaling|solvers|mass runs one section.
+    let only = args.iter().position(|a| a == "--only").and_then(|i| args.get(i + 1)).cloned();
+    let want = |section: &str| only.as_deref().is_none_or(|o| o == section);
     let cg_jacobi: &[&str] = &[];
     let cases_2d: &[&str] = if quick {
         &["0.0625", "0.03125"]
@@ -165,7 +169,7 @@ fn main() {
     md += "| case | ranks | DOFs | assembly s | setup s | ms/step | KSP its/step | step / MatMult | peak MiB (sum) | efficiency 2 ranks |\n";
     md += "|---|---|---|---|---|---|---|---|---|---|\n";
     let mut last_one_rank: Option<f64> = None;
-    for case in &cases {
+    for case in cases.iter().filter(|_| want("scaling")) {
         eprintln!("bench: {} h = {} on {} rank(s)", case.label, case.h, case.ranks);
         match run(case) {
             Ok(t) => {
@@ -201,7 +205,7 @@ fn main() {
     md += "\nStep solvers on the beam, h = ";
     md += solver_h;
     md += ", 2 ranks, 20 steps:\n\n| solver | DOFs | setup s | ms/step | KSP its/step | step / MatMult |\n|---|---|---|---|---|---|\n";
-    for (name, opts) in solvers {
+    for (name, opts) in solvers.into_iter().filter(|_| want("solvers")) {
         let case = Case {
             scene: "beam.toml",
             h: solver_h,
@@ -232,7 +236,7 @@ fn main() {
     let mass_sizes: &[&str] =
         if quick { &["0.03125"] } else { &["0.015625", "0.004464285714285714"] };
     md += "\nMass kinds on the beam (Q1, 2 ranks, 20 steps, median of 3 runs; ratios to consistent):\n\n| DOFs | mass | assembly s | setup s | ms/step | KSP its/step | assembly ratio | step ratio |\n|---|---|---|---|---|---|---|---|\n";
-    for &h in mass_sizes {
+    for &h in mass_sizes.iter().filter(|_| want("mass")) {
         let mut base: Option<(f64, f64)> = None;
         for mass in ["consistent", "lumped", "modified0", "modified1"] {
             let case = Case {

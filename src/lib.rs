@@ -5,6 +5,7 @@
 
 pub mod assembly;
 pub mod console;
+pub mod contact;
 pub mod error;
 pub mod fem;
 pub mod io;
@@ -12,6 +13,7 @@ pub mod mass;
 pub mod mesh;
 pub mod partition;
 pub mod petsc;
+pub mod post;
 pub mod scene;
 pub mod simulation;
 pub mod time;

@@ -24,6 +24,19 @@ struct Cli {
 
 #[derive(Subcommand, Debug)]
 enum Command {
+    /// Overlay the energies and the lowest contact node's pressure of several runs (HDF5
+    /// files) in PNG pictures PREFIX-energy.png and PREFIX-pressure.png.
+    Compare {
+        /// The runs' .h5 files.
+        #[arg(required = true)]
+        runs: Vec<PathBuf>,
+        /// Prefix of the pictures.
+        #[arg(long, short, default_value = "out/compare")]
+        out: PathBuf,
+        /// Curve labels, one per run (default: the mass kind and mesh).
+        #[arg(long = "label")]
+        labels: Vec<String>,
+    },
     /// Run a scene (launch with mpirun for several ranks). PETSc options go after `--`.
     Run {
         /// The scene file (TOML).
@@ -62,6 +75,23 @@ enum Command {
 }
 
 fn run(cli: Cli, universe: &mpi::environment::Universe) -> Result<()> {
+    if let Command::Compare { runs, out, labels } = &cli.command {
+        // Post-processing: serial, rank 0 only.
+        if universe.world().rank() == 0 {
+            let mut curves = Vec::new();
+            for (i, r) in runs.iter().enumerate() {
+                let mut c = massfree::post::read_curves(r)?;
+                if let Some(l) = labels.get(i) {
+                    c.label = l.clone();
+                }
+                curves.push(c);
+            }
+            for p in massfree::post::write_pictures(out, &curves)? {
+                println!("{}", p.display());
+            }
+        }
+        return Ok(());
+    }
     let world = universe.world();
     let rank = world.rank() as usize;
     match cli.command {
@@ -116,6 +146,7 @@ fn run(cli: Cli, universe: &mpi::environment::Universe) -> Result<()> {
             }
             Ok(())
         }
+        Command::Compare { .. } => unreachable!("handled above"),
     }
 }
 

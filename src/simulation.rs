@@ -12,13 +12,16 @@ use mpi::traits::*;
 
 use crate::assembly::{self, Loads};
 use crate::console::{Console, Progress};
+use crate::contact::history::{ContactRowOwned, ContactSummary, History as ContactHistory};
+use crate::contact::{ActiveSet, ContactBoundary, Obstacle, StepContact};
 use crate::error::{Error, Result};
 use crate::fem::{self, kernels};
-use crate::io::{natural_range, Output, OutputPlan};
+use crate::io::{natural_range, ContactRow, EnergyRow, Output, OutputPlan};
 use crate::mass::{build_layer, mass_matrix, MassFreeLayer};
 use crate::mesh::Mesh;
 use crate::partition::Partition;
 use crate::petsc::{Matrix, NullSpace, Scatter, Vector};
+use crate::post::{picture_paths, write_pictures, RunCurves};
 use crate::scene::{Field, MeshSource, Scene};
 use crate::time::{energies, StepOperator, StepSolverDefaults};
 
@@ -86,6 +89,12 @@ pub struct RunSummary {
     pub layer_contact_nodes: usize,
     pub layer_cells: usize,
     pub mass: MassCheck,
+    /// Total momentum `1^T M v` at the start and the end, per component.
+    pub momentum_initial: Vec<f64>,
+    pub momentum_final: Vec<f64>,
+    pub contact: Option<ContactSummary>,
+    /// PNG pictures written (rank 0's list).
+    pub pictures: Vec<PathBuf>,
     /// Final displacement in natural node order (this rank's block) for checks.
     #[serde(skip)]
     pub final_u_natural: Vec<f64>,
@@ -147,6 +156,38 @@ pub struct Simulation<'a> {
     /// The mass-free layer (modified mass kinds only).
     pub layer: Option<MassFreeLayer>,
     pub mass_check: Option<MassCheck>,
+    /// The active-set solver (scenes with contact only).
+    contact: Option<ActiveSet<'a>>,
+}
+
+/// The operators of the time loop, built once.
+struct Operators<'w> {
+    a: Matrix,
+    m: Matrix,
+    loads: Loads,
+    op: StepOperator,
+    contact: Option<ActiveSet<'w>>,
+}
+
+/// The state of the time loop: `u^n`, `v^n`, the products `M v^n`, `A u^n`, work vectors, and
+/// the energies.
+struct State {
+    u: Vector,
+    v: Vector,
+    du: Vector,
+    mv: Vector,
+    au: Vector,
+    rhs: Vector,
+    f_now: Vector,
+    f_next: Vector,
+    f_half: Vector,
+    /// For non-zero Dirichlet values: (du_D padded, K du_D).
+    dirichlet_work: Option<(Vector, Vector)>,
+    /// For non-zero Dirichlet values: the right-hand side before the constrained rows are
+    /// replaced, to compute the reactions' work.
+    rhs_full: Option<Vector>,
+    energy: EnergyRow,
+    ksp_iterations: usize,
 }
 
 /// Mass-matrix diagnostics (see `check_mass`), per displacement component.
@@ -218,6 +259,7 @@ impl<'a> Simulation<'a> {
             output: None,
             layer: None,
             mass_check: None,
+            contact: None,
         })
     }
 
@@ -294,6 +336,17 @@ impl<'a> Simulation<'a> {
         self.loads = Some(loads);
         self.op = Some(op);
         self.layer = layer;
+        if let Some(spec) = &self.scene.contact {
+            let boundary = ContactBoundary::build(&self.mesh, &spec.boundary)?;
+            self.contact = Some(ActiveSet::new(
+                self.world,
+                &self.mesh,
+                &self.part,
+                boundary,
+                Obstacle::from_scene(&spec.obstacle),
+                2.0,
+            ));
+        }
         Ok(())
     }
 
@@ -531,84 +584,233 @@ impl<'a> Simulation<'a> {
         result
     }
 
-    fn time_loop(&mut self) -> Result<RunSummary> {
-        let tau = self.scene.tau;
-        let n_steps = self.n_steps();
-        let (a, m) = (self.a.take().expect("assembled"), self.m.take().expect("assembled"));
-        let loads = self.loads.take().expect("assembled");
-        let mut op = self.op.take().expect("assembled");
-
-        // Initial state: nodal interpolants of the scene's initial fields.
+    /// Initial state: nodal interpolants of the scene's initial fields, Dirichlet values set,
+    /// products `M v^0`, `A u^0` and the loads at t = 0.
+    fn initial_state(&self, ops: &Operators) -> Result<State> {
         let mut u = match &self.scene.initial_displacement {
             Some(e) => assembly::interpolate(&self.mesh, &self.part, e, 0.0)?,
             None => assembly::new_vector(&self.part)?,
         };
-        let mut v = match &self.scene.initial_velocity {
+        let v = match &self.scene.initial_velocity {
             Some(e) => assembly::interpolate(&self.mesh, &self.part, e, 0.0)?,
             None => assembly::new_vector(&self.part)?,
         };
+        self.apply_dirichlet_values(&mut u, 0.0, self.part.first_dof())?;
+        let dup = || u.duplicate();
+        let mut state = State {
+            du: dup()?,
+            mv: dup()?,
+            au: dup()?,
+            rhs: dup()?,
+            f_now: dup()?,
+            f_next: dup()?,
+            f_half: dup()?,
+            dirichlet_work: if ops.op.k_free.is_some() { Some((dup()?, dup()?)) } else { None },
+            rhs_full: if ops.op.k_free.is_some() { Some(dup()?) } else { None },
+            u,
+            v,
+            energy: EnergyRow::default(),
+            ksp_iterations: 0,
+        };
+        if ops.loads.present {
+            ops.loads.assemble(&self.mesh, &self.part, 0.0, &mut state.f_now)?;
+            state.f_next.copy_from(&state.f_now)?;
+        }
+        ops.m.mult(&state.v, &mut state.mv)?;
+        ops.a.mult(&state.u, &mut state.au)?;
+        let (k, p) = energies(&state.u, &state.v, &state.mv, &state.au)?;
+        state.energy.kinetic = k;
+        state.energy.potential = p;
+        Ok(state)
+    }
+
+    /// One step n -> n+1 of the midpoint rule (with the active-set loop when the scene has
+    /// contact). Leaves `M v^{n+1}`, `A u^{n+1}` and the new energies in the state.
+    fn solve_step(
+        &mut self,
+        ops: &mut Operators,
+        st: &mut State,
+        n: usize,
+    ) -> Result<Option<StepContact>> {
+        let tau = self.scene.tau;
+        let t_next = (n + 1) as f64 * tau;
         let lo = self.part.first_dof();
-        self.apply_dirichlet_values(&mut u, 0.0, lo)?;
-        let mut du = u.duplicate()?;
-        let mut mv = u.duplicate()?;
-        let mut au = u.duplicate()?;
-        let mut rhs = u.duplicate()?;
-        let mut f_now = u.duplicate()?;
-        let mut f_next = u.duplicate()?;
-        let mut f_half = u.duplicate()?;
-        let mut dir_du =
-            if op.k_free.is_some() { Some((u.duplicate()?, u.duplicate()?)) } else { None };
-        if loads.present {
-            loads.assemble(&self.mesh, &self.part, 0.0, &mut f_now)?;
-            f_next.copy_from(&f_now)?;
-        }
-
-        // Output file.
-        if !self.opts.no_output {
-            let t0 = Instant::now();
-            let path = self.opts.output.clone().unwrap_or_else(|| self.scene.output.file.clone());
-            let plan = OutputPlan {
-                displacement: self.scene.output.fields.contains(&Field::Displacement),
-                velocity: self.scene.output.fields.contains(&Field::Velocity),
-                every: self.scene.output.every,
-            };
-            let settings = self.settings(&op);
-            self.output = Some(Output::create(
-                &path,
-                self.world,
-                self.rank,
-                self.size,
-                &self.mesh,
-                &self.part.cell_rank,
-                &self.scene.text,
-                &settings,
-                plan,
-                self.opts.overwrite,
-            )?);
-            if let (Some(out), Some(mc)) = (self.output.as_mut(), self.mass_check.as_ref()) {
-                out.write_mass_check(
-                    &mc.total_mass,
-                    &mc.first_moment,
-                    &mc.second_moment,
-                    &mc.probe,
-                )?;
+        // f^{n+1/2} = (f(t_n) + f(t_{n+1}))/2
+        if ops.loads.present {
+            if ops.loads.time_dependent {
+                ops.loads.assemble(&self.mesh, &self.part, t_next, &mut st.f_next)?;
             }
-            self.timings.output += t0.elapsed().as_secs_f64();
+            st.f_half.waxpy(1.0, &st.f_now, &st.f_next)?;
+            st.f_half.scale(0.5)?;
         }
+        // rhs = 2 f^{n+1/2} + (4/tau) M v^n - 2 A u^n
+        st.rhs.copy_from(&st.mv)?;
+        st.rhs.scale(4.0 / tau)?;
+        st.rhs.axpy(-2.0, &st.au)?;
+        if ops.loads.present {
+            st.rhs.axpy(2.0, &st.f_half)?;
+        }
+        if let Some(full) = st.rhs_full.as_mut() {
+            full.copy_from(&st.rhs)?;
+        }
+        // Dirichlet rows: du_D = g(t_{n+1}) - u^n_D.
+        self.dirichlet_rhs(&mut ops.op, &st.u, &mut st.rhs, &mut st.dirichlet_work, t_next, lo)?;
+        let with_step = |e: Error| match e {
+            Error::Solver(m) if !m.starts_with("contact") => {
+                Error::Solver(format!("step {} (t = {t_next:e}): {m}", n + 1))
+            }
+            other => other,
+        };
+        let contact = match ops.contact.as_mut() {
+            None => {
+                let info = ops.op.ksp.solve(&st.rhs, &mut st.du).map_err(with_step)?;
+                st.ksp_iterations += info.iterations;
+                None
+            }
+            Some(active_set) => {
+                let (c, its) = active_set
+                    .solve(&self.mesh, &mut ops.op.ksp, &st.rhs, &st.u, &mut st.du, n + 1, t_next)
+                    .map_err(with_step)?;
+                st.ksp_iterations += its;
+                st.energy.contact_work += c.work;
+                Some(c)
+            }
+        };
+        if ops.loads.present {
+            st.energy.external_work += st.f_half.dot(&st.du)?;
+        }
+        if let (Some(full), Some((_, kdu)), Some(k0)) =
+            (st.rhs_full.as_ref(), st.dirichlet_work.as_mut(), ops.op.k_free.as_ref())
+        {
+            // Reactions r_D: K0 du = rhs + 2 r on the constrained rows; their work is r . du.
+            k0.mult(&st.du, kdu)?;
+            kdu.axpy(-1.0, full)?;
+            let mut w = 0.0;
+            kdu.with_local_slice(|r| {
+                st.du.with_local_slice(|d| {
+                    for &(dof, ..) in &self.dirichlet {
+                        let i = dof as usize - lo;
+                        w += 0.5 * r[i] * d[i];
+                    }
+                })
+            })??;
+            st.energy.dirichlet_work += sum_over_ranks(self.world, w);
+        }
+        st.u.axpy(1.0, &st.du)?;
+        // v^{n+1} = 2 du / tau - v^n
+        st.v.scale(-1.0)?;
+        st.v.axpy(2.0 / tau, &st.du)?;
+        if ops.loads.present {
+            std::mem::swap(&mut st.f_now, &mut st.f_next);
+            if !ops.loads.time_dependent {
+                st.f_next.copy_from(&st.f_now)?;
+            }
+        }
+        ops.m.mult(&st.v, &mut st.mv)?;
+        ops.a.mult(&st.u, &mut st.au)?;
+        let (k, p) = energies(&st.u, &st.v, &st.mv, &st.au)?;
+        st.energy.kinetic = k;
+        st.energy.potential = p;
+        Ok(contact)
+    }
 
-        // Initial energy.
-        m.mult(&v, &mut mv)?;
-        a.mult(&u, &mut au)?;
-        let (ek, ep) = energies(&u, &v, &mv, &au)?;
-        let e0 = ek + ep;
-        let mut work = 0.0;
+    /// Total momentum `1^T M v` per component (from the product `M v` the step keeps).
+    fn momentum(&self, mv: &Vector) -> Result<[f64; 3]> {
+        let dim = self.part.dim;
+        let mut p = [0.0; 3];
+        mv.with_local_slice(|s| {
+            for (i, x) in s.iter().enumerate() {
+                p[i % dim] += x;
+            }
+        })?;
+        let mut out = [0.0; 3];
+        self.world.all_reduce_into(&p[..], &mut out[..], SystemOperation::sum());
+        Ok(out)
+    }
+
+    fn open_output(&mut self, ops: &Operators) -> Result<()> {
+        if self.opts.no_output {
+            return Ok(());
+        }
+        let t0 = Instant::now();
+        let path = self.opts.output.clone().unwrap_or_else(|| self.scene.output.file.clone());
+        let plan = OutputPlan {
+            displacement: self.scene.output.fields.contains(&Field::Displacement),
+            velocity: self.scene.output.fields.contains(&Field::Velocity),
+            every: self.scene.output.every,
+        };
+        let settings = self.settings(&ops.op);
+        let mut out = Output::create(
+            &path,
+            self.world,
+            self.rank,
+            self.size,
+            &self.mesh,
+            &self.part.cell_rank,
+            &self.scene.text,
+            &settings,
+            plan,
+            self.opts.overwrite,
+        )?;
+        if let Some(mc) = self.mass_check.as_ref() {
+            out.write_mass_check(&mc.total_mass, &mc.first_moment, &mc.second_moment, &mc.probe)?;
+        }
+        if let Some(c) = ops.contact.as_ref() {
+            out.create_contact(&c.boundary.nodes, &c.boundary.weights, &c.boundary.group)?;
+        }
+        self.output = Some(out);
+        self.timings.output += t0.elapsed().as_secs_f64();
+        Ok(())
+    }
+
+    fn time_loop(&mut self) -> Result<RunSummary> {
+        let tau = self.scene.tau;
+        let n_steps = self.n_steps();
+        let mut ops = Operators {
+            a: self.a.take().expect("assembled"),
+            m: self.m.take().expect("assembled"),
+            loads: self.loads.take().expect("assembled"),
+            op: self.op.take().expect("assembled"),
+            contact: self.contact.take(),
+        };
+        let mut st = self.initial_state(&ops)?;
+        if let Some(c) = ops.contact.as_ref() {
+            let bad = c.penetrating(&self.mesh, &st.u)?;
+            if !bad.is_empty() {
+                let tags: Vec<String> =
+                    bad.iter().take(10).map(|&v| self.mesh.node_tags[v].to_string()).collect();
+                return Err(Error::Scene(format!(
+                    "contact.obstacle already intersects the body at t = 0: {} contact node(s) penetrate it (gmsh nodes {}{})",
+                    bad.len(),
+                    tags.join(", "),
+                    if bad.len() > 10 { ", ..." } else { "" }
+                )));
+            }
+        }
+        self.open_output(&ops)?;
+
+        // Initial energy: the reference of the energy balance reported every step.
+        let e0 = st.energy.kinetic + st.energy.potential;
+        let p0 = self.momentum(&st.mv)?;
         let mut e_max = e0.abs();
         let mut balance: f64 = 0.0;
         let mut drift: f64 = 0.0;
-        self.write_step(0, 0.0, &u, &v, ek, ep, work)?;
+        let mut history = ContactHistory::default();
+        let mut curves = RunCurves {
+            label: self.scene.mass.kind.name().to_string(),
+            time: vec![0.0],
+            kinetic: vec![st.energy.kinetic],
+            potential: vec![st.energy.potential],
+            lowest_pressure: vec![],
+        };
+        if let Some(c) = ops.contact.as_ref() {
+            history.start(c);
+        }
+        self.output_step(0, 0.0, &st, history.last_row(ops.contact.as_ref()))?;
         if self.opts.verbose {
             self.console.say(format!(
-                "step 0  t = 0  kinetic {ek:.10e}  potential {ep:.10e}  total {e0:.10e}"
+                "step 0  t = 0  kinetic {:.10e}  potential {:.10e}  total {e0:.10e}",
+                st.energy.kinetic, st.energy.potential
             ));
         }
         let mut errors = Vec::new();
@@ -618,73 +820,54 @@ impl<'a> Simulation<'a> {
             None => vec![],
         };
         if error_steps.contains(&0) {
-            if let Some((l2, h1)) = self.exact_errors(&u, 0.0)? {
+            if let Some((l2, h1)) = self.exact_errors(&st.u, 0.0)? {
                 errors.push(ErrorSample { step: 0, time: 0.0, l2, h1_semi: h1 });
             }
         }
 
         let mut progress = Progress::new(self.console, n_steps, self.scene.output.progress);
-        let mut its_total = 0usize;
         let t_loop = Instant::now();
         let mut t_out = 0.0;
+        let mut t_contact_steps = 0.0;
         for n in 0..n_steps {
             let t_next = (n + 1) as f64 * tau;
-            // f^{n+1/2} = (f(t_n) + f(t_{n+1}))/2
-            if loads.present {
-                if loads.time_dependent {
-                    loads.assemble(&self.mesh, &self.part, t_next, &mut f_next)?;
+            let t_step = Instant::now();
+            let contact = self.solve_step(&mut ops, &mut st, n)?;
+            if let Some(c) = &contact {
+                if c.active.iter().any(|&a| a) {
+                    t_contact_steps += t_step.elapsed().as_secs_f64();
                 }
-                f_half.waxpy(1.0, &f_now, &f_next)?;
-                f_half.scale(0.5)?;
+                history.push(c, tau);
             }
-            // rhs = 2 f^{n+1/2} + (4/tau) M v^n - 2 A u^n   (mv, au hold M v^n, A u^n)
-            rhs.copy_from(&mv)?;
-            rhs.scale(4.0 / tau)?;
-            rhs.axpy(-2.0, &au)?;
-            if loads.present {
-                rhs.axpy(2.0, &f_half)?;
-            }
-            // Dirichlet rows: du_D = g(t_{n+1}) - u^n_D.
-            self.dirichlet_rhs(&mut op, &u, &mut rhs, &mut dir_du, t_next, lo)?;
-            let info = op.ksp.solve(&rhs, &mut du).map_err(|e| match e {
-                Error::Solver(m) => Error::Solver(format!("step {} (t = {t_next:e}): {m}", n + 1)),
-                other => other,
-            })?;
-            its_total += info.iterations;
-            if loads.present {
-                work += f_half.dot(&du)?;
-            }
-            u.axpy(1.0, &du)?;
-            // v^{n+1} = 2 du / tau - v^n
-            v.scale(-1.0)?;
-            v.axpy(2.0 / tau, &du)?;
-            if loads.present {
-                std::mem::swap(&mut f_now, &mut f_next);
-                if !loads.time_dependent {
-                    f_next.copy_from(&f_now)?;
-                }
-            }
-            m.mult(&v, &mut mv)?;
-            a.mult(&u, &mut au)?;
-            let (ek, ep) = energies(&u, &v, &mv, &au)?;
-            let e = ek + ep;
+            let e = st.energy.kinetic + st.energy.potential;
+            curves.time.push(t_next);
+            curves.kinetic.push(st.energy.kinetic);
+            curves.potential.push(st.energy.potential);
             e_max = e_max.max(e.abs());
-            balance = balance.max((e - e0 - work).abs() / e_max.max(f64::MIN_POSITIVE));
+            let residual = e
+                - e0
+                - st.energy.external_work
+                - st.energy.contact_work
+                - st.energy.dirichlet_work;
+            balance = balance.max(residual.abs() / e_max.max(f64::MIN_POSITIVE));
             if e0 != 0.0 {
                 drift = drift.max(((e - e0) / e0).abs());
             }
             if self.opts.verbose {
                 self.console.say(format!(
-                    "step {}  t = {t_next:.6e}  kinetic {ek:.10e}  potential {ep:.10e}  total {e:.10e}  external work {work:.10e}  ksp its {}",
+                    "step {}  t = {t_next:.6e}  kinetic {:.10e}  potential {:.10e}  total {e:.10e}  external work {:.10e}  contact work {:.10e}",
                     n + 1,
-                    info.iterations
+                    st.energy.kinetic,
+                    st.energy.potential,
+                    st.energy.external_work,
+                    st.energy.contact_work
                 ));
             }
             let t0 = Instant::now();
-            self.write_step(n + 1, t_next, &u, &v, ek, ep, work)?;
+            self.output_step(n + 1, t_next, &st, history.last_row(ops.contact.as_ref()))?;
             t_out += t0.elapsed().as_secs_f64();
             if error_steps.contains(&(n + 1)) {
-                if let Some((l2, h1)) = self.exact_errors(&u, t_next)? {
+                if let Some((l2, h1)) = self.exact_errors(&st.u, t_next)? {
                     errors.push(ErrorSample { step: n + 1, time: t_next, l2, h1_semi: h1 });
                 }
             }
@@ -694,19 +877,55 @@ impl<'a> Simulation<'a> {
         let stepping = t_loop.elapsed().as_secs_f64() - t_out;
         self.timings.stepping = max_over_ranks(self.world, stepping);
         self.timings.output = max_over_ranks(self.world, self.timings.output + t_out);
-        let (ek, ep) = energies(&u, &v, &mv, &au)?;
-        let final_u_natural = self.to_natural(&u)?;
-        let matmult_seconds = self.time_matmult(&op.k, &v, &mut rhs)?;
+        let final_u_natural = self.to_natural(&st.u)?;
+        let matmult_seconds = self.time_matmult(&ops.op.k, &st.v, &mut st.rhs)?;
         let peak_memory_mib = sum_over_ranks(self.world, peak_rss_mib());
+        let p1 = self.momentum(&st.mv)?;
+        let contact = ops.contact.as_ref().map(|c| {
+            history.summary(
+                c,
+                &self.mesh,
+                p0,
+                p1,
+                st.energy.contact_work,
+                max_over_ranks(self.world, t_contact_steps),
+            )
+        });
+        // Pictures next to the HDF5 file, drawn by rank 0 from the histories in memory. A
+        // picture that cannot be drawn (e.g. no font) is a warning, not a failed run; every
+        // rank learns the outcome, since the summary written below must be the same on all.
+        let mut pictures = Vec::new();
+        if let Some(out) = self.output.as_ref() {
+            let prefix = out.path().with_extension("");
+            let mut ok = 1i32;
+            if self.rank == 0 {
+                if let Some(c) = ops.contact.as_ref() {
+                    curves.lowest_pressure = history.pressure(history.lowest(c, &self.mesh));
+                }
+                match write_pictures(&prefix, &[curves]) {
+                    Ok(p) => pictures = p,
+                    Err(e) => {
+                        ok = 0;
+                        eprintln!("massfree: warning: pictures not written: {e}");
+                    }
+                }
+            }
+            self.world.process_at_rank(0).broadcast_into(&mut ok);
+            if ok == 1 && self.rank != 0 {
+                pictures = picture_paths(&prefix, ops.contact.is_some());
+            } else if ok == 0 {
+                pictures.clear();
+            }
+        }
         let summary = RunSummary {
             n_nodes: self.mesh.n_nodes(),
             n_dofs: self.part.n_global_dofs(),
             steps: n_steps,
             timings: self.timings.clone(),
-            ksp_iterations: its_total,
+            ksp_iterations: st.ksp_iterations,
             energy_initial: e0,
-            energy_final: ek + ep,
-            external_work: work,
+            energy_final: st.energy.kinetic + st.energy.potential,
+            external_work: st.energy.external_work,
             energy_balance: balance,
             energy_drift: drift,
             errors,
@@ -714,36 +933,35 @@ impl<'a> Simulation<'a> {
             matmult_seconds,
             peak_memory_mib,
             ranks: self.size,
-            ksp_type: op.ksp.ksp_type()?,
-            pc_type: op.ksp.pc_type()?,
+            ksp_type: ops.op.ksp.ksp_type()?,
+            pc_type: ops.op.ksp.pc_type()?,
             mass_kind: self.scene.mass.kind.name().to_string(),
             layer_contact_nodes: self.layer.as_ref().map_or(0, |l| l.n_contact_nodes()),
             layer_cells: self.layer.as_ref().map_or(0, |l| l.n_layer_cells()),
             mass: self.mass_check.clone().unwrap_or_default(),
+            momentum_initial: p0[..self.part.dim].to_vec(),
+            momentum_final: p1[..self.part.dim].to_vec(),
+            contact,
+            pictures,
             final_u_natural,
         };
         if let Some(out) = self.output.as_mut() {
-            let mut s = format!(
-                "steps = {}\nksp_iterations = {}\nenergy_initial = {:e}\nenergy_final = {:e}\nexternal_work = {:e}\nenergy_balance = {:e}\n",
-                summary.steps, its_total, e0, ek + ep, work, balance
-            );
-            for er in &summary.errors {
-                s += &format!("error_step_{} = l2 {:e} h1_semi {:e}\n", er.step, er.l2, er.h1_semi);
-            }
+            let text = toml::to_string(&summary).unwrap_or_default();
             let t = &self.timings;
             let timing = format!(
                 "mesh = {:e}\npartition = {:e}\nassembly = {:e}\nsetup = {:e}\nstepping = {:e}\noutput = {:e}\n",
                 t.mesh, t.partition, t.assembly, t.setup, t.stepping, t.output
             );
-            out.set_attr("summary", &s)?;
+            out.set_attr("summary", &text)?;
             out.set_attr("timings", &timing)?;
             out.finish("finished")?;
         }
-        self.u = Some(u);
-        self.v = Some(v);
-        self.a = Some(a);
-        self.m = Some(m);
-        self.op = Some(op);
+        self.a = Some(ops.a);
+        self.m = Some(ops.m);
+        self.op = Some(ops.op);
+        self.contact = ops.contact;
+        self.u = Some(st.u);
+        self.v = Some(st.v);
         Ok(summary)
     }
 
@@ -761,27 +979,37 @@ impl<'a> Simulation<'a> {
         Ok(max_over_ranks(self.world, dt))
     }
 
-    #[allow(clippy::too_many_arguments)]
-    fn write_step(
+    /// Write what is due at this step: energies always, fields every `output.every` steps,
+    /// contact data when the scene has contact.
+    fn output_step(
         &mut self,
         step: usize,
         t: f64,
-        u: &Vector,
-        v: &Vector,
-        ek: f64,
-        ep: f64,
-        work: f64,
+        st: &State,
+        contact: Option<ContactRowOwned>,
     ) -> Result<()> {
         if self.output.is_none() {
             return Ok(());
         }
         let fields_due = self.output.as_ref().is_some_and(|o| o.wants_fields(step));
-        let (un, vn) =
-            if fields_due { (self.to_natural(u)?, self.to_natural(v)?) } else { (vec![], vec![]) };
+        let (un, vn) = if fields_due {
+            (self.to_natural(&st.u)?, self.to_natural(&st.v)?)
+        } else {
+            (vec![], vec![])
+        };
         let out = self.output.as_mut().expect("output");
-        out.write_energy(step, t, ek, ep, work)?;
+        out.write_energy(step, t, &st.energy)?;
         if fields_due {
             out.write_fields(step, t, &un, &vn)?;
+        }
+        if let Some(c) = contact {
+            out.write_contact(&ContactRow {
+                pressure: &c.pressure,
+                force: &c.force,
+                gap: &c.gap,
+                active: &c.active,
+                iterations: c.iterations,
+            })?;
         }
         Ok(())
     }
@@ -810,7 +1038,9 @@ impl<'a> Simulation<'a> {
         t_next: f64,
         lo: usize,
     ) -> Result<()> {
-        if self.dirichlet.is_empty() {
+        // Decided on the scene, not on this rank's DOFs: the product below is collective,
+        // and a rank may own no constrained DOF.
+        if self.scene.dirichlet.is_empty() {
             return Ok(());
         }
         let specs = &self.scene.dirichlet;
@@ -913,7 +1143,7 @@ pub fn summary_lines(sim: &Simulation, s: &RunSummary) -> Vec<String> {
             t.mesh, t.partition, t.assembly, t.setup, t.output
         ),
         format!(
-            "energy: initial {:.10e}, final {:.10e}, external work {:.6e}; balance |E^n - E^0 - W^n|/max E = {:.2e}",
+            "energy: initial {:.10e}, final {:.10e}, external work {:.6e}; balance |E^n - E^0 - W^n|/max E = {:.2e} (W: loads, contact, boundary reactions)",
             s.energy_initial, s.energy_final, s.external_work, s.energy_balance
         ),
     ];
@@ -923,8 +1153,29 @@ pub fn summary_lines(sim: &Simulation, s: &RunSummary) -> Vec<String> {
             e.step, e.time, e.l2, e.h1_semi
         ));
     }
+    if let Some(c) = &s.contact {
+        lines.push(format!(
+            "contact: steps {}..{}, up to {} active nodes, max pressure {:.4e}, {:.2} active-set iterations/step (max {}), energy loss {:.2e} (contact work {:.4e})",
+            c.first_contact_step,
+            c.last_contact_step,
+            c.max_active_nodes,
+            c.max_pressure,
+            c.active_set_iterations_mean,
+            c.active_set_iterations_max,
+            (s.energy_initial - s.energy_final) / s.energy_initial.abs().max(f64::MIN_POSITIVE),
+            c.contact_work
+        ));
+        lines.push(format!(
+            "chatter: lowest node osc2 {:.2e}, total-force TV index {:.3}, episodes per node max {} (mean {:.2})",
+            c.lowest_osc2, c.total_force_tv_index, c.episodes_max, c.episodes_mean
+        ));
+    }
     if let Some(p) = &s.output {
         lines.push(format!("output: {}", p.display()));
+    }
+    if !s.pictures.is_empty() {
+        let list: Vec<String> = s.pictures.iter().map(|p| p.display().to_string()).collect();
+        lines.push(format!("pictures: {}", list.join(", ")));
     }
     lines
 }

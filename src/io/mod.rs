@@ -37,6 +37,37 @@ pub fn natural_range(n_nodes: usize, rank: usize, size: usize) -> (usize, usize)
     (lo, hi)
 }
 
+/// One step's energies: `total - total[0] = external_work + contact_work + dirichlet_work` up
+/// to solver tolerance (the midpoint rule's energy identity).
+#[derive(Debug, Clone, Copy, Default)]
+pub struct EnergyRow {
+    pub kinetic: f64,
+    pub potential: f64,
+    pub external_work: f64,
+    pub contact_work: f64,
+    /// Work of the reactions at non-zero Dirichlet boundaries.
+    pub dirichlet_work: f64,
+}
+
+struct ContactDatasets {
+    pressure: Dataset,
+    force: Dataset,
+    gap: Dataset,
+    active: Dataset,
+    active_set_size: Dataset,
+    iterations: Dataset,
+    n_written: usize,
+}
+
+/// One step on the contact boundary (per contact node, in the order of `/contact/nodes`).
+pub struct ContactRow<'a> {
+    pub pressure: &'a [f64],
+    pub force: &'a [f64],
+    pub gap: &'a [f64],
+    pub active: &'a [bool],
+    pub iterations: usize,
+}
+
 /// Which nodal fields are written, and how often.
 #[derive(Debug, Clone)]
 pub struct OutputPlan {
@@ -56,7 +87,8 @@ pub struct Output {
     step: Dataset,
     displacement: Option<Dataset>,
     velocity: Option<Dataset>,
-    energy: [Dataset; 6],
+    energy: [Dataset; 8],
+    contact: Option<ContactDatasets>,
     n_fields_written: usize,
     n_energies_written: usize,
     n_nodes: usize,
@@ -191,6 +223,8 @@ impl Output {
             resizable_1d("energy/potential")?,
             resizable_1d("energy/total")?,
             resizable_1d("energy/external_work")?,
+            resizable_1d("energy/contact_work")?,
+            resizable_1d("energy/dirichlet_work")?,
         ];
 
         let settings_text: String = settings.iter().map(|(k, v)| format!("{k} = {v}\n")).collect();
@@ -217,6 +251,7 @@ impl Output {
             displacement,
             velocity,
             energy,
+            contact: None,
             n_fields_written: 0,
             n_energies_written: 0,
             n_nodes: n,
@@ -265,16 +300,18 @@ impl Output {
     }
 
     /// Append one step's energies. Collective (resizing is), rank 0 writes.
-    pub fn write_energy(
-        &mut self,
-        step: usize,
-        t: f64,
-        kinetic: f64,
-        potential: f64,
-        external_work: f64,
-    ) -> Result<()> {
+    pub fn write_energy(&mut self, step: usize, t: f64, e: &EnergyRow) -> Result<()> {
         let k = self.n_energies_written;
-        let vals = [step as f64, t, kinetic, potential, kinetic + potential, external_work];
+        let vals = [
+            step as f64,
+            t,
+            e.kinetic,
+            e.potential,
+            e.kinetic + e.potential,
+            e.external_work,
+            e.contact_work,
+            e.dirichlet_work,
+        ];
         for (ds, val) in self.energy.iter().zip(vals) {
             ds.resize((k + 1,)).map_err(|e| h5err(&self.path, "resize /energy", e))?;
             if self.rank == 0 {
@@ -320,6 +357,104 @@ impl Output {
             .map_err(|_| Error::Io("probe: block size mismatch".into()))?;
         ds.write_slice(&arr, ndarray::s![lo..hi, ..])
             .map_err(|e| h5err(&path, "write /mass/probe", e))?;
+        Ok(())
+    }
+
+    /// Create `/contact`: `nodes` (0-based rows of /mesh/coordinates), `weights` (boundary
+    /// weights D_qq), and per step `pressure`, `force`, `gap`, `active` [steps + 1, contact
+    /// nodes], `active_set_size`, `iterations` [steps + 1]. Collective.
+    pub fn create_contact(&mut self, nodes: &[usize], weights: &[f64], group: &str) -> Result<()> {
+        let path = self.path.clone();
+        let g =
+            self.file.create_group("contact").map_err(|e| h5err(&path, "create /contact", e))?;
+        let nc = nodes.len();
+        let nodes_ds = g
+            .new_dataset::<u64>()
+            .shape((nc,))
+            .create("nodes")
+            .map_err(|e| h5err(&path, "create /contact/nodes", e))?;
+        let w_ds = g
+            .new_dataset::<f64>()
+            .shape((nc,))
+            .create("weights")
+            .map_err(|e| h5err(&path, "create /contact/weights", e))?;
+        if self.rank == 0 {
+            let n64: Vec<u64> = nodes.iter().map(|&v| v as u64).collect();
+            nodes_ds.write(&n64).map_err(|e| h5err(&path, "write /contact/nodes", e))?;
+            w_ds.write(weights).map_err(|e| h5err(&path, "write /contact/weights", e))?;
+        }
+        write_str_attr(&g, "group", group, &path)?;
+        let per_node = |name: &str| -> Result<Dataset> {
+            g.new_dataset::<f64>()
+                .chunk((64, nc.max(1)))
+                .shape((0.., nc))
+                .create(name)
+                .map_err(|e| h5err(&path, &format!("create /contact/{name}"), e))
+        };
+        let per_step = |name: &str| -> Result<Dataset> {
+            g.new_dataset::<f64>()
+                .chunk((1024,))
+                .shape((0..,))
+                .create(name)
+                .map_err(|e| h5err(&path, &format!("create /contact/{name}"), e))
+        };
+        self.contact = Some(ContactDatasets {
+            pressure: per_node("pressure")?,
+            force: per_node("force")?,
+            gap: per_node("gap")?,
+            active: g
+                .new_dataset::<u8>()
+                .chunk((64, nc.max(1)))
+                .shape((0.., nc))
+                .create("active")
+                .map_err(|e| h5err(&path, "create /contact/active", e))?,
+            active_set_size: per_step("active_set_size")?,
+            iterations: per_step("iterations")?,
+            n_written: 0,
+        });
+        Ok(())
+    }
+
+    /// Append one step's contact data. Collective (resizing), rank 0 writes.
+    pub fn write_contact(&mut self, row: &ContactRow) -> Result<()> {
+        let path = self.path.clone();
+        let rank0 = self.rank == 0;
+        let Some(c) = self.contact.as_mut() else { return Ok(()) };
+        let k = c.n_written;
+        let nc = row.pressure.len();
+        for (ds, vals, name) in [
+            (&c.pressure, row.pressure, "pressure"),
+            (&c.force, row.force, "force"),
+            (&c.gap, row.gap, "gap"),
+        ] {
+            ds.resize((k + 1, nc))
+                .map_err(|e| h5err(&path, &format!("resize /contact/{name}"), e))?;
+            if rank0 {
+                let arr = ndarray::Array2::from_shape_vec((1, nc), vals.to_vec()).expect("shape");
+                ds.write_slice(&arr, ndarray::s![k..k + 1, ..])
+                    .map_err(|e| h5err(&path, &format!("write /contact/{name}"), e))?;
+            }
+        }
+        c.active.resize((k + 1, nc)).map_err(|e| h5err(&path, "resize /contact/active", e))?;
+        if rank0 {
+            let act: Vec<u8> = row.active.iter().map(|&a| u8::from(a)).collect();
+            let arr = ndarray::Array2::from_shape_vec((1, nc), act).expect("shape");
+            c.active
+                .write_slice(&arr, ndarray::s![k..k + 1, ..])
+                .map_err(|e| h5err(&path, "write /contact/active", e))?;
+        }
+        let size = row.active.iter().filter(|&&a| a).count() as f64;
+        for (ds, val, name) in [
+            (&c.active_set_size, size, "active_set_size"),
+            (&c.iterations, row.iterations as f64, "iterations"),
+        ] {
+            ds.resize((k + 1,)).map_err(|e| h5err(&path, &format!("resize /contact/{name}"), e))?;
+            if rank0 {
+                ds.write_slice(&[val], k..k + 1)
+                    .map_err(|e| h5err(&path, &format!("write /contact/{name}"), e))?;
+            }
+        }
+        c.n_written += 1;
         Ok(())
     }
 

@@ -126,6 +126,83 @@ fn facet_map(mesh: &Mesh, cells: &[usize]) -> FacetCells {
     map
 }
 
+/// The elements of a contact boundary group, checked: a group of dimension dim - 1, not
+/// empty, and on the boundary of the body (each element a facet of exactly one cell).
+/// Errors name the group and an offending gmsh element.
+pub fn boundary_group<'m>(mesh: &'m Mesh, name: &str) -> Result<Vec<&'m crate::mesh::Element>> {
+    let group = mesh.group(name).map_err(|e| match e {
+        Error::Mesh(m) => Error::Scene(format!("contact group: {m}")),
+        other => other,
+    })?;
+    if group.dim + 1 != mesh.dim {
+        return Err(Error::Scene(format!(
+            "contact group \"{name}\" has dimension {}, but the contact boundary of a {}D \
+             body must be a physical group of dimension {}",
+            group.dim,
+            mesh.dim,
+            mesh.dim - 1
+        )));
+    }
+    let elems = mesh.group_elements(name)?;
+    if elems.is_empty() {
+        return Err(Error::Scene(format!("contact group \"{name}\" has no elements")));
+    }
+
+    // The contact group must lie on the boundary: each of its elements is a facet of
+    // exactly one cell.
+    let facets = facet_map(mesh, &cells_near(mesh, &elems));
+    for e in &elems {
+        let all: Vec<usize> = (0..e.kind.n_nodes()).collect();
+        let key = facet_key(e.nodes(), &all);
+        match facets.get(&key) {
+            Some(&(_, _, 1)) => {}
+            Some(&(c0, c1, n)) => {
+                let other = if c1 == usize::MAX {
+                    String::new()
+                } else {
+                    format!(" (between elements {} and {})", mesh.cells[c0].tag, mesh.cells[c1].tag)
+                };
+                return Err(Error::Scene(format!(
+                    "contact group \"{name}\" is not on the boundary of the body: its \
+                     element {} is a facet of {n} elements{other}",
+                    e.tag
+                )));
+            }
+            None => {
+                return Err(Error::Mesh(format!(
+                    "contact group \"{name}\": its element {} is not a facet of any {}D \
+                     element (non-conforming mesh?)",
+                    e.tag, mesh.dim
+                )));
+            }
+        }
+    }
+
+    Ok(elems)
+}
+
+/// Cells that share a node with a cell touching the given boundary elements: every facet a
+/// boundary element or a layer cell can share lies among their facets.
+fn cells_near(mesh: &Mesh, elems: &[&crate::mesh::Element]) -> Vec<usize> {
+    let mut near_contact = vec![false; mesh.n_nodes()];
+    for e in elems {
+        for &n in e.nodes() {
+            near_contact[n] = true;
+        }
+    }
+    let mut near_layer = vec![false; mesh.n_nodes()];
+    for cell in &mesh.cells {
+        if cell.nodes().iter().any(|&n| near_contact[n]) {
+            for &n in cell.nodes() {
+                near_layer[n] = true;
+            }
+        }
+    }
+    (0..mesh.cells.len())
+        .filter(|&c| mesh.cells[c].nodes().iter().any(|&n| near_layer[n]))
+        .collect()
+}
+
 /// Relative tolerance for near-ties in the partner choice (times the element's diameter).
 const TIE_TOL: f64 = 1e-10;
 /// A vertex is accepted into the extrapolation simplex of a quad/hex partner if the simplex
@@ -239,75 +316,8 @@ impl MassFreeLayer {
     /// layer cell has no partner outside the layer, or a degenerate partner (`Error::Mesh`).
     pub fn build(mesh: &Mesh, contact_group: &str, variant: Variant) -> Result<MassFreeLayer> {
         let name = contact_group;
-        let group = mesh.group(name).map_err(|e| match e {
-            Error::Mesh(m) => Error::Scene(format!("contact group: {m}")),
-            other => other,
-        })?;
-        if group.dim + 1 != mesh.dim {
-            return Err(Error::Scene(format!(
-                "contact group \"{name}\" has dimension {}, but the contact boundary of a {}D \
-                 body must be a physical group of dimension {}",
-                group.dim,
-                mesh.dim,
-                mesh.dim - 1
-            )));
-        }
-        let elems = mesh.group_elements(name)?;
-        if elems.is_empty() {
-            return Err(Error::Scene(format!("contact group \"{name}\" has no elements")));
-        }
-
-        // The contact group must lie on the boundary: each of its elements is a facet of
-        // exactly one cell.
-        // Cells near the contact boundary: those sharing a node with a cell that has a contact
-        // node. Every facet a contact facet or a layer cell can share lies among their facets.
-        let mut near_contact = vec![false; mesh.n_nodes()];
-        for e in &elems {
-            for &n in e.nodes() {
-                near_contact[n] = true;
-            }
-        }
-        let mut near_layer = vec![false; mesh.n_nodes()];
-        for cell in &mesh.cells {
-            if cell.nodes().iter().any(|&n| near_contact[n]) {
-                for &n in cell.nodes() {
-                    near_layer[n] = true;
-                }
-            }
-        }
-        let ring: Vec<usize> = (0..mesh.cells.len())
-            .filter(|&c| mesh.cells[c].nodes().iter().any(|&n| near_layer[n]))
-            .collect();
-        let facets = facet_map(mesh, &ring);
-        for e in &elems {
-            let all: Vec<usize> = (0..e.kind.n_nodes()).collect();
-            let key = facet_key(e.nodes(), &all);
-            match facets.get(&key) {
-                Some(&(_, _, 1)) => {}
-                Some(&(c0, c1, n)) => {
-                    let other = if c1 == usize::MAX {
-                        String::new()
-                    } else {
-                        format!(
-                            " (between elements {} and {})",
-                            mesh.cells[c0].tag, mesh.cells[c1].tag
-                        )
-                    };
-                    return Err(Error::Scene(format!(
-                        "contact group \"{name}\" is not on the boundary of the body: its \
-                         element {} is a facet of {n} elements{other}",
-                        e.tag
-                    )));
-                }
-                None => {
-                    return Err(Error::Mesh(format!(
-                        "contact group \"{name}\": its element {} is not a facet of any {}D \
-                         element (non-conforming mesh?)",
-                        e.tag, mesh.dim
-                    )));
-                }
-            }
-        }
+        let elems = boundary_group(mesh, name)?;
+        let facets = facet_map(mesh, &cells_near(mesh, &elems));
 
         let mut contact_nodes: Vec<usize> =
             elems.iter().flat_map(|e| e.nodes().iter().copied()).collect();

@@ -834,23 +834,6 @@ fn build(raw: RawScene, stem: &str, base_dir: &Path) -> VResult<Scene> {
         }
     };
 
-    // --- mass
-    let (kind, contact_boundary) = match raw.mass {
-        Some(m) => (m.kind.unwrap_or(MassKind::Consistent), m.contact_boundary),
-        None => (MassKind::Consistent, None),
-    };
-    let contact_boundary = match contact_boundary {
-        Some(g) => Some(group_name(g, "mass.contact_boundary")?),
-        None => None,
-    };
-    if kind.is_modified() && contact_boundary.is_none() {
-        return Err(format!(
-            "mass.kind = {} needs mass.contact_boundary: the mass-free layer is built along the potential contact boundary",
-            kind.name()
-        ));
-    }
-    let mass = MassSpec { kind, contact_boundary };
-
     // --- solver
     let solver = match raw.solver {
         None => SolverSpec::default(),
@@ -975,6 +958,24 @@ fn build(raw: RawScene, stem: &str, base_dir: &Path) -> VResult<Scene> {
             Some(ContactSpec { boundary, obstacle })
         }
     };
+
+    // --- mass
+    let (kind, contact_boundary) = match raw.mass {
+        Some(m) => (m.kind.unwrap_or(MassKind::Consistent), m.contact_boundary),
+        None => (MassKind::Consistent, None),
+    };
+    // The mass-free layer sits on the contact boundary unless the scene names another group.
+    let contact_boundary = match contact_boundary {
+        Some(g) => Some(group_name(g, "mass.contact_boundary")?),
+        None => contact.as_ref().map(|c: &ContactSpec| c.boundary.clone()),
+    };
+    if kind.is_modified() && contact_boundary.is_none() {
+        return Err(format!(
+            "mass.kind = {} needs mass.contact_boundary (or a [contact] section): the mass-free layer is built along the potential contact boundary",
+            kind.name()
+        ));
+    }
+    let mass = MassSpec { kind, contact_boundary };
 
     Ok(Scene {
         name,

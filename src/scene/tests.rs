@@ -438,7 +438,7 @@ fn impossible_values() {
         "[body_force]\nvalue = [1, 2, 3, 4]\n",
     ];
     let needles: [&[&str]; 12] = [
-        &["mass.kind = modified0 needs mass.contact_boundary: the mass-free layer is built along the potential contact boundary"],
+        &["mass.kind = modified0 needs mass.contact_boundary (or a [contact] section): the mass-free layer is built along the potential contact boundary"],
         &["output.every = 0 is impossible"],
         &["solver.rtol = 1.5 is impossible", "(0, 1)"],
         &["exact.error_steps contains 11", "time.steps = 10"],

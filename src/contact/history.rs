@@ -1,0 +1,181 @@
+//! The contact history of a run, kept in memory (a few numbers per contact node and step),
+//! and its summary: contact period, active-set iterations, peak pressure, chatter metrics,
+//! energy and momentum balance across the impact.
+
+use super::metrics::{contact_period, episodes, osc2, tv_index};
+use super::{ActiveSet, StepContact};
+use crate::mesh::Mesh;
+
+/// One step's contact data as written to HDF5.
+#[derive(Debug, Clone)]
+pub struct ContactRowOwned {
+    pub pressure: Vec<f64>,
+    pub force: Vec<f64>,
+    pub gap: Vec<f64>,
+    pub active: Vec<bool>,
+    pub iterations: usize,
+}
+
+#[derive(Debug, Default)]
+pub struct History {
+    /// Per step (index 0 = t = 0): force, gap, active of every contact node.
+    force: Vec<Vec<f64>>,
+    gap: Vec<Vec<f64>>,
+    active: Vec<Vec<bool>>,
+    iterations: Vec<usize>,
+    /// The obstacle's impulse `tau sum_n sum_q lambda_q n_q` per component.
+    impulse: [f64; 3],
+    weights: Vec<f64>,
+}
+
+/// What a contact run reports (written by `--summary` under `[contact]`).
+#[derive(Debug, Clone, Default, serde::Serialize)]
+pub struct ContactSummary {
+    pub nodes: usize,
+    /// First and last step with an active node (0 if none).
+    pub first_contact_step: usize,
+    pub last_contact_step: usize,
+    pub contact_steps: usize,
+    pub active_set_iterations_mean: f64,
+    pub active_set_iterations_max: usize,
+    pub max_pressure: f64,
+    pub max_active_nodes: usize,
+    /// The contact node closest to the obstacle at t = 0 (0-based mesh node) and its gmsh tag.
+    pub lowest_node: usize,
+    pub lowest_node_tag: u64,
+    /// Chatter of the lowest node's pressure: period-2 amplitude and total-variation index.
+    pub lowest_osc2: f64,
+    pub lowest_tv_index: f64,
+    /// Total contact force: total-variation index and period-2 amplitude.
+    pub total_force_tv_index: f64,
+    pub total_force_osc2: f64,
+    /// Contact episodes per node that touched: maximum and mean.
+    pub episodes_max: usize,
+    pub episodes_mean: f64,
+    pub contact_work: f64,
+    /// Impulse the contact gave the body, `-tau sum_n sum_q lambda_q n_q`, per component.
+    pub impulse: Vec<f64>,
+    /// Column solves of the Schur complement (one per contact node and component, once).
+    pub column_solves: usize,
+    /// Wall time of the steps with an active contact node (max over ranks), seconds.
+    pub contact_steps_seconds: f64,
+}
+
+impl History {
+    pub fn start(&mut self, c: &ActiveSet) {
+        let nc = c.n_nodes();
+        self.weights = c.boundary.weights.clone();
+        self.force.push(vec![0.0; nc]);
+        self.gap.push(vec![f64::NAN; nc]);
+        self.active.push(vec![false; nc]);
+        self.iterations.push(0);
+    }
+
+    pub fn push(&mut self, c: &StepContact, tau: f64) {
+        self.force.push(c.force.clone());
+        self.gap.push(c.gap.clone());
+        self.active.push(c.active.clone());
+        self.iterations.push(c.iterations);
+        for i in 0..3 {
+            self.impulse[i] += tau * c.resultant[i];
+        }
+    }
+
+    /// The last step as an output row (None without contact).
+    pub fn last_row(&self, c: Option<&ActiveSet>) -> Option<ContactRowOwned> {
+        c?;
+        let force = self.force.last()?.clone();
+        let pressure = force.iter().zip(&self.weights).map(|(f, w)| f / w).collect();
+        Some(ContactRowOwned {
+            pressure,
+            force,
+            gap: self.gap.last()?.clone(),
+            active: self.active.last()?.clone(),
+            iterations: *self.iterations.last()?,
+        })
+    }
+
+    /// Index (among the contact nodes) of the node closest to the obstacle at t = 0.
+    pub fn lowest(&self, c: &ActiveSet, mesh: &Mesh) -> usize {
+        (0..c.n_nodes())
+            .min_by(|&a, &b| {
+                let ga = c.obstacle.gap_normal(mesh.coords[c.boundary.nodes[a]]).0;
+                let gb = c.obstacle.gap_normal(mesh.coords[c.boundary.nodes[b]]).0;
+                ga.partial_cmp(&gb).unwrap_or(std::cmp::Ordering::Equal).then(a.cmp(&b))
+            })
+            .unwrap_or(0)
+    }
+
+    /// Pressure history of contact node `k` (index among the contact nodes).
+    pub fn pressure(&self, k: usize) -> Vec<f64> {
+        self.force.iter().map(|f| f[k] / self.weights[k]).collect()
+    }
+
+    pub fn summary(
+        &self,
+        c: &ActiveSet,
+        mesh: &Mesh,
+        _p0: [f64; 3],
+        _p1: [f64; 3],
+        contact_work: f64,
+        contact_steps_seconds: f64,
+    ) -> ContactSummary {
+        let nc = c.n_nodes();
+        let dim = mesh.dim;
+        let steps = self.active.len();
+        let any: Vec<bool> = self.active.iter().map(|a| a.iter().any(|&x| x)).collect();
+        let period = contact_period(&any);
+        let (first, last) = period.unwrap_or((0, 0));
+        let its: Vec<usize> = (1..steps).filter(|&n| any[n]).map(|n| self.iterations[n]).collect();
+        let lowest = self.lowest(c, mesh);
+        let pressure_of = |k: usize| self.pressure(k);
+        let active_of = |k: usize| -> Vec<bool> { self.active.iter().map(|a| a[k]).collect() };
+        let p_low = pressure_of(lowest);
+        let (lowest_osc2, lowest_tv) = match contact_period(&active_of(lowest)) {
+            Some(per) => (osc2(&p_low, per), tv_index(&p_low, per)),
+            None => (0.0, 0.0),
+        };
+        let total: Vec<f64> = self.force.iter().map(|f| f.iter().sum()).collect();
+        let (tf_tv, tf_osc2) = match period {
+            Some(per) => (tv_index(&total, per), osc2(&total, per)),
+            None => (0.0, 0.0),
+        };
+        let eps: Vec<usize> = (0..nc).map(|k| episodes(&active_of(k))).filter(|&e| e > 0).collect();
+        let max_pressure = (0..nc).flat_map(|k| pressure_of(k)).fold(0.0f64, |a, b| a.max(b));
+        ContactSummary {
+            nodes: nc,
+            first_contact_step: first,
+            last_contact_step: last,
+            contact_steps: any.iter().filter(|&&a| a).count(),
+            active_set_iterations_mean: if its.is_empty() {
+                0.0
+            } else {
+                its.iter().sum::<usize>() as f64 / its.len() as f64
+            },
+            active_set_iterations_max: its.iter().copied().max().unwrap_or(0),
+            max_pressure,
+            max_active_nodes: self
+                .active
+                .iter()
+                .map(|a| a.iter().filter(|&&x| x).count())
+                .max()
+                .unwrap_or(0),
+            lowest_node: c.boundary.nodes[lowest],
+            lowest_node_tag: mesh.node_tags[c.boundary.nodes[lowest]],
+            lowest_osc2,
+            lowest_tv_index: lowest_tv,
+            total_force_tv_index: tf_tv,
+            total_force_osc2: tf_osc2,
+            episodes_max: eps.iter().copied().max().unwrap_or(0),
+            episodes_mean: if eps.is_empty() {
+                0.0
+            } else {
+                eps.iter().sum::<usize>() as f64 / eps.len() as f64
+            },
+            contact_work,
+            impulse: (0..dim).map(|i| -self.impulse[i]).collect(),
+            column_solves: c.column_solves,
+            contact_steps_seconds,
+        }
+    }
+}
