@@ -65,6 +65,10 @@ enum Command {
         /// Override the scene's mass treatment: consistent, lumped, modified0, modified1.
         #[arg(long, value_name = "KIND")]
         mass: Option<String>,
+        /// How cells are split over ranks: metis (default) or x-slabs (equal-count slabs
+        /// along x, a predictable cut through the median x).
+        #[arg(long, default_value = "metis", value_parser = ["metis", "x-slabs"])]
+        partition: String,
         /// Write the run's summary (sizes, timings, energies, errors) to this TOML file.
         #[arg(long, value_name = "FILE")]
         summary: Option<PathBuf>,
@@ -105,6 +109,7 @@ fn run(cli: Cli, universe: &mpi::environment::Universe) -> Result<()> {
             verbose,
             params,
             mass,
+            partition,
             summary: summary_file,
             petsc,
         } => {
@@ -122,7 +127,10 @@ fn run(cli: Cli, universe: &mpi::environment::Universe) -> Result<()> {
             if let Some(kind) = &mass {
                 scene.set_mass_kind(kind)?;
             }
-            let opts = RunOptions { output, overwrite, steps, quiet, verbose, no_output };
+            let partition = massfree::partition::Strategy::from_name(&partition)
+                .ok_or_else(|| Error::Usage(format!("--partition {partition}: unknown")))?;
+            let opts =
+                RunOptions { output, overwrite, steps, quiet, verbose, no_output, partition };
             let mut sim = Simulation::setup(&world, &console, scene, opts)?;
             console.say(format!(
                 "{}: {} nodes, {} cells ({}D), {} DOFs on {} rank(s); assembling",

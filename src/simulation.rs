@@ -37,6 +37,7 @@ pub struct RunOptions {
     pub verbose: bool,
     /// Do not write the HDF5 file.
     pub no_output: bool,
+    pub partition: crate::partition::Strategy,
 }
 
 /// Wall time of the phases of a run, in seconds (max over ranks).
@@ -230,7 +231,7 @@ impl<'a> Simulation<'a> {
         scene.check_dim(mesh.dim)?;
         let t_mesh = t0.elapsed().as_secs_f64();
         let t1 = Instant::now();
-        let part = Partition::new(&mesh, rank, size)?;
+        let part = Partition::with_strategy(&mesh, rank, size, opts.partition)?;
         let t_part = t1.elapsed().as_secs_f64();
         let timings = Timings {
             mesh: max_over_ranks(world, t_mesh),
@@ -569,6 +570,7 @@ impl<'a> Simulation<'a> {
             ("steps".into(), self.n_steps().to_string()),
             ("ksp_type".into(), op.ksp.ksp_type().unwrap_or_default()),
             ("pc_type".into(), op.ksp.pc_type().unwrap_or_default()),
+            ("partition".into(), format!("{:?}", self.opts.partition)),
             ("metis_seed".into(), crate::partition::METIS_SEED.to_string()),
         ]
     }

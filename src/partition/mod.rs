@@ -93,10 +93,60 @@ pub fn partition_cells(mesh: &Mesh, nparts: usize) -> Result<Vec<usize>> {
     Ok(part.into_iter().map(|p| p as usize).collect())
 }
 
+/// How the cells are split over the ranks.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Strategy {
+    /// METIS k-way on the dual graph (the default: small interfaces).
+    #[default]
+    Metis,
+    /// Equal-count slabs of cell centroids along x: a predictable cut through x = median,
+    /// e.g. to make a contact zone straddle the partition boundary.
+    SlabsX,
+}
+
+impl Strategy {
+    pub fn from_name(name: &str) -> Option<Strategy> {
+        match name {
+            "metis" => Some(Strategy::Metis),
+            "x-slabs" => Some(Strategy::SlabsX),
+            _ => None,
+        }
+    }
+}
+
+/// Cells sorted by centroid x (ties by index), cut into `nparts` equal-count slabs.
+pub fn slabs_x(mesh: &Mesh, nparts: usize) -> Vec<usize> {
+    let cx: Vec<f64> = mesh
+        .cells
+        .iter()
+        .map(|c| c.nodes().iter().map(|&v| mesh.coords[v][0]).sum::<f64>() / c.nodes().len() as f64)
+        .collect();
+    let mut order: Vec<usize> = (0..mesh.cells.len()).collect();
+    order.sort_by(|&a, &b| cx[a].total_cmp(&cx[b]).then(a.cmp(&b)));
+    let n = order.len();
+    let mut part = vec![0; n];
+    for (i, &c) in order.iter().enumerate() {
+        part[c] = i * nparts / n.max(1);
+    }
+    part
+}
+
 impl Partition {
-    /// Partition `mesh` over `size` ranks and derive this rank's view.
+    /// Partition `mesh` over `size` ranks (METIS) and derive this rank's view.
     pub fn new(mesh: &Mesh, rank: usize, size: usize) -> Result<Partition> {
-        let cell_rank = partition_cells(mesh, size)?;
+        Self::with_strategy(mesh, rank, size, Strategy::Metis)
+    }
+
+    pub fn with_strategy(
+        mesh: &Mesh,
+        rank: usize,
+        size: usize,
+        strategy: Strategy,
+    ) -> Result<Partition> {
+        let cell_rank = match strategy {
+            Strategy::Metis => partition_cells(mesh, size)?,
+            Strategy::SlabsX => slabs_x(mesh, size),
+        };
         Ok(Self::from_cell_ranks(mesh, rank, size, cell_rank))
     }
 
