@@ -278,6 +278,65 @@ fn main() {
             print!("{}", md.lines().last().map(|l| format!("{l}\n")).unwrap_or_default());
         }
     }
+    // The two-disc benchmark (paper 7.2, tau = 1e-6) for each mass kind on a finer contact
+    // mesh than the tests' (hc = 0.025, h = 0.5): cost of contact steps against free-flight steps.
+    if want("disc") {
+        md += "\nTwo-disc impact (2 ranks, 1000 steps, tau = 1e-6, gap 0.05):\n\n| mesh | mass | DOFs | stepping s | ms/step | KSP its/step | active-set its mean / max | contact step / free step | column solves |\n|---|---|---|---|---|---|---|---|---|\n";
+        let (hc, h) = if quick { ("0.1", "1.0") } else { ("0.025", "0.5") };
+        for (scene, mesh) in [("disc.toml", "quads"), ("disc_tri.toml", "triangles")] {
+            for mass in ["consistent", "lumped", "modified0", "modified1"] {
+                let out = repo().join("target/bench");
+                let summary = out.join(format!("disc-{mesh}-{mass}.toml"));
+                let o = Command::new("mpirun")
+                    .args(["--oversubscribe", "-n", "2"])
+                    .arg(repo().join("target/release/massfree"))
+                    .arg("run")
+                    .arg(repo().join("scenes").join(scene))
+                    .args([
+                        "--quiet",
+                        "--no-output",
+                        "--mass",
+                        mass,
+                        "--param",
+                        &format!("hc={hc}"),
+                    ])
+                    .args(["--param", &format!("h={h}"), "--summary"])
+                    .arg(&summary)
+                    .env("OMPI_ALLOW_RUN_AS_ROOT", "1")
+                    .env("OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1")
+                    .env("OMPI_MCA_btl_vader_single_copy_mechanism", "none")
+                    .output();
+                let t = match o {
+                    Ok(o) if o.status.success() => std::fs::read_to_string(&summary)
+                        .ok()
+                        .and_then(|s| s.parse::<toml::Table>().ok()),
+                    _ => None,
+                };
+                let Some(t) = t else {
+                    md += &format!("| {mesh} | {mass} | failed |\n");
+                    continue;
+                };
+                let c = t["contact"].as_table().unwrap();
+                let steps = num(&t, "steps");
+                let stepping = timing(&t, "stepping");
+                let csteps = num(c, "contact_steps");
+                let csec = num(c, "contact_steps_seconds");
+                let ratio = (csec / csteps) / ((stepping - csec) / (steps - csteps));
+                md += &format!(
+                    "| {mesh} | {mass} | {:.0} | {:.2} | {:.2} | {:.1} | {:.2} / {} | {:.2} | {} |\n",
+                    num(&t, "n_dofs"),
+                    stepping,
+                    1e3 * stepping / steps,
+                    num(&t, "ksp_iterations") / steps,
+                    num(c, "active_set_iterations_mean"),
+                    num(c, "active_set_iterations_max"),
+                    ratio,
+                    num(c, "column_solves"),
+                );
+                print!("{}", md.lines().last().map(|l| format!("{l}\n")).unwrap_or_default());
+            }
+        }
+    }
     let path = repo().join("target/bench/scaling.md");
     let _ = std::fs::create_dir_all(path.parent().unwrap());
     std::fs::write(&path, &md).unwrap();
