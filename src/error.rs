@@ -21,6 +21,8 @@ pub enum Error {
     Io(String),
     /// An MPI-level failure.
     Mpi(String),
+    /// The run was stopped by SIGINT or SIGTERM (after finishing its step and its output).
+    Interrupted(String),
 }
 
 impl fmt::Display for Error {
@@ -40,6 +42,7 @@ impl fmt::Display for Error {
             Error::Solver(m) => write!(f, "solver error: {m}"),
             Error::Io(m) => write!(f, "I/O error: {m}"),
             Error::Mpi(m) => write!(f, "MPI error: {m}"),
+            Error::Interrupted(m) => write!(f, "interrupted: {m}"),
         }
     }
 }

@@ -16,6 +16,7 @@ pub mod petsc;
 pub mod post;
 pub mod scene;
 pub mod simulation;
+pub mod study;
 pub mod time;
 
 pub use error::{Error, Result};

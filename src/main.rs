@@ -24,6 +24,12 @@ struct Cli {
 
 #[derive(Subcommand, Debug)]
 enum Command {
+    /// Sweep a grid of settings over a scene (each point a real run on 2 ranks) and map error
+    /// against wall time: CSV, Markdown table and PNG plots in the study's output folder.
+    Study {
+        /// The study file (TOML).
+        study: PathBuf,
+    },
     /// Overlay the energies and the lowest contact node's pressure of several runs (HDF5
     /// files) in PNG pictures PREFIX-energy.png and PREFIX-pressure.png.
     Compare {
@@ -69,6 +75,9 @@ enum Command {
         /// along x, a predictable cut through the median x).
         #[arg(long, default_value = "metis", value_parser = ["metis", "x-slabs"])]
         partition: String,
+        /// Continue a finished or interrupted run from the checkpoint in its HDF5 file.
+        #[arg(long, value_name = "RUN.h5")]
+        restart: Option<PathBuf>,
         /// Write the run's summary (sizes, timings, energies, errors) to this TOML file.
         #[arg(long, value_name = "FILE")]
         summary: Option<PathBuf>,
@@ -79,6 +88,13 @@ enum Command {
 }
 
 fn run(cli: Cli, universe: &mpi::environment::Universe) -> Result<()> {
+    if let Command::Study { study } = &cli.command {
+        // The study orchestrates separate mpirun runs; only rank 0 drives it.
+        if universe.world().rank() == 0 {
+            massfree::study::run(study)?;
+        }
+        return Ok(());
+    }
     if let Command::Compare { runs, out, labels } = &cli.command {
         // Post-processing: serial, rank 0 only.
         if universe.world().rank() == 0 {
@@ -110,6 +126,7 @@ fn run(cli: Cli, universe: &mpi::environment::Universe) -> Result<()> {
             params,
             mass,
             partition,
+            restart,
             summary: summary_file,
             petsc,
         } => {
@@ -129,8 +146,23 @@ fn run(cli: Cli, universe: &mpi::environment::Universe) -> Result<()> {
             }
             let partition = massfree::partition::Strategy::from_name(&partition)
                 .ok_or_else(|| Error::Usage(format!("--partition {partition}: unknown")))?;
-            let opts =
-                RunOptions { output, overwrite, steps, quiet, verbose, no_output, partition };
+            // SIGINT/SIGTERM: finish the step, checkpoint, mark the file, stop (exit code 130).
+            let interrupt = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+            for sig in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {
+                signal_hook::flag::register(sig, std::sync::Arc::clone(&interrupt))
+                    .map_err(|e| Error::Usage(format!("cannot handle signal {sig}: {e}")))?;
+            }
+            let opts = RunOptions {
+                output,
+                overwrite,
+                steps,
+                quiet,
+                verbose,
+                no_output,
+                partition,
+                restart,
+                interrupt: Some(interrupt),
+            };
             let mut sim = Simulation::setup(&world, &console, scene, opts)?;
             console.say(format!(
                 "{}: {} nodes, {} cells ({}D), {} DOFs on {} rank(s); assembling",
@@ -154,7 +186,7 @@ fn run(cli: Cli, universe: &mpi::environment::Universe) -> Result<()> {
             }
             Ok(())
         }
-        Command::Compare { .. } => unreachable!("handled above"),
+        Command::Compare { .. } | Command::Study { .. } => Ok(()),
     }
 }
 
@@ -173,7 +205,11 @@ fn main() {
                 if rank == 0 || matches!(e, Error::Io(_) | Error::Mpi(_)) {
                     eprintln!("massfree: {e}");
                 }
-                1
+                if matches!(e, Error::Interrupted(_)) {
+                    130
+                } else {
+                    1
+                }
             }
         }
         // universe dropped here: MPI_Finalize after PETSc's guard was dropped inside run().

@@ -16,7 +16,9 @@ use crate::contact::history::{ContactRowOwned, ContactSummary, History as Contac
 use crate::contact::{ActiveSet, ContactBoundary, Obstacle, StepContact};
 use crate::error::{Error, Result};
 use crate::fem::{self, kernels};
-use crate::io::{natural_range, ContactRow, EnergyRow, Output, OutputPlan};
+use crate::io::{
+    natural_range, read_checkpoint, Checkpoint, ContactRow, EnergyRow, Output, OutputPlan,
+};
 use crate::mass::{build_layer, mass_matrix, MassFreeLayer};
 use crate::mesh::Mesh;
 use crate::partition::Partition;
@@ -38,6 +40,10 @@ pub struct RunOptions {
     /// Do not write the HDF5 file.
     pub no_output: bool,
     pub partition: crate::partition::Strategy,
+    /// Continue from the checkpoint of this run's HDF5 file.
+    pub restart: Option<PathBuf>,
+    /// Set by SIGINT/SIGTERM: finish the step, write, mark the file, stop.
+    pub interrupt: Option<std::sync::Arc<std::sync::atomic::AtomicBool>>,
 }
 
 /// Wall time of the phases of a run, in seconds (max over ranks).
@@ -453,6 +459,16 @@ impl<'a> Simulation<'a> {
         Ok(out)
     }
 
+    /// Fill `x` (solver layout) from this rank's natural block (the inverse of `to_natural`).
+    pub fn from_natural(&mut self, block: &[f64], x: &mut Vector) -> Result<()> {
+        if self.natural.is_none() {
+            self.natural = Some(self.natural_scatter(x)?);
+        }
+        let (sc, y) = self.natural.as_mut().expect("natural scatter");
+        y.with_local_slice_mut(|s| s.copy_from_slice(block))?;
+        sc.reverse(y, x)
+    }
+
     /// Values of `x` at the nodes of this rank's cells (ghosts included), for element loops.
     fn local_values(&mut self, x: &Vector) -> Result<(Vec<f64>, Vec<usize>)> {
         if self.local_view.is_none() {
@@ -776,7 +792,17 @@ impl<'a> Simulation<'a> {
             contact: self.contact.take(),
         };
         let mut st = self.initial_state(&ops)?;
-        if let Some(c) = ops.contact.as_ref() {
+        let restart = match self.opts.restart.clone() {
+            Some(path) => Some(self.restore(&path, &mut ops, &mut st)?),
+            None => None,
+        };
+        let start = restart.as_ref().map_or(0, |cp| cp.step);
+        if start > n_steps {
+            return Err(Error::Usage(format!(
+                "--restart: the checkpoint is at step {start}, beyond the {n_steps} steps of the scene"
+            )));
+        }
+        if let (Some(c), None) = (ops.contact.as_ref(), restart.as_ref()) {
             let bad = c.penetrating(&self.mesh, &st.u)?;
             if !bad.is_empty() {
                 let tags: Vec<String> =
@@ -792,15 +818,21 @@ impl<'a> Simulation<'a> {
         self.open_output(&ops)?;
 
         // Initial energy: the reference of the energy balance reported every step.
-        let e0 = st.energy.kinetic + st.energy.potential;
-        let p0 = self.momentum(&st.mv)?;
+        let e0 = restart
+            .as_ref()
+            .map_or(st.energy.kinetic + st.energy.potential, |cp| cp.energy_initial);
+        let p0 = match restart.as_ref() {
+            Some(cp) => cp.momentum_initial,
+            None => self.momentum(&st.mv)?,
+        };
         let mut e_max = e0.abs();
         let mut balance: f64 = 0.0;
         let mut drift: f64 = 0.0;
         let mut history = ContactHistory::default();
+        let t_start = start as f64 * tau;
         let mut curves = RunCurves {
             label: self.scene.mass.kind.name().to_string(),
-            time: vec![0.0],
+            time: vec![t_start],
             kinetic: vec![st.energy.kinetic],
             potential: vec![st.energy.potential],
             lowest_pressure: vec![],
@@ -808,10 +840,10 @@ impl<'a> Simulation<'a> {
         if let Some(c) = ops.contact.as_ref() {
             history.start(c);
         }
-        self.output_step(0, 0.0, &st, history.last_row(ops.contact.as_ref()))?;
+        self.output_step(start, t_start, &st, history.last_row(ops.contact.as_ref()))?;
         if self.opts.verbose {
             self.console.say(format!(
-                "step 0  t = 0  kinetic {:.10e}  potential {:.10e}  total {e0:.10e}",
+                "step {start}  t = {t_start:e}  kinetic {:.10e}  potential {:.10e}  total {e0:.10e}",
                 st.energy.kinetic, st.energy.potential
             ));
         }
@@ -821,9 +853,9 @@ impl<'a> Simulation<'a> {
             Some(_) => vec![n_steps],
             None => vec![],
         };
-        if error_steps.contains(&0) {
-            if let Some((l2, h1)) = self.exact_errors(&st.u, 0.0)? {
-                errors.push(ErrorSample { step: 0, time: 0.0, l2, h1_semi: h1 });
+        if error_steps.contains(&start) {
+            if let Some((l2, h1)) = self.exact_errors(&st.u, t_start)? {
+                errors.push(ErrorSample { step: start, time: t_start, l2, h1_semi: h1 });
             }
         }
 
@@ -831,7 +863,7 @@ impl<'a> Simulation<'a> {
         let t_loop = Instant::now();
         let mut t_out = 0.0;
         let mut t_contact_steps = 0.0;
-        for n in 0..n_steps {
+        for n in start..n_steps {
             let t_next = (n + 1) as f64 * tau;
             let t_step = Instant::now();
             let contact = self.solve_step(&mut ops, &mut st, n)?;
@@ -867,7 +899,38 @@ impl<'a> Simulation<'a> {
             }
             let t0 = Instant::now();
             self.output_step(n + 1, t_next, &st, history.last_row(ops.contact.as_ref()))?;
+            // A signal on any rank stops all ranks after this step, with a checkpoint.
+            let signalled = self
+                .opts
+                .interrupt
+                .as_ref()
+                .is_some_and(|f| f.load(std::sync::atomic::Ordering::SeqCst));
+            let stop = max_over_ranks(self.world, if signalled { 1.0 } else { 0.0 }) > 0.0;
+            let due = self.output.as_ref().is_some_and(|o| o.wants_fields(n + 1));
+            if due || stop || n + 1 == n_steps {
+                let cp = Checkpoint {
+                    step: n + 1,
+                    time: t_next,
+                    energy_initial: e0,
+                    external_work: st.energy.external_work,
+                    contact_work: st.energy.contact_work,
+                    dirichlet_work: st.energy.dirichlet_work,
+                    momentum_initial: p0,
+                    ksp_iterations: st.ksp_iterations,
+                    active: ops.contact.as_ref().map(|c| c.active.clone()).unwrap_or_default(),
+                };
+                self.checkpoint(&cp, &st)?;
+            }
             t_out += t0.elapsed().as_secs_f64();
+            if stop {
+                progress.finish();
+                let msg = format!("a signal stopped the run after step {} (t = {t_next:e}); restart with --restart", n + 1);
+                if let Some(out) = self.output.as_mut() {
+                    out.finish(&format!("interrupted: {msg}"))?;
+                }
+                self.output = None;
+                return Err(Error::Interrupted(msg));
+            }
             if error_steps.contains(&(n + 1)) {
                 if let Some((l2, h1)) = self.exact_errors(&st.u, t_next)? {
                     errors.push(ErrorSample { step: n + 1, time: t_next, l2, h1_semi: h1 });
@@ -979,6 +1042,61 @@ impl<'a> Simulation<'a> {
         }
         let dt = t0.elapsed().as_secs_f64() / reps as f64;
         Ok(max_over_ranks(self.world, dt))
+    }
+
+    /// Write the checkpoint (nothing without an output file).
+    fn checkpoint(&mut self, cp: &Checkpoint, st: &State) -> Result<()> {
+        if self.output.is_none() {
+            return Ok(());
+        }
+        let (u, v, du) =
+            (self.to_natural(&st.u)?, self.to_natural(&st.v)?, self.to_natural(&st.du)?);
+        self.output.as_mut().expect("output").write_checkpoint(cp, &u, &v, &du)
+    }
+
+    /// Continue from a checkpoint: u, v, the last increment (the solver's initial guess), the
+    /// loads at the checkpoint's time, the running energy totals and the active set.
+    fn restore(&mut self, path: &Path, ops: &mut Operators, st: &mut State) -> Result<Checkpoint> {
+        let range = natural_range(self.mesh.n_nodes(), self.rank, self.size);
+        let (cp, [u, v, du]) =
+            read_checkpoint(path, self.world, range, self.mesh.n_nodes(), self.part.dim)?;
+        self.from_natural(&u, &mut st.u)?;
+        self.from_natural(&v, &mut st.v)?;
+        self.from_natural(&du, &mut st.du)?;
+        let t = cp.time;
+        if ops.loads.present {
+            ops.loads.assemble(&self.mesh, &self.part, t, &mut st.f_now)?;
+            st.f_next.copy_from(&st.f_now)?;
+        }
+        ops.m.mult(&st.v, &mut st.mv)?;
+        ops.a.mult(&st.u, &mut st.au)?;
+        let (k, p) = energies(&st.u, &st.v, &st.mv, &st.au)?;
+        st.energy = EnergyRow {
+            kinetic: k,
+            potential: p,
+            external_work: cp.external_work,
+            contact_work: cp.contact_work,
+            dirichlet_work: cp.dirichlet_work,
+        };
+        st.ksp_iterations = cp.ksp_iterations;
+        if let Some(c) = ops.contact.as_mut() {
+            if cp.active.len() != c.n_nodes() {
+                return Err(Error::Io(format!(
+                    "{}: the checkpoint's contact set has {} nodes, this scene's {}",
+                    path.display(),
+                    cp.active.len(),
+                    c.n_nodes()
+                )));
+            }
+            c.active = cp.active.clone();
+        }
+        self.console.say(format!(
+            "restarting from step {} (t = {:e}) of {}",
+            cp.step,
+            t,
+            path.display()
+        ));
+        Ok(cp)
     }
 
     /// Write what is due at this step: energies always, fields every `output.every` steps,

@@ -92,6 +92,103 @@ pub struct Output {
     n_fields_written: usize,
     n_energies_written: usize,
     n_nodes: usize,
+    checkpoint: Option<([Dataset; 3], Dataset, Dataset)>,
+}
+
+const CHECKPOINT_SCALARS: usize = 10;
+
+/// The scalars of a checkpoint: the step reached and the running totals of the energy balance.
+#[derive(Debug, Clone, Default)]
+pub struct Checkpoint {
+    pub step: usize,
+    pub time: f64,
+    pub energy_initial: f64,
+    pub external_work: f64,
+    pub contact_work: f64,
+    pub dirichlet_work: f64,
+    pub momentum_initial: [f64; 3],
+    pub ksp_iterations: usize,
+    /// The active set after the step (contact scenes).
+    pub active: Vec<bool>,
+}
+
+impl Checkpoint {
+    fn scalars(&self) -> Vec<f64> {
+        vec![
+            self.step as f64,
+            self.time,
+            self.energy_initial,
+            self.external_work,
+            self.contact_work,
+            self.dirichlet_work,
+            self.momentum_initial[0],
+            self.momentum_initial[1],
+            self.momentum_initial[2],
+            self.ksp_iterations as f64,
+        ]
+    }
+}
+
+/// Read the checkpoint of a run: the scalars, the active set, and this rank's natural block
+/// of u, v and du. Collective open (MPI-IO), independent reads.
+pub fn read_checkpoint(
+    path: &Path,
+    world: &mpi::topology::SimpleCommunicator,
+    range: (usize, usize),
+    n_nodes: usize,
+    dim: usize,
+) -> Result<(Checkpoint, [Vec<f64>; 3])> {
+    let comm = world.as_raw();
+    let file = File::with_options()
+        .with_fapl(|p| p.mpio(comm, None))
+        .open(path)
+        .map_err(|e| h5err(path, "open for restart", e))?;
+    let g = file.group("checkpoint").map_err(|_| {
+        Error::Io(format!(
+            "{}: no checkpoint to restart from (was output written?)",
+            path.display()
+        ))
+    })?;
+    let sc = g
+        .dataset("scalars")
+        .and_then(|d| d.read_raw::<f64>())
+        .map_err(|e| h5err(path, "read /checkpoint/scalars", e))?;
+    let active: Vec<bool> = g
+        .dataset("active")
+        .and_then(|d| d.read_raw::<u8>())
+        .map_err(|e| h5err(path, "read /checkpoint/active", e))?
+        .into_iter()
+        .map(|a| a == 1)
+        .collect();
+    let (lo, hi) = range;
+    let mut fields = [Vec::new(), Vec::new(), Vec::new()];
+    for (i, name) in ["u", "v", "du"].iter().enumerate() {
+        let ds =
+            g.dataset(name).map_err(|e| h5err(path, &format!("open /checkpoint/{name}"), e))?;
+        if ds.shape() != [n_nodes, dim] {
+            return Err(Error::Io(format!(
+                "{}: /checkpoint/{name} has shape {:?}, but this scene's mesh has {n_nodes} nodes in {dim}D: restart with the same scene and mesh",
+                path.display(),
+                ds.shape()
+            )));
+        }
+        let a: ndarray::Array2<f64> = ds
+            .read_slice(ndarray::s![lo..hi, ..])
+            .map_err(|e| h5err(path, &format!("read /checkpoint/{name}"), e))?;
+        fields[i] = a.into_raw_vec_and_offset().0;
+    }
+    let cp = Checkpoint {
+        step: sc[0] as usize,
+        time: sc[1],
+        energy_initial: sc[2],
+        external_work: sc[3],
+        contact_work: sc[4],
+        dirichlet_work: sc[5],
+        momentum_initial: [sc[6], sc[7], sc[8]],
+        ksp_iterations: sc[9] as usize,
+        active,
+    };
+    Ok((cp, fields))
 }
 
 fn write_str_attr(loc: &hdf5::Location, name: &str, value: &str, path: &Path) -> Result<()> {
@@ -255,6 +352,7 @@ impl Output {
             n_fields_written: 0,
             n_energies_written: 0,
             n_nodes: n,
+            checkpoint: None,
         })
     }
 
@@ -456,6 +554,59 @@ impl Output {
         }
         c.n_written += 1;
         Ok(())
+    }
+
+    /// The checkpoint: `/checkpoint/{u,v,du}` [nodes, dim] (natural order, overwritten in
+    /// place) and its scalars as attributes. Everything a restart needs to continue the run
+    /// exactly. Collective.
+    pub fn write_checkpoint(
+        &mut self,
+        cp: &Checkpoint,
+        u: &[f64],
+        v: &[f64],
+        du: &[f64],
+    ) -> Result<()> {
+        let path = self.path.clone();
+        if self.checkpoint.is_none() {
+            let g = self
+                .file
+                .create_group("checkpoint")
+                .map_err(|e| h5err(&path, "create /checkpoint", e))?;
+            let mk = |name: &str| -> Result<Dataset> {
+                g.new_dataset::<f64>()
+                    .shape((self.n_nodes, self.dim))
+                    .create(name)
+                    .map_err(|e| h5err(&path, &format!("create /checkpoint/{name}"), e))
+            };
+            let ds = [mk("u")?, mk("v")?, mk("du")?];
+            let scalars = g
+                .new_dataset::<f64>()
+                .shape((CHECKPOINT_SCALARS,))
+                .create("scalars")
+                .map_err(|e| h5err(&path, "create /checkpoint/scalars", e))?;
+            let active = g
+                .new_dataset::<u8>()
+                .shape((cp.active.len(),))
+                .create("active")
+                .map_err(|e| h5err(&path, "create /checkpoint/active", e))?;
+            self.checkpoint = Some((ds, scalars, active));
+        }
+        let (ds, scalars, active) = self.checkpoint.as_ref().expect("checkpoint datasets");
+        let (lo, hi) = self.range;
+        for (d, data) in ds.iter().zip([u, v, du]) {
+            let arr = ndarray::Array2::from_shape_vec((hi - lo, self.dim), data.to_vec())
+                .map_err(|_| Error::Io("checkpoint: block size mismatch".into()))?;
+            d.write_slice(&arr, ndarray::s![lo..hi, ..])
+                .map_err(|e| h5err(&path, "write /checkpoint", e))?;
+        }
+        if self.rank == 0 {
+            scalars
+                .write(&cp.scalars())
+                .map_err(|e| h5err(&path, "write /checkpoint/scalars", e))?;
+            let act: Vec<u8> = cp.active.iter().map(|&a| u8::from(a)).collect();
+            active.write(&act).map_err(|e| h5err(&path, "write /checkpoint/active", e))?;
+        }
+        self.file.flush().map_err(|e| h5err(&path, "flush", e))
     }
 
     /// Record a string attribute on the root (e.g. a result summary). Collective.

@@ -43,6 +43,28 @@ impl Scatter {
     }
 }
 
+impl Scatter {
+    /// The reverse direction: `from[from_idx] = to[to_idx]` (INSERT_VALUES).
+    pub fn reverse(&mut self, to: &Vector, from: &mut Vector) -> Result<()> {
+        // SAFETY: the vectors have the layouts the scatter was created with; `&mut` excludes aliasing.
+        chk!(ffi::VecScatterBegin(
+            self.sc,
+            to.raw(),
+            from.raw(),
+            ffi::InsertMode_INSERT_VALUES,
+            ffi::ScatterMode_SCATTER_REVERSE
+        ))?;
+        // SAFETY: as above; completes the scatter begun above.
+        chk!(ffi::VecScatterEnd(
+            self.sc,
+            to.raw(),
+            from.raw(),
+            ffi::InsertMode_INSERT_VALUES,
+            ffi::ScatterMode_SCATTER_REVERSE
+        ))
+    }
+}
+
 impl Drop for Scatter {
     fn drop(&mut self) {
         if !self.sc.is_null() && init::is_live() {
