@@ -22,8 +22,38 @@ struct Cli {
     command: Command,
 }
 
+/// A point `x,y[,z]`.
+fn parse_point(s: &str) -> std::result::Result<[f64; 3], String> {
+    let v: Vec<f64> = s
+        .split(',')
+        .map(|c| c.trim().parse::<f64>().map_err(|_| format!("not a number: {c}")))
+        .collect::<std::result::Result<_, _>>()?;
+    if !(2..=3).contains(&v.len()) {
+        return Err("expected x,y or x,y,z".into());
+    }
+    Ok([v[0], v[1], *v.get(2).unwrap_or(&0.0)])
+}
+
 #[derive(Subcommand, Debug)]
 enum Command {
+    /// Summarize a run's HDF5 file; write PNG plots and CSV of its energies and of chosen
+    /// node and contact-node histories.
+    Post {
+        /// The run's .h5 file.
+        run: PathBuf,
+        /// Node history at the mesh node nearest to x,y[,z] (repeatable).
+        #[arg(long = "node", value_parser = parse_point, allow_hyphen_values = true)]
+        nodes: Vec<[f64; 3]>,
+        /// Contact history at the contact node nearest to x,y[,z] (repeatable).
+        #[arg(long = "contact-node", value_parser = parse_point, allow_hyphen_values = true)]
+        contact_nodes: Vec<[f64; 3]>,
+        /// Fields of the node histories: displacement, velocity (default: all written).
+        #[arg(long = "field")]
+        fields: Vec<String>,
+        /// Prefix of the written files (default: RUN-post).
+        #[arg(long, short)]
+        out: Option<PathBuf>,
+    },
     /// Sweep a grid of settings over a scene (each point a real run on 2 ranks) and map error
     /// against wall time: CSV, Markdown table and PNG plots in the study's output folder.
     Study {
@@ -88,6 +118,20 @@ enum Command {
 }
 
 fn run(cli: Cli, universe: &mpi::environment::Universe) -> Result<()> {
+    if let Command::Post { run, nodes, contact_nodes, fields, out } = &cli.command {
+        if universe.world().rank() == 0 {
+            let opts = massfree::post::PostOptions {
+                nodes: nodes.clone(),
+                contact_nodes: contact_nodes.clone(),
+                fields: fields.clone(),
+                prefix: out.clone(),
+            };
+            for line in massfree::post::post(run, &opts)? {
+                println!("{line}");
+            }
+        }
+        return Ok(());
+    }
     if let Command::Study { study } = &cli.command {
         // The study orchestrates separate mpirun runs; only rank 0 drives it.
         if universe.world().rank() == 0 {
@@ -132,7 +176,7 @@ fn run(cli: Cli, universe: &mpi::environment::Universe) -> Result<()> {
         } => {
             let program = std::env::args().next().unwrap_or_else(|| "massfree".into());
             let mut args = vec![program];
-            args.extend(petsc);
+            args.extend(petsc.iter().cloned());
             // The guard is declared first so it is dropped last, after every PETSc object.
             let _petsc =
                 Petsc::init(&args, "massfree: dynamic elasticity with mass-free surface layers")?;
@@ -161,6 +205,7 @@ fn run(cli: Cli, universe: &mpi::environment::Universe) -> Result<()> {
                 no_output,
                 partition,
                 restart,
+                petsc_args: petsc,
                 interrupt: Some(interrupt),
             };
             let mut sim = Simulation::setup(&world, &console, scene, opts)?;
@@ -186,7 +231,7 @@ fn run(cli: Cli, universe: &mpi::environment::Universe) -> Result<()> {
             }
             Ok(())
         }
-        Command::Compare { .. } | Command::Study { .. } => Ok(()),
+        Command::Compare { .. } | Command::Study { .. } | Command::Post { .. } => Ok(()),
     }
 }
 

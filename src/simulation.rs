@@ -42,6 +42,8 @@ pub struct RunOptions {
     pub partition: crate::partition::Strategy,
     /// Continue from the checkpoint of this run's HDF5 file.
     pub restart: Option<PathBuf>,
+    /// The PETSc options of the command line (recorded in the output).
+    pub petsc_args: Vec<String>,
     /// Set by SIGINT/SIGTERM: finish the step, write, mark the file, stop.
     pub interrupt: Option<std::sync::Arc<std::sync::atomic::AtomicBool>>,
 }
@@ -585,6 +587,17 @@ impl<'a> Simulation<'a> {
             ("tau".into(), format!("{:e}", self.scene.tau)),
             ("steps".into(), self.n_steps().to_string()),
             ("ksp_type".into(), op.ksp.ksp_type().unwrap_or_default()),
+            (
+                "petsc_options".into(),
+                self.scene
+                    .solver
+                    .options
+                    .iter()
+                    .chain(self.opts.petsc_args.iter())
+                    .cloned()
+                    .collect::<Vec<_>>()
+                    .join(" "),
+            ),
             ("pc_type".into(), op.ksp.pc_type().unwrap_or_default()),
             ("partition".into(), format!("{:?}", self.opts.partition)),
             ("metis_seed".into(), crate::partition::METIS_SEED.to_string()),

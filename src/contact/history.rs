@@ -67,7 +67,8 @@ impl History {
         self.weights = c.boundary.weights.clone();
         self.force.push(vec![0.0; nc]);
         self.gap.push(vec![f64::NAN; nc]);
-        self.active.push(vec![false; nc]);
+        // The first row: the set the run starts from (empty, or a restart's checkpoint).
+        self.active.push(c.active.clone());
         self.iterations.push(0);
     }
 

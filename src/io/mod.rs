@@ -10,12 +10,16 @@
 //! - `/energy/{step,time,kinetic,potential,total,external_work}` [n_steps + 1], one entry per
 //!   step (external work `W^n = sum_k f^{k+1/2} . du^k`, so `total - total[0] - external_work`
 //!   is the integrator's energy balance, zero up to solver tolerance),
-//! - attributes on `/`: `scene`, `settings` (key = value lines), `ranks`, `version`, `status`.
+//! - `/mesh/groups/<name>/nodes` (attribute `dim`), `/contact/...`, `/checkpoint/...`,
+//! - attributes on `/`: `scene`, `settings` (key = value lines), `solver_options`, `ranks`,
+//!   `version`, `status`, `summary`, `timings`.
 //!
 //! The file is opened with the MPI-IO driver: each rank writes its own contiguous block of
 //! every field (in natural, i.e. original, node order), so no rank gathers a whole field.
 //! Dataset creation and resizing are collective; every step is flushed so a run that dies
 //! keeps what it wrote.
+
+pub mod xdmf;
 
 use std::path::{Path, PathBuf};
 
@@ -93,6 +97,9 @@ pub struct Output {
     n_energies_written: usize,
     n_nodes: usize,
     checkpoint: Option<([Dataset; 3], Dataset, Dataset)>,
+    /// For the XDMF index: cell kinds and counts, times of written fields.
+    cell_kinds: Vec<(crate::mesh::ElementKind, usize)>,
+    field_times: Vec<f64>,
 }
 
 const CHECKPOINT_SCALARS: usize = 10;
@@ -293,6 +300,29 @@ impl Output {
             }
         }
 
+        // Physical groups: /mesh/groups/<name>/nodes with the group's dimension as attribute.
+        let gg = g.create_group("groups").map_err(|e| h5err(path, "create /mesh/groups", e))?;
+        for pg in &mesh.groups {
+            let nodes: Vec<u64> =
+                mesh.group_nodes(&pg.name)?.into_iter().map(|v| v as u64).collect();
+            let sub = gg
+                .create_group(&pg.name.replace('/', "_"))
+                .map_err(|e| h5err(path, &format!("create /mesh/groups/{}", pg.name), e))?;
+            let ds = sub
+                .new_dataset::<u64>()
+                .shape((nodes.len(),))
+                .create("nodes")
+                .map_err(|e| h5err(path, "create group nodes", e))?;
+            let attr = sub
+                .new_attr::<i32>()
+                .create("dim")
+                .map_err(|e| h5err(path, "create group dim", e))?;
+            attr.write_scalar(&(pg.dim as i32)).map_err(|e| h5err(path, "write group dim", e))?;
+            if rank == 0 {
+                ds.write(&nodes).map_err(|e| h5err(path, "write group nodes", e))?;
+            }
+        }
+
         let resizable_1d = |name: &str| -> Result<Dataset> {
             file.new_dataset::<f64>()
                 .chunk((1024,))
@@ -327,6 +357,12 @@ impl Output {
         let settings_text: String = settings.iter().map(|(k, v)| format!("{k} = {v}\n")).collect();
         write_str_attr(&file, "scene", scene_text, path)?;
         write_str_attr(&file, "settings", &settings_text, path)?;
+        let solver_options = settings
+            .iter()
+            .find(|(k, _)| k == "petsc_options")
+            .map(|(_, v)| v.as_str())
+            .unwrap_or("");
+        write_str_attr(&file, "solver_options", solver_options, path)?;
         write_str_attr(&file, "version", env!("CARGO_PKG_VERSION"), path)?;
         write_str_attr(&file, "status", "running", path)?;
         let ranks = file
@@ -353,6 +389,11 @@ impl Output {
             n_energies_written: 0,
             n_nodes: n,
             checkpoint: None,
+            cell_kinds: kinds
+                .iter()
+                .map(|k| (*k, mesh.cells.iter().filter(|c| c.kind == *k).count()))
+                .collect(),
+            field_times: Vec::new(),
         })
     }
 
@@ -394,6 +435,7 @@ impl Output {
             }
         }
         self.n_fields_written += 1;
+        self.field_times.push(t);
         self.file.flush().map_err(|e| h5err(&path, "flush", e))
     }
 
@@ -614,9 +656,32 @@ impl Output {
         write_str_attr(&self.file, name, value, &self.path)
     }
 
-    /// Mark the run's status ("finished", or "failed: message") and flush. Collective.
+    /// Mark the run's status ("finished", "failed: message", "interrupted: ...") and flush;
+    /// rank 0 writes the XDMF index beside the file. Collective.
     pub fn finish(&mut self, status: &str) -> Result<()> {
         write_str_attr(&self.file, "status", status, &self.path)?;
-        self.file.flush().map_err(|e| h5err(&self.path, "flush", e))
+        self.file.flush().map_err(|e| h5err(&self.path, "flush", e))?;
+        if self.rank == 0 {
+            let name =
+                self.path.file_name().map(|s| s.to_string_lossy().to_string()).unwrap_or_default();
+            xdmf::write_xdmf(
+                &self.path.with_extension("xdmf"),
+                &xdmf::XdmfLayout {
+                    h5_name: &name,
+                    n_nodes: self.n_nodes,
+                    dim: self.dim,
+                    cells: &self.cell_kinds,
+                    times: &self.field_times,
+                    displacement: self.displacement.is_some(),
+                    velocity: self.velocity.is_some(),
+                },
+            )?;
+        }
+        Ok(())
+    }
+
+    /// The XDMF file written beside the HDF5 file.
+    pub fn xdmf_path(&self) -> PathBuf {
+        self.path.with_extension("xdmf")
     }
 }

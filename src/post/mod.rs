@@ -169,3 +169,280 @@ pub fn read_curves(path: &Path) -> Result<RunCurves> {
     }
     Ok(RunCurves { label, time, kinetic, potential, lowest_pressure })
 }
+
+/// What `massfree post` extracts.
+#[derive(Debug, Clone, Default)]
+pub struct PostOptions {
+    /// Points whose nearest mesh node's field histories are written.
+    pub nodes: Vec<[f64; 3]>,
+    /// Points whose nearest contact node's pressure/force/gap histories are written.
+    pub contact_nodes: Vec<[f64; 3]>,
+    /// Nodal fields for the node histories (default: all in the file).
+    pub fields: Vec<String>,
+    /// Prefix of the files written (default: RUN without .h5, plus "-post").
+    pub prefix: Option<PathBuf>,
+}
+
+fn nearest(coords: &[f64], candidates: &[usize], p: [f64; 3]) -> usize {
+    *candidates
+        .iter()
+        .min_by(|&&a, &&b| {
+            let d = |i: usize| (0..3).map(|c| (coords[3 * i + c] - p[c]).powi(2)).sum::<f64>();
+            d(a).total_cmp(&d(b)).then(a.cmp(&b))
+        })
+        .expect("candidates")
+}
+
+fn write_csv(path: &Path, header: &[String], columns: &[Vec<f64>]) -> Result<()> {
+    let mut text = header.join(",");
+    text.push('\n');
+    let rows = columns.iter().map(|c| c.len()).min().unwrap_or(0);
+    for r in 0..rows {
+        let line: Vec<String> = columns.iter().map(|c| format!("{:e}", c[r])).collect();
+        text.push_str(&line.join(","));
+        text.push('\n');
+    }
+    std::fs::write(path, text)
+        .map_err(|e| Error::Io(format!("cannot write {}: {e}", path.display())))
+}
+
+/// Summarize a run's HDF5 file and write PNG plots and CSV files of its energies and of the
+/// chosen node and contact-node histories. Returns the lines to print.
+pub fn post(path: &Path, opts: &PostOptions) -> Result<Vec<String>> {
+    let file = hdf5::File::open(path).map_err(|e| h5(path, "open", e))?;
+    let read = |name: &str| -> Result<Vec<f64>> {
+        file.dataset(name)
+            .and_then(|d| d.read_raw::<f64>())
+            .map_err(|e| h5(path, &format!("read {name}"), e))
+    };
+    let attr = |name: &str| -> String {
+        file.attr(name)
+            .and_then(|a| a.read_scalar::<hdf5::types::VarLenUnicode>())
+            .map(|s| s.to_string())
+            .unwrap_or_default()
+    };
+    let prefix = opts.prefix.clone().unwrap_or_else(|| {
+        let mut p = path.with_extension("").into_os_string();
+        p.push("-post");
+        PathBuf::from(p)
+    });
+    let with_suffix = |s: &str| {
+        let mut p = prefix.as_os_str().to_owned();
+        p.push(s);
+        PathBuf::from(p)
+    };
+    let time = read("energy/time")?;
+    let step = read("energy/step")?;
+    let kinetic = read("energy/kinetic")?;
+    let potential = read("energy/potential")?;
+    let total = read("energy/total")?;
+    let ext = read("energy/external_work")?;
+    let cw = read("energy/contact_work").unwrap_or_else(|_| vec![0.0; total.len()]);
+    let dw = read("energy/dirichlet_work").unwrap_or_else(|_| vec![0.0; total.len()]);
+    let mut lines = Vec::new();
+    let status = attr("status");
+    let n = total.len();
+    if n == 0 {
+        return Err(Error::Io(format!("{}: no steps written (status: {status})", path.display())));
+    }
+    let e0 = total[0];
+    let emax = total.iter().fold(0.0f64, |a, &b| a.max(b.abs()));
+    let drift = total.iter().map(|e| ((e - e0) / e0).abs()).fold(0.0, f64::max);
+    let balance =
+        (0..n).map(|i| (total[i] - e0 - ext[i] - cw[i] - dw[i]).abs()).fold(0.0, f64::max) / emax;
+    lines.push(format!("{}: status {status}", path.display()));
+    lines.push(format!(
+        "steps {}..{} (t = {:e} .. {:e}), {} written",
+        step[0],
+        step[n - 1],
+        time[0],
+        time[n - 1],
+        n
+    ));
+    lines.push(format!(
+        "energy: initial {e0:.10e}, final {:.10e}, drift max |E - E0|/E0 = {drift:.2e}, balance max |E - E0 - W|/max E = {balance:.2e}",
+        total[n - 1]
+    ));
+    let mut written = Vec::new();
+    let energy_csv = with_suffix("-energy.csv");
+    write_csv(
+        &energy_csv,
+        &[
+            "step",
+            "time",
+            "kinetic",
+            "potential",
+            "total",
+            "external_work",
+            "contact_work",
+            "dirichlet_work",
+        ]
+        .map(String::from),
+        &[
+            step.clone(),
+            time.clone(),
+            kinetic.clone(),
+            potential.clone(),
+            total.clone(),
+            ext,
+            cw,
+            dw,
+        ],
+    )?;
+    written.push(energy_csv);
+    let coords = read("mesh/coordinates")?;
+    let tags = file
+        .dataset("mesh/node_tags")
+        .and_then(|d| d.read_raw::<u64>())
+        .map_err(|e| h5(path, "read mesh/node_tags", e))?;
+    let mut curves = read_curves(path)?;
+
+    // Contact: period, peak pressure, chosen contact nodes.
+    if let Ok(ds) = file.dataset("contact/pressure") {
+        let p = ds.read_2d::<f64>().map_err(|e| h5(path, "read contact/pressure", e))?;
+        let f = file
+            .dataset("contact/force")
+            .and_then(|d| d.read_2d::<f64>())
+            .map_err(|e| h5(path, "read contact/force", e))?;
+        let g = file
+            .dataset("contact/gap")
+            .and_then(|d| d.read_2d::<f64>())
+            .map_err(|e| h5(path, "read contact/gap", e))?;
+        let a = file
+            .dataset("contact/active")
+            .and_then(|d| d.read_2d::<u8>())
+            .map_err(|e| h5(path, "read contact/active", e))?;
+        let cn = file
+            .dataset("contact/nodes")
+            .and_then(|d| d.read_raw::<u64>())
+            .map_err(|e| h5(path, "read contact/nodes", e))?;
+        let rows = p.nrows().min(n);
+        let any: Vec<bool> = (0..rows).map(|r| a.row(r).iter().any(|&x| x == 1)).collect();
+        match crate::contact::metrics::contact_period(&any) {
+            Some((f0, f1)) => {
+                let (mut pmax, mut at) = (0.0f64, 0usize);
+                for ((r, k), &v) in p.indexed_iter() {
+                    if v > pmax {
+                        pmax = v;
+                        at = k;
+                        let _ = r;
+                    }
+                }
+                lines.push(format!(
+                    "contact: steps {}..{} (t = {:e} .. {:e}), max pressure {pmax:.6e} at gmsh node {}",
+                    step[f0], step[f1], time[f0], time[f1], tags[cn[at] as usize]
+                ));
+            }
+            None => lines.push("contact: none".to_string()),
+        }
+        let cand: Vec<usize> = cn.iter().map(|&v| v as usize).collect();
+        for q in &opts.contact_nodes {
+            let node = nearest(&coords, &cand, *q);
+            let k = cn.iter().position(|&v| v as usize == node).expect("contact node");
+            let tag = tags[node];
+            let csv = with_suffix(&format!("-contact-{tag}.csv"));
+            let col = |m: &ndarray::Array2<f64>| {
+                m.column(k).iter().take(rows).copied().collect::<Vec<f64>>()
+            };
+            let act: Vec<f64> = a.column(k).iter().take(rows).map(|&x| x as f64).collect();
+            write_csv(
+                &csv,
+                &["step", "time", "pressure", "force", "gap", "active"].map(String::from),
+                &[step[..rows].to_vec(), time[..rows].to_vec(), col(&p), col(&f), col(&g), act],
+            )?;
+            written.push(csv);
+            let png = with_suffix(&format!("-contact-{tag}.png"));
+            let series = vec![Series {
+                name: format!("gmsh node {tag}"),
+                points: time.iter().copied().zip(col(&p)).collect(),
+            }];
+            line_plot(
+                &png,
+                &Plot {
+                    title: "Contact pressure",
+                    x_label: "time",
+                    y_label: "pressure",
+                    series: &series,
+                    width: 1000,
+                    height: 450,
+                },
+            )?;
+            written.push(png);
+        }
+    } else if !opts.contact_nodes.is_empty() {
+        return Err(Error::Usage(format!(
+            "{}: --contact-node given, but the run has no contact",
+            path.display()
+        )));
+    }
+
+    // Node histories of the nodal fields.
+    if !opts.nodes.is_empty() {
+        let ftime = read("time")?;
+        let available: Vec<String> = ["displacement", "velocity"]
+            .iter()
+            .filter(|f| file.dataset(&format!("fields/{f}")).is_ok())
+            .map(|s| s.to_string())
+            .collect();
+        let fields: Vec<String> =
+            if opts.fields.is_empty() { available.clone() } else { opts.fields.clone() };
+        for f in &fields {
+            if !available.contains(f) {
+                return Err(Error::Usage(format!(
+                    "--field {f}: not in {} (it has: {})",
+                    path.display(),
+                    available.join(", ")
+                )));
+            }
+        }
+        let all: Vec<usize> = (0..tags.len()).collect();
+        for p in &opts.nodes {
+            let node = nearest(&coords, &all, *p);
+            let tag = tags[node];
+            let mut header = vec!["time".to_string()];
+            let mut cols = vec![ftime.clone()];
+            let mut panels_series = Vec::new();
+            for f in &fields {
+                let ds =
+                    file.dataset(&format!("fields/{f}")).map_err(|e| h5(path, "open field", e))?;
+                let dim = ds.shape()[2];
+                let a: ndarray::Array3<f64> =
+                    ds.read().map_err(|e| h5(path, &format!("read fields/{f}"), e))?;
+                let mut series = Vec::new();
+                for c in 0..dim {
+                    let v: Vec<f64> = (0..a.shape()[0]).map(|k| a[[k, node, c]]).collect();
+                    header.push(format!("{f}_{}", ["x", "y", "z"][c]));
+                    series.push(Series {
+                        name: format!("{f} {}", ["x", "y", "z"][c]),
+                        points: ftime.iter().copied().zip(v.iter().copied()).collect(),
+                    });
+                    cols.push(v);
+                }
+                panels_series.push((f.clone(), series));
+            }
+            let csv = with_suffix(&format!("-node-{tag}.csv"));
+            write_csv(&csv, &header, &cols)?;
+            written.push(csv);
+            let png = with_suffix(&format!("-node-{tag}.png"));
+            let panels: Vec<Plot> = panels_series
+                .iter()
+                .map(|(f, s)| Plot {
+                    title: f,
+                    x_label: "time",
+                    y_label: f,
+                    series: s,
+                    width: 1000,
+                    height: 320,
+                })
+                .collect();
+            stacked_plots(&png, &format!("gmsh node {tag}"), &panels)?;
+            written.push(png);
+        }
+    }
+    curves.label = "run".into();
+    written.extend(write_pictures(&prefix, &[curves])?);
+    for w in &written {
+        lines.push(format!("wrote {}", w.display()));
+    }
+    Ok(lines)
+}

@@ -1,0 +1,109 @@
+//! XDMF 3 index of a run's HDF5 file, for ParaView: a temporal collection with one grid per
+//! written step (mesh, displacement, velocity, partition). Written by rank 0 beside the `.h5`
+//! at the end of a run (finished, failed or interrupted); it only points into the HDF5 file.
+
+use std::fmt::Write as _;
+use std::path::Path;
+
+use crate::error::{Error, Result};
+use crate::mesh::ElementKind;
+
+/// What the XDMF file describes.
+pub struct XdmfLayout<'a> {
+    /// HDF5 file name as referenced from the XDMF (same folder).
+    pub h5_name: &'a str,
+    pub n_nodes: usize,
+    pub dim: usize,
+    /// Cell kinds with their counts, in the order of /mesh/cells.
+    pub cells: &'a [(ElementKind, usize)],
+    /// Times of the written field steps.
+    pub times: &'a [f64],
+    pub displacement: bool,
+    pub velocity: bool,
+}
+
+fn topology_name(kind: ElementKind) -> &'static str {
+    match kind {
+        ElementKind::Tri3 => "Triangle",
+        ElementKind::Quad4 => "Quadrilateral",
+        ElementKind::Tet4 => "Tetrahedron",
+        ElementKind::Hex8 => "Hexahedron",
+        ElementKind::Line2 => "Polyline",
+        ElementKind::Point1 => "Polyvertex",
+    }
+}
+
+/// The XDMF text.
+pub fn xdmf_text(l: &XdmfLayout) -> String {
+    let mut x = String::new();
+    let n = l.n_nodes;
+    let t = l.times.len();
+    let _ = writeln!(x, "<?xml version=\"1.0\" ?>");
+    let _ = writeln!(x, "<Xdmf Version=\"3.0\">");
+    let _ = writeln!(x, " <Domain>");
+    let _ =
+        writeln!(x, "  <Grid Name=\"run\" GridType=\"Collection\" CollectionType=\"Temporal\">");
+    for (k, time) in l.times.iter().enumerate() {
+        let single = l.cells.len() == 1;
+        if !single {
+            let _ = writeln!(
+                x,
+                "   <Grid Name=\"step {k}\" GridType=\"Collection\" CollectionType=\"Spatial\">"
+            );
+            let _ = writeln!(x, "    <Time Value=\"{time:e}\"/>");
+        }
+        for (kind, count) in l.cells {
+            let _ = writeln!(x, "   <Grid Name=\"{} {k}\" GridType=\"Uniform\">", kind.name());
+            if single {
+                let _ = writeln!(x, "    <Time Value=\"{time:e}\"/>");
+            }
+            let nn = kind.n_nodes();
+            let _ = writeln!(
+                x,
+                "    <Topology TopologyType=\"{}\" NumberOfElements=\"{count}\">\n     <DataItem Dimensions=\"{count} {nn}\" NumberType=\"UInt\" Precision=\"8\" Format=\"HDF\">{}:/mesh/cells/{}</DataItem>\n    </Topology>",
+                topology_name(*kind),
+                l.h5_name,
+                kind.name()
+            );
+            let _ = writeln!(
+                x,
+                "    <Geometry GeometryType=\"XYZ\">\n     <DataItem Dimensions=\"{n} 3\" NumberType=\"Float\" Precision=\"8\" Format=\"HDF\">{}:/mesh/coordinates</DataItem>\n    </Geometry>",
+                l.h5_name
+            );
+            for (on, name) in [(l.displacement, "displacement"), (l.velocity, "velocity")] {
+                if !on {
+                    continue;
+                }
+                let _ = writeln!(
+                    x,
+                    "    <Attribute Name=\"{name}\" AttributeType=\"Vector\" Center=\"Node\">\n     <DataItem ItemType=\"HyperSlab\" Dimensions=\"{n} {d}\" Type=\"HyperSlab\">\n      <DataItem Dimensions=\"3 3\" Format=\"XML\">{k} 0 0 1 1 1 1 {n} {d}</DataItem>\n      <DataItem Dimensions=\"{t} {n} {d}\" NumberType=\"Float\" Precision=\"8\" Format=\"HDF\">{}:/fields/{name}</DataItem>\n     </DataItem>\n    </Attribute>",
+                    l.h5_name,
+                    d = l.dim
+                );
+            }
+            if single {
+                let _ = writeln!(
+                    x,
+                    "    <Attribute Name=\"partition\" AttributeType=\"Scalar\" Center=\"Cell\">\n     <DataItem Dimensions=\"{count}\" NumberType=\"Int\" Precision=\"4\" Format=\"HDF\">{}:/mesh/cell_rank</DataItem>\n    </Attribute>",
+                    l.h5_name
+                );
+            }
+            let _ = writeln!(x, "   </Grid>");
+        }
+        if !single {
+            let _ = writeln!(x, "   </Grid>");
+        }
+    }
+    let _ = writeln!(x, "  </Grid>");
+    let _ = writeln!(x, " </Domain>");
+    let _ = writeln!(x, "</Xdmf>");
+    x
+}
+
+/// Write `path` (the .xdmf) atomically.
+pub fn write_xdmf(path: &Path, layout: &XdmfLayout) -> Result<()> {
+    let tmp = path.with_extension("xdmf.tmp");
+    std::fs::write(&tmp, xdmf_text(layout))
+        .and_then(|_| std::fs::rename(&tmp, path))
+        .map_err(|e| Error::Io(format!("cannot write {}: {e}", path.display())))
+}

@@ -1,0 +1,504 @@
+//! The study file: schema, validation (one-line errors naming the key, unknown keys denied)
+//! and what the study needs to know about its scene.
+//!
+//! ```toml
+//! scene = "../scenes/beam.toml"      # required, relative to the study file
+//! output = "out/study-beam"          # folder, relative to the current directory
+//!                                    # (default out/study-<study file stem>)
+//! title = "beam, space"              # optional, default the study file stem
+//! ranks = 2                          # MPI ranks per run (default 2)
+//! repeat = 3                         # runs per point; the median time is reported (default 1)
+//! mesh_param = "h"                   # the .geo parameter that sweep.h sets (default "h")
+//! params = { gap = 0.05 }            # fixed --param values for every run
+//! steps = 250                        # override the scene's steps (not with sweep.tau)
+//! error_step = 250                   # step of the errors (default: the last); not with sweep.tau
+//! end_time = 0.8                     # with sweep.tau: steps = end_time / tau, errors at the end
+//! reference = "exact"                # "exact" (default with [exact]), "finest" (default
+//!                                    # otherwise) or { file = "run.h5" }
+//! [sweep]                            # every key optional; the grid is the product
+//! h = [0.25, 0.125, 0.0625]          # values of the mesh parameter
+//! mass = ["consistent", "modified1"] # consistent | lumped | modified0 | modified1
+//! tau = [4e-3, 2e-3, 1e-3]           # time steps (needs end_time)
+//! solver = [                         # PETSc option lists, optionally labelled
+//!   ["-ksp_type", "cg", "-pc_type", "jacobi"],
+//!   { label = "gamg", options = ["-ksp_type", "cg", "-pc_type", "gamg"] },
+//! ]
+//! ```
+
+use std::path::{Path, PathBuf};
+
+use toml::{Table, Value};
+
+use crate::error::{Error, Result};
+
+pub const MASS_KINDS: [&str; 4] = ["consistent", "lumped", "modified0", "modified1"];
+
+/// What the errors of a run are measured against.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Reference {
+    /// The scene's exact solution (errors computed by the run itself).
+    Exact,
+    /// The finest run of each group (same mass kind and solver): smallest h, smallest tau.
+    Finest,
+    /// A given HDF5 file of an earlier run.
+    File(PathBuf),
+}
+
+/// One PETSc option list of `sweep.solver`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Solver {
+    pub label: String,
+    pub options: Vec<String>,
+}
+
+/// What the study reads from its scene.
+#[derive(Debug, Clone)]
+pub struct SceneInfo {
+    pub table: Table,
+    pub dir: PathBuf,
+    pub name: String,
+    pub has_exact: bool,
+    pub has_contact: bool,
+    pub tau: f64,
+    pub steps: usize,
+    /// The mesh parameter's value in the scene (when it sets it).
+    pub h_default: Option<f64>,
+}
+
+#[derive(Debug, Clone)]
+pub struct Study {
+    pub file: PathBuf,
+    pub title: String,
+    pub scene_path: PathBuf,
+    pub scene: SceneInfo,
+    pub output: PathBuf,
+    pub ranks: usize,
+    pub repeat: usize,
+    pub mesh_param: String,
+    pub params: Vec<(String, f64)>,
+    pub steps: Option<usize>,
+    pub error_step: Option<usize>,
+    pub end_time: Option<f64>,
+    pub reference: Reference,
+    pub h: Vec<f64>,
+    pub mass: Vec<String>,
+    pub tau: Vec<f64>,
+    pub solver: Vec<Solver>,
+}
+
+const TOP_KEYS: [&str; 13] = [
+    "scene",
+    "output",
+    "title",
+    "ranks",
+    "repeat",
+    "mesh_param",
+    "params",
+    "steps",
+    "error_step",
+    "end_time",
+    "reference",
+    "sweep",
+    "description",
+];
+const SWEEP_KEYS: [&str; 4] = ["h", "mass", "tau", "solver"];
+
+/// Reads and validates a study file.
+pub fn load(path: &Path) -> Result<Study> {
+    let text = std::fs::read_to_string(path)
+        .map_err(|e| Error::Usage(format!("study {}: cannot read: {e}", path.display())))?;
+    parse(path, &text)
+}
+
+/// Validates the text of a study file (`path` names it in errors and anchors `scene`).
+pub fn parse(path: &Path, text: &str) -> Result<Study> {
+    let shown = path.display().to_string();
+    let bad = |m: String| Error::Usage(format!("study {shown}: {m}"));
+    let table: Table = text.parse().map_err(|e: toml::de::Error| {
+        bad(format!("not valid TOML: {}", e.message().lines().next().unwrap_or("")))
+    })?;
+    check_keys(&table, "", &TOP_KEYS).map_err(&bad)?;
+
+    let scene_rel = get_str(&table, "scene")
+        .map_err(&bad)?
+        .ok_or_else(|| bad("scene: missing (the scene file, relative to the study file)".into()))?;
+    let base = path.parent().unwrap_or(Path::new("."));
+    let scene_path = base.join(&scene_rel);
+    let scene = scene_info(&scene_path).map_err(|m| bad(format!("scene = {scene_rel:?}: {m}")))?;
+
+    let stem = path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
+    let output = get_str(&table, "output")
+        .map_err(&bad)?
+        .map(PathBuf::from)
+        .unwrap_or_else(|| PathBuf::from(format!("out/study-{stem}")));
+    let title = get_str(&table, "title").map_err(&bad)?.unwrap_or_else(|| stem.clone());
+    get_str(&table, "description").map_err(&bad)?;
+    let ranks = get_count(&table, "ranks", 1, 1024).map_err(&bad)?.unwrap_or(2);
+    let repeat = get_count(&table, "repeat", 1, 100).map_err(&bad)?.unwrap_or(1);
+    let mesh_param = get_str(&table, "mesh_param").map_err(&bad)?.unwrap_or_else(|| "h".into());
+    if mesh_param.is_empty() || mesh_param.contains(['=', ' ']) {
+        return Err(bad(format!("mesh_param = {mesh_param:?} is not a parameter name")));
+    }
+    let mut params = Vec::new();
+    match table.get("params") {
+        None => {}
+        Some(Value::Table(t)) => {
+            for (k, v) in t {
+                let x = number(v).ok_or_else(|| {
+                    bad(format!("params.{k} = {v} is impossible: a number is expected"))
+                })?;
+                if *k == mesh_param {
+                    return Err(bad(format!(
+                        "params.{k}: the swept mesh parameter is set by sweep.h, not params"
+                    )));
+                }
+                params.push((k.clone(), x));
+            }
+        }
+        Some(v) => {
+            return Err(bad(format!(
+                "params = {v} is impossible: a table NAME = VALUE is expected"
+            )))
+        }
+    }
+    let steps = get_count(&table, "steps", 1, 100_000_000).map_err(&bad)?;
+    let error_step = get_count(&table, "error_step", 0, 100_000_000).map_err(&bad)?;
+    let end_time = match table.get("end_time") {
+        None => None,
+        Some(v) => match number(v) {
+            Some(x) if x > 0.0 && x.is_finite() => Some(x),
+            _ => return Err(bad(format!("end_time = {v} is impossible: a time > 0 is expected"))),
+        },
+    };
+
+    // The sweep.
+    let empty = Table::new();
+    let sweep = match table.get("sweep") {
+        None => &empty,
+        Some(Value::Table(t)) => t,
+        Some(v) => return Err(bad(format!("sweep = {v} is impossible: a table is expected"))),
+    };
+    check_keys(sweep, "sweep.", &SWEEP_KEYS).map_err(&bad)?;
+    let h = positive_list(sweep, "h").map_err(&bad)?;
+    let tau = positive_list(sweep, "tau").map_err(&bad)?;
+    let mut mass = Vec::new();
+    if let Some(v) = sweep.get("mass") {
+        let Value::Array(a) = v else {
+            return Err(bad(format!(
+                "sweep.mass = {v} is impossible: a list of mass kinds is expected"
+            )));
+        };
+        for x in a {
+            match x.as_str() {
+                Some(s) if MASS_KINDS.contains(&s) => mass.push(s.to_string()),
+                _ => {
+                    return Err(bad(format!(
+                        "sweep.mass contains {x}, which is unknown (allowed: {})",
+                        MASS_KINDS.join(", ")
+                    )))
+                }
+            }
+        }
+        if mass.is_empty() {
+            return Err(bad("sweep.mass is empty".into()));
+        }
+        no_duplicates(&mass, "sweep.mass").map_err(&bad)?;
+    }
+    let solver = solvers(sweep).map_err(&bad)?;
+
+    // Time: a tau sweep runs to a fixed end time.
+    if !tau.is_empty() {
+        let Some(end) = end_time else {
+            return Err(bad(
+                "sweep.tau needs end_time (each run takes end_time / tau steps)".into()
+            ));
+        };
+        if steps.is_some() {
+            return Err(bad(
+                "steps: not with sweep.tau (the steps follow from end_time / tau)".into()
+            ));
+        }
+        if error_step.is_some() {
+            return Err(bad(
+                "error_step: not with sweep.tau (the errors are taken at end_time)".into()
+            ));
+        }
+        for &t in &tau {
+            steps_for(end, t).map_err(&bad)?;
+        }
+    } else if end_time.is_some() {
+        return Err(bad("end_time: only with sweep.tau (otherwise use steps)".into()));
+    }
+    if let (Some(e), None) = (error_step, steps) {
+        if e > scene.steps {
+            return Err(bad(format!(
+                "error_step = {e} is impossible: the scene runs {} steps",
+                scene.steps
+            )));
+        }
+    }
+    if let (Some(e), Some(s)) = (error_step, steps) {
+        if e > s {
+            return Err(bad(format!("error_step = {e} is impossible: the runs take steps = {s}")));
+        }
+    }
+
+    let reference = match table.get("reference") {
+        None if scene.has_exact => Reference::Exact,
+        None => Reference::Finest,
+        Some(Value::String(s)) if s == "exact" => {
+            if !scene.has_exact {
+                return Err(bad(
+                    "reference = \"exact\" is impossible: the scene has no [exact] solution".into(),
+                ));
+            }
+            Reference::Exact
+        }
+        Some(Value::String(s)) if s == "finest" => Reference::Finest,
+        Some(Value::Table(t)) => {
+            check_keys(t, "reference.", &["file"]).map_err(&bad)?;
+            let f = get_str(t, "file")
+                .map_err(|m| bad(format!("reference.{m}")))?
+                .ok_or_else(|| bad("reference: a table needs file = \"run.h5\"".into()))?;
+            let p = base.join(&f);
+            if !p.is_file() {
+                return Err(bad(format!("reference.file = {f:?}: no such file ({})", p.display())));
+            }
+            Reference::File(p)
+        }
+        Some(v) => {
+            return Err(bad(format!(
+                "reference = {v} is impossible (allowed: \"exact\", \"finest\", {{ file = \"run.h5\" }})"
+            )))
+        }
+    };
+    if reference == Reference::Finest && h.len() < 2 && tau.len() < 2 {
+        return Err(bad(
+            "reference = \"finest\" needs at least two values of sweep.h or sweep.tau".into(),
+        ));
+    }
+    if !h.is_empty() && !is_geo(&scene.table) {
+        return Err(bad(format!(
+            "sweep.h: the scene reads a .msh file; {mesh_param} is a parameter of mesh.geo"
+        )));
+    }
+
+    Ok(Study {
+        file: path.to_path_buf(),
+        title,
+        scene_path,
+        scene,
+        output,
+        ranks,
+        repeat,
+        mesh_param,
+        params,
+        steps,
+        error_step,
+        end_time,
+        reference,
+        h,
+        mass,
+        tau,
+        solver,
+    })
+}
+
+/// `end / tau` as a whole number of steps.
+pub fn steps_for(end: f64, tau: f64) -> std::result::Result<usize, String> {
+    let r = end / tau;
+    let n = r.round();
+    if n < 1.0 || (r - n).abs() > 1e-6 * n.max(1.0) {
+        return Err(format!(
+            "sweep.tau contains {tau}, which is impossible: end_time = {end} is not a whole number of such steps"
+        ));
+    }
+    Ok(n as usize)
+}
+
+fn is_geo(scene: &Table) -> bool {
+    scene.get("mesh").and_then(|m| m.get("geo")).is_some()
+}
+
+fn scene_info(path: &Path) -> std::result::Result<SceneInfo, String> {
+    let text = std::fs::read_to_string(path).map_err(|e| format!("cannot read: {e}"))?;
+    let table: Table =
+        text.parse().map_err(|e: toml::de::Error| format!("not valid TOML: {}", e.message()))?;
+    let time = table.get("time").and_then(Value::as_table).ok_or("the scene has no [time]")?;
+    let tau = time.get("tau").and_then(number).ok_or("the scene has no time.tau")?;
+    let steps =
+        match (time.get("steps").and_then(Value::as_integer), time.get("end").and_then(number)) {
+            (Some(s), _) if s >= 1 => s as usize,
+            (None, Some(end)) => (end / tau).round().max(1.0) as usize,
+            _ => return Err("the scene has neither time.steps nor time.end".into()),
+        };
+    let name = table
+        .get("name")
+        .and_then(Value::as_str)
+        .map(str::to_string)
+        .or_else(|| path.file_stem().map(|s| s.to_string_lossy().into_owned()))
+        .unwrap_or_default();
+    let dir = path
+        .parent()
+        .map(Path::to_path_buf)
+        .unwrap_or_else(|| PathBuf::from("."))
+        .canonicalize()
+        .map_err(|e| format!("cannot resolve its folder: {e}"))?;
+    Ok(SceneInfo {
+        has_exact: table.contains_key("exact"),
+        has_contact: table.contains_key("contact"),
+        h_default: None,
+        name,
+        tau,
+        steps,
+        dir,
+        table,
+    })
+    .map(|mut s| {
+        s.h_default = s
+            .table
+            .get("mesh")
+            .and_then(|m| m.get("params"))
+            .and_then(|p| p.get("h"))
+            .and_then(number);
+        s
+    })
+}
+
+fn check_keys(t: &Table, prefix: &str, allowed: &[&str]) -> std::result::Result<(), String> {
+    for k in t.keys() {
+        if !allowed.contains(&k.as_str()) {
+            return Err(format!("unknown key {prefix}{k} (allowed: {})", allowed.join(", ")));
+        }
+    }
+    Ok(())
+}
+
+fn number(v: &Value) -> Option<f64> {
+    match v {
+        Value::Float(x) => Some(*x),
+        Value::Integer(i) => Some(*i as f64),
+        _ => None,
+    }
+}
+
+fn get_str(t: &Table, key: &str) -> std::result::Result<Option<String>, String> {
+    match t.get(key) {
+        None => Ok(None),
+        Some(Value::String(s)) => Ok(Some(s.clone())),
+        Some(v) => Err(format!("{key} = {v} is impossible: a string is expected")),
+    }
+}
+
+fn get_count(
+    t: &Table,
+    key: &str,
+    min: i64,
+    max: i64,
+) -> std::result::Result<Option<usize>, String> {
+    match t.get(key) {
+        None => Ok(None),
+        Some(Value::Integer(i)) if (min..=max).contains(i) => Ok(Some(*i as usize)),
+        Some(v) => {
+            Err(format!("{key} = {v} is impossible: a whole number in {min}..={max} is expected"))
+        }
+    }
+}
+
+fn positive_list(t: &Table, key: &str) -> std::result::Result<Vec<f64>, String> {
+    let Some(v) = t.get(key) else { return Ok(Vec::new()) };
+    let Value::Array(a) = v else {
+        return Err(format!("sweep.{key} = {v} is impossible: a list of numbers is expected"));
+    };
+    let mut out = Vec::new();
+    for x in a {
+        match number(x) {
+            Some(y) if y > 0.0 && y.is_finite() => out.push(y),
+            _ => {
+                return Err(format!(
+                    "sweep.{key} contains {x}, which is impossible: values must be numbers > 0"
+                ))
+            }
+        }
+    }
+    if out.is_empty() {
+        return Err(format!("sweep.{key} is empty"));
+    }
+    let labels: Vec<String> = out.iter().map(|x| format!("{x}")).collect();
+    no_duplicates(&labels, &format!("sweep.{key}"))?;
+    Ok(out)
+}
+
+fn no_duplicates(list: &[String], key: &str) -> std::result::Result<(), String> {
+    for (i, a) in list.iter().enumerate() {
+        if list[..i].contains(a) {
+            return Err(format!("{key} lists {a} twice"));
+        }
+    }
+    Ok(())
+}
+
+fn solvers(sweep: &Table) -> std::result::Result<Vec<Solver>, String> {
+    let Some(v) = sweep.get("solver") else { return Ok(Vec::new()) };
+    let Value::Array(a) = v else {
+        return Err(format!(
+            "sweep.solver = {v} is impossible: a list of PETSc option lists is expected"
+        ));
+    };
+    let strings = |v: &Value, what: &str| -> std::result::Result<Vec<String>, String> {
+        let Value::Array(a) = v else {
+            return Err(format!("{what} = {v} is impossible: a list of strings is expected"));
+        };
+        a.iter()
+            .map(|x| {
+                x.as_str()
+                    .map(str::to_string)
+                    .ok_or_else(|| format!("{what} contains {x}, which is not a string"))
+            })
+            .collect()
+    };
+    let mut out = Vec::new();
+    for (i, entry) in a.iter().enumerate() {
+        let what = format!("sweep.solver[{i}]");
+        let s = match entry {
+            Value::Array(_) => {
+                let options = strings(entry, &what)?;
+                Solver { label: default_label(&options), options }
+            }
+            Value::Table(t) => {
+                check_keys(t, &format!("{what}."), &["label", "options"])?;
+                let options = strings(
+                    t.get("options").ok_or_else(|| format!("{what}.options: missing"))?,
+                    &format!("{what}.options"),
+                )?;
+                let label = get_str(t, "label")
+                    .map_err(|m| format!("{what}.{m}"))?
+                    .unwrap_or_else(|| default_label(&options));
+                Solver { label, options }
+            }
+            v => {
+                return Err(format!(
+                    "{what} = {v} is impossible: an option list or {{ label, options }} is expected"
+                ))
+            }
+        };
+        out.push(s);
+    }
+    if out.is_empty() {
+        return Err("sweep.solver is empty".into());
+    }
+    let labels: Vec<String> = out.iter().map(|s| s.label.clone()).collect();
+    no_duplicates(&labels, "sweep.solver (labels)")?;
+    Ok(out)
+}
+
+/// "cg+jacobi" from ["-ksp_type", "cg", "-pc_type", "jacobi"]; the joined options otherwise.
+fn default_label(options: &[String]) -> String {
+    let value =
+        |key: &str| options.iter().position(|o| o == key).and_then(|i| options.get(i + 1)).cloned();
+    match (value("-ksp_type"), value("-pc_type")) {
+        (Some(k), Some(p)) if options.len() == 4 => format!("{k}+{p}"),
+        _ if options.is_empty() => "default".to_string(),
+        _ => options.join(" "),
+    }
+}

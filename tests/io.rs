@@ -1,0 +1,280 @@
+//! HDF5 output (issue: time series that outlive crashes): the documented layout, files equal
+//! across rank counts, crash safety (SIGTERM, a diverging solver), restart = uninterrupted,
+//! the XDMF index, and `massfree post`.
+
+mod common;
+use common::*;
+use std::path::Path;
+
+fn open(p: &Path) -> hdf5::File {
+    hdf5::File::open(p).unwrap_or_else(|e| panic!("{}: {e}", p.display()))
+}
+
+fn attr(f: &hdf5::File, name: &str) -> String {
+    f.attr(name).unwrap().read_scalar::<hdf5::types::VarLenUnicode>().unwrap().to_string()
+}
+
+fn raw(f: &hdf5::File, name: &str) -> Vec<f64> {
+    f.dataset(name).unwrap_or_else(|e| panic!("{name}: {e}")).read_raw::<f64>().unwrap()
+}
+
+fn beam(dir: &Path) -> std::path::PathBuf {
+    scene_variant(
+        "beam.toml",
+        dir,
+        &[
+            ("steps = 250", "steps = 20"),
+            ("error_steps = [30, 250]", "error_steps = [20]"),
+            ("every = 10", "every = 5"),
+        ],
+    )
+}
+
+#[test]
+fn layout_is_documented_and_rank_independent() {
+    let dir = scratch("io-layout");
+    let scene = beam(&dir);
+    let args = ["--param", "h=0.25", "--", "-ksp_rtol", "1e-13"];
+    let s2 = run_scene(2, &scene, &args);
+    let s1 = run_scene(1, &scene, &args);
+    let (f2, f1) = (open(&dir.join("beam-2.h5")), open(&dir.join("beam-1.h5")));
+    let n = f2.dataset("mesh/coordinates").unwrap().shape()[0];
+    assert_eq!(f2.dataset("mesh/coordinates").unwrap().shape(), vec![n, 3]);
+    assert_eq!(f2.dataset("mesh/node_tags").unwrap().shape(), vec![n]);
+    let cells = f2.dataset("mesh/cells/quadrilateral").unwrap().shape();
+    assert_eq!(cells, vec![160, 4]);
+    let ranks = f2.dataset("mesh/cell_rank").unwrap().read_raw::<i32>().unwrap();
+    assert_eq!(ranks.len(), 160);
+    assert!(ranks.iter().all(|&r| r == 0 || r == 1) && ranks.contains(&1));
+    let left = f2.dataset("mesh/groups/left/nodes").unwrap().read_raw::<u64>().unwrap();
+    let xy = raw(&f2, "mesh/coordinates");
+    assert!(!left.is_empty() && left.iter().all(|&v| xy[3 * v as usize].abs() < 1e-12));
+    assert_eq!(raw(&f2, "time").len(), 5);
+    assert_eq!(raw(&f2, "step"), vec![0.0, 5.0, 10.0, 15.0, 20.0]);
+    for field in ["displacement", "velocity"] {
+        assert_eq!(f2.dataset(&format!("fields/{field}")).unwrap().shape(), vec![5, n, 2]);
+    }
+    for e in [
+        "step",
+        "time",
+        "kinetic",
+        "potential",
+        "total",
+        "external_work",
+        "contact_work",
+        "dirichlet_work",
+    ] {
+        assert_eq!(raw(&f2, &format!("energy/{e}")).len(), 21, "energy/{e}");
+    }
+    let total = raw(&f2, "energy/total");
+    assert!(rel_diff(total[0], f(&s2, "energy_initial")) < 1e-14);
+    assert!(rel_diff(total[20], f(&s2, "energy_final")) < 1e-14);
+    let kin = raw(&f2, "energy/kinetic");
+    let pot = raw(&f2, "energy/potential");
+    assert!((0..21).all(|i| (kin[i] + pot[i] - total[i]).abs() <= 1e-14 * total[i].abs()));
+    assert_eq!(attr(&f2, "scene"), std::fs::read_to_string(&scene).unwrap());
+    assert!(attr(&f2, "settings").contains("ranks = 2"));
+    assert_eq!(attr(&f2, "solver_options"), "-ksp_rtol 1e-13");
+    assert_eq!(attr(&f2, "status"), "finished");
+    assert_eq!(attr(&f2, "version"), env!("CARGO_PKG_VERSION"));
+    assert_eq!(f2.attr("ranks").unwrap().read_scalar::<i32>().unwrap(), 2);
+    // The last written displacement is the state the solver continued from (the checkpoint).
+    assert_eq!(raw(&f2, "checkpoint/u"), raw(&f2, "fields/displacement")[4 * n * 2..].to_vec());
+    // 1 and 2 ranks: the same datasets, entry by entry, to solver tolerance.
+    for name in
+        ["mesh/coordinates", "fields/displacement", "fields/velocity", "energy/total", "mass/probe"]
+    {
+        let (a, b) = (raw(&f1, name), raw(&f2, name));
+        let scale = a.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+        let d = a.iter().zip(&b).fold(0.0f64, |m, (x, y)| m.max((x - y).abs()));
+        assert!(d <= 1e-9 * scale, "{name}: 1 vs 2 ranks differ by {d}");
+    }
+    let _ = s1;
+    // h5dump reads it.
+    let o =
+        std::process::Command::new("h5dump").arg("-H").arg(dir.join("beam-2.h5")).output().unwrap();
+    assert!(o.status.success());
+}
+
+#[test]
+fn sigterm_leaves_a_readable_file_with_a_checkpoint() {
+    let dir = scratch("io-sigterm");
+    let scene = scene_variant("disc.toml", &dir, &[("steps = 1000", "steps = 1000000")]);
+    let out = dir.join("killed.h5");
+    let mut child = std::process::Command::new("mpirun")
+        .args(["--oversubscribe", "-n", "2"])
+        .arg(bin())
+        .args(["run", &scene.display().to_string(), "-q", "-o", &out.display().to_string()])
+        .env("OMPI_ALLOW_RUN_AS_ROOT", "1")
+        .env("OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1")
+        .env("OMPI_MCA_btl_vader_single_copy_mechanism", "none")
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    std::thread::sleep(std::time::Duration::from_secs(3));
+    // SIGTERM to mpirun, which forwards it to the ranks.
+    let _ = std::process::Command::new("kill").args(["-TERM", &child.id().to_string()]).status();
+    let status = child.wait().unwrap();
+    assert!(!status.success());
+    let f = open(&out);
+    let st = attr(&f, "status");
+    assert!(st.starts_with("interrupted"), "status {st}");
+    let steps = raw(&f, "energy/step");
+    assert!(steps.len() > 2, "steps written: {}", steps.len());
+    let cp = raw(&f, "checkpoint/scalars");
+    assert_eq!(cp[0], *steps.last().unwrap(), "the checkpoint is the last step written");
+    assert!(dir.join("killed.xdmf").exists());
+}
+
+#[test]
+fn a_diverging_solver_marks_the_file_failed() {
+    let dir = scratch("io-failed");
+    let scene = beam(&dir);
+    let out = dir.join("failed.h5");
+    let o = massfree(
+        2,
+        &[
+            "run",
+            &scene.display().to_string(),
+            "-q",
+            "-o",
+            &out.display().to_string(),
+            "--",
+            "-ksp_max_it",
+            "1",
+            "-ksp_rtol",
+            "1e-14",
+        ],
+    );
+    assert!(!o.status.success());
+    let f = open(&out);
+    let st = attr(&f, "status");
+    assert!(st.starts_with("failed") && st.contains("DIVERGED"), "status {st}");
+    assert!(!raw(&f, "energy/total").is_empty(), "the steps before the failure are kept");
+}
+
+/// Run N steps in one go, and k steps then a restart to N: same final state and energies.
+fn restart_equals_uninterrupted(scene_name: &str, replace: &[(&str, &str)], k: usize, name: &str) {
+    let dir = scratch(name);
+    let scene = scene_variant(scene_name, &dir, replace);
+    let p = |x: &str| dir.join(x).display().to_string();
+    let opts = ["--", "-ksp_rtol", "1e-12"];
+    let run = |args: &[&str]| {
+        let mut all = vec!["run", scene.to_str().unwrap(), "-q", "--overwrite"];
+        all.extend_from_slice(args);
+        all.extend_from_slice(&opts);
+        let o = massfree(2, &all);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    };
+    run(&["-o", &p("full.h5")]);
+    run(&["-o", &p("first.h5"), "--steps", &k.to_string()]);
+    run(&["-o", &p("second.h5"), "--restart", &p("first.h5")]);
+    let (a, b) = (open(&dir.join("full.h5")), open(&dir.join("second.h5")));
+    let (ua, ub) = (raw(&a, "checkpoint/u"), raw(&b, "checkpoint/u"));
+    let norm = ua.iter().map(|x| x * x).sum::<f64>().sqrt();
+    let diff = ua.iter().zip(&ub).map(|(x, y)| (x - y).powi(2)).sum::<f64>().sqrt();
+    assert!(diff <= 1e-10 * norm, "{name}: final displacement differs by {diff} (norm {norm})");
+    let (ea, eb) = (raw(&a, "energy/total"), raw(&b, "energy/total"));
+    assert!(rel_diff(*ea.last().unwrap(), *eb.last().unwrap()) < 1e-10);
+    assert_eq!(raw(&b, "energy/step")[0], k as f64, "the restart starts at the checkpoint");
+    if a.dataset("contact/active").is_ok() {
+        let aa = a.dataset("contact/active").unwrap().read_raw::<u8>().unwrap();
+        let ab = b.dataset("contact/active").unwrap().read_raw::<u8>().unwrap();
+        let nc = a.dataset("contact/active").unwrap().shape()[1];
+        assert_eq!(
+            &aa[aa.len() - (ab.len())..],
+            &ab[..],
+            "{name}: active sets differ after the restart"
+        );
+        assert!(ab.chunks(nc).any(|r| r.contains(&1)), "{name}: the restart must cover contact");
+    }
+}
+
+#[test]
+fn restart_equals_the_uninterrupted_run() {
+    restart_equals_uninterrupted(
+        "beam.toml",
+        &[("steps = 250", "steps = 60"), ("error_steps = [30, 250]", "error_steps = [60]")],
+        30,
+        "restart-beam",
+    );
+    restart_equals_uninterrupted(
+        "disc.toml",
+        &[("steps = 1000", "steps = 300")],
+        150,
+        "restart-disc",
+    );
+}
+
+#[test]
+fn xdmf_refers_to_existing_datasets_with_the_right_shapes() {
+    let dir = scratch("io-xdmf");
+    let scene = beam(&dir);
+    run_scene(2, &scene, &["--param", "h=0.25"]);
+    let text = std::fs::read_to_string(dir.join("beam-2.xdmf")).unwrap();
+    let doc = roxmltree::Document::parse(&text).expect("valid XML");
+    let f = open(&dir.join("beam-2.h5"));
+    let mut refs = 0;
+    for node in doc
+        .descendants()
+        .filter(|n| n.has_tag_name("DataItem") && n.attribute("Format") == Some("HDF"))
+    {
+        let t = node.text().unwrap().trim();
+        let (file, ds) = t.split_once(':').unwrap();
+        assert_eq!(file, "beam-2.h5");
+        let shape = f.dataset(ds).unwrap_or_else(|_| panic!("{ds} does not exist")).shape();
+        let dims: Vec<usize> = node
+            .attribute("Dimensions")
+            .unwrap()
+            .split_whitespace()
+            .map(|d| d.parse().unwrap())
+            .collect();
+        assert_eq!(dims, shape, "{ds}");
+        refs += 1;
+    }
+    let grids = doc.descendants().filter(|n| n.has_tag_name("Time")).count();
+    assert_eq!(grids, 5, "one grid per written step");
+    assert!(refs >= 5 * 5);
+}
+
+#[test]
+fn post_writes_pictures_and_csv_equal_to_the_file() {
+    let dir = scratch("io-post");
+    let scene = scene_variant(
+        "disc.toml",
+        &dir,
+        &[("steps = 1000", "steps = 200"), ("every = 10", "every = 20")],
+    );
+    run_scene(2, &scene, &[]);
+    let h5 = dir.join("disc-2.h5");
+    let o = massfree(0, &["post", h5.to_str().unwrap(), "--node", "0,16", "--contact-node", "0,0"]);
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(out.contains("contact: steps"), "{out}");
+    let f = open(&h5);
+    let written: Vec<String> =
+        out.lines().filter_map(|l| l.strip_prefix("wrote ")).map(String::from).collect();
+    assert!(written.iter().filter(|w| w.ends_with(".png")).count() >= 3);
+    for w in &written {
+        assert!(std::fs::metadata(w).unwrap().len() > 1000, "{w} is empty");
+    }
+    // energy CSV = /energy
+    let energy_csv = written.iter().find(|w| w.ends_with("-energy.csv")).unwrap();
+    let text = std::fs::read_to_string(energy_csv).unwrap();
+    let total: Vec<f64> =
+        text.lines().skip(1).map(|l| l.split(',').nth(4).unwrap().parse().unwrap()).collect();
+    assert_eq!(total, raw(&f, "energy/total"));
+    // node CSV = /fields at that node
+    let node_csv = written.iter().find(|w| w.contains("-node-") && w.ends_with(".csv")).unwrap();
+    let tag: u64 =
+        node_csv.rsplit("-node-").next().unwrap().trim_end_matches(".csv").parse().unwrap();
+    let tags = f.dataset("mesh/node_tags").unwrap().read_raw::<u64>().unwrap();
+    let node = tags.iter().position(|&t| t == tag).unwrap();
+    let u = raw(&f, "fields/displacement");
+    let n = tags.len();
+    let text = std::fs::read_to_string(node_csv).unwrap();
+    for (k, line) in text.lines().skip(1).enumerate() {
+        let uy: f64 = line.split(',').nth(2).unwrap().parse().unwrap();
+        assert_eq!(uy, u[(k * n + node) * 2 + 1]);
+    }
+}
