@@ -337,6 +337,70 @@ fn main() {
             }
         }
     }
+    // Output cost: the beam at ~10^6 DOFs writing displacement and velocity every step
+    // (parallel HDF5, each rank its block), against the same run without output.
+    if want("output") {
+        let h = if quick { "0.03125" } else { "0.004464285714285714" };
+        md += "\nOutput cost (beam, displacement + velocity every step, 10 steps):\n\n| ranks | DOFs | ms/step without output | ms/step with output | output ms per written step | MB per step | MB/s | output / step |\n|---|---|---|---|---|---|---|---|\n";
+        for ranks in [1, 2] {
+            let out = repo().join("target/bench");
+            let mut t = Vec::new();
+            for write in [false, true] {
+                let summary = out.join(format!("output-{ranks}-{write}.toml"));
+                let h5 = out.join(format!("output-{ranks}.h5"));
+                let mut cmd = Command::new("mpirun");
+                cmd.args(["--oversubscribe", "-n", &ranks.to_string()])
+                    .arg(repo().join("target/release/massfree"))
+                    .arg("run")
+                    .arg(repo().join("scenes/beam.toml"))
+                    .args([
+                        "--quiet",
+                        "--param",
+                        &format!("h={h}"),
+                        "--steps",
+                        "10",
+                        "--every",
+                        "1",
+                        "--summary",
+                    ])
+                    .arg(&summary)
+                    .env("OMPI_ALLOW_RUN_AS_ROOT", "1")
+                    .env("OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1")
+                    .env("OMPI_MCA_btl_vader_single_copy_mechanism", "none");
+                if write {
+                    cmd.args(["--overwrite", "-o"]).arg(&h5);
+                } else {
+                    cmd.arg("--no-output");
+                }
+                let ok = cmd.output().map(|o| o.status.success()).unwrap_or(false);
+                t.push(if ok {
+                    std::fs::read_to_string(&summary)
+                        .ok()
+                        .and_then(|s| s.parse::<toml::Table>().ok())
+                } else {
+                    None
+                });
+                let _ = std::fs::remove_file(&h5);
+            }
+            match (&t[0], &t[1]) {
+                (Some(a), Some(b)) => {
+                    let steps = num(b, "steps");
+                    let dofs = num(b, "n_dofs");
+                    let step_ms = 1e3 * timing(a, "stepping") / steps;
+                    let step_w = 1e3 * timing(b, "stepping") / steps;
+                    let out_ms = 1e3 * timing(b, "output") / (steps + 1.0);
+                    let mb = 2.0 * dofs * 8.0 / 1e6;
+                    md += &format!(
+                        "| {ranks} | {dofs:.0} | {step_ms:.1} | {step_w:.1} | {out_ms:.1} | {mb:.1} | {:.0} | {:.0}% |\n",
+                        mb / (out_ms / 1e3),
+                        100.0 * out_ms / step_ms
+                    );
+                }
+                _ => md += &format!("| {ranks} | failed |\n"),
+            }
+            print!("{}", md.lines().last().map(|l| format!("{l}\n")).unwrap_or_default());
+        }
+    }
     let path = repo().join("target/bench/scaling.md");
     let _ = std::fs::create_dir_all(path.parent().unwrap());
     std::fs::write(&path, &md).unwrap();

@@ -89,6 +89,9 @@ enum Command {
         /// Override the scene's number of steps.
         #[arg(long)]
         steps: Option<usize>,
+        /// Override the scene's output.every (write the fields every K steps).
+        #[arg(long, value_name = "K")]
+        every: Option<usize>,
         /// Print only the summary.
         #[arg(long, short)]
         quiet: bool,
@@ -165,6 +168,7 @@ fn run(cli: Cli, universe: &mpi::environment::Universe) -> Result<()> {
             overwrite,
             no_output,
             steps,
+            every,
             quiet,
             verbose,
             params,
@@ -187,6 +191,12 @@ fn run(cli: Cli, universe: &mpi::environment::Universe) -> Result<()> {
             }
             if let Some(kind) = &mass {
                 scene.set_mass_kind(kind)?;
+            }
+            if let Some(k) = every {
+                if k == 0 {
+                    return Err(Error::Usage("--every 0: the output period must be >= 1".into()));
+                }
+                scene.output.every = k;
             }
             let partition = massfree::partition::Strategy::from_name(&partition)
                 .ok_or_else(|| Error::Usage(format!("--partition {partition}: unknown")))?;
