@@ -110,6 +110,20 @@ fn block_dropped_on_a_plane_2d() {
 }
 
 #[test]
+fn square_dropped_on_a_rigid_disc() {
+    // A sphere (circle) obstacle: curved, with normals that turn as the body slides.
+    let text = BLOCK_2D
+        .replace("name = \"block2d\"", "name = \"onball\"")
+        .replace(
+            "obstacle = { type = \"plane\", point = [0.0, -0.01], normal = [0.0, 1.0] }",
+            "obstacle = { type = \"sphere\", center = [0.5, -1.01], radius = 1.0 }",
+        )
+        .replace("velocity = [\"0.2\", \"-1\"]", "velocity = [\"0\", \"-1\"]");
+    assert!(text.contains("sphere"));
+    check_drop(&text, "onball", 2);
+}
+
+#[test]
 fn block_dropped_on_a_plane_3d() {
     check_drop(BLOCK_3D, "block3d", 3);
 }
