@@ -67,31 +67,6 @@ fn block_tetrahedra_converge_at_theoretical_rates() {
     assert_rates(&l2, &h1, "block P1");
 }
 
-const FREE_VIBRATION: &str = r#"
-name = "free_vibration"
-[mesh]
-geo = "../meshes/beam_quad.geo"
-params = { h = 0.25 }
-[material]
-E = 200.0
-nu = 0.3
-rho = 1.0
-[[dirichlet]]
-group = "left"
-[[dirichlet]]
-group = "right"
-[initial]
-velocity = ["0.1*sin(pi*x/10)", "x*(10 - x)*y"]
-displacement = ["0", "0.01*sin(pi*x/10)"]
-[time]
-tau = 1e-3
-steps = 1000
-[mass]
-kind = "consistent"
-[output]
-every = 100
-"#;
-
 const FREE_BODY_3D: &str = r#"
 name = "free_body"
 [mesh]

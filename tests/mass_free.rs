@@ -177,32 +177,8 @@ fn beam_triangles_with_mass_free_layer_converge() {
 #[test]
 fn energy_is_conserved_with_the_mass_free_layer() {
     let dir = scratch("mh-energy");
-    let text = r#"
-name = "free_vibration_mh"
-[mesh]
-geo = "../meshes/beam_quad.geo"
-params = { h = 0.25 }
-[material]
-E = 200.0
-nu = 0.3
-rho = 1.0
-[[dirichlet]]
-group = "left"
-[[dirichlet]]
-group = "right"
-[initial]
-velocity = ["0.1*sin(pi*x/10)", "x*(10 - x)*y"]
-displacement = ["0", "0.01*sin(pi*x/10)"]
-[time]
-tau = 1e-3
-steps = 1000
-[mass]
-kind = "modified1"
-contact_boundary = "bottom"
-[output]
-every = 100
-"#;
-    let scene = scene_text(&dir, "mh.toml", text);
+
+    let scene = scene_text(&dir, "mh.toml", FREE_VIBRATION);
     for kind in ["modified0", "modified1"] {
         for ranks in [1, 2] {
             let s = run_scene(

@@ -118,3 +118,31 @@ pub fn errors(t: &toml::Table) -> Vec<(usize, f64, f64)> {
 pub fn rel_diff(a: f64, b: f64) -> f64 {
     (a - b).abs() / a.abs().max(b.abs()).max(1e-300)
 }
+
+/// A clamped beam in free vibration (no loads): the midpoint rule must conserve its energy.
+/// Its bottom is the contact boundary of the mass-free layer (`--mass modified0|1`).
+pub const FREE_VIBRATION: &str = r#"
+name = "free_vibration"
+[mesh]
+geo = "../meshes/beam_quad.geo"
+params = { h = 0.25 }
+[material]
+E = 200.0
+nu = 0.3
+rho = 1.0
+[[dirichlet]]
+group = "left"
+[[dirichlet]]
+group = "right"
+[initial]
+velocity = ["0.1*sin(pi*x/10)", "x*(10 - x)*y"]
+displacement = ["0", "0.01*sin(pi*x/10)"]
+[time]
+tau = 1e-3
+steps = 1000
+[mass]
+kind = "consistent"
+contact_boundary = "bottom"
+[output]
+every = 100
+"#;
