@@ -769,6 +769,7 @@ impl<'a> Simulation<'a> {
             displacement: self.scene.output.fields.contains(&Field::Displacement),
             velocity: self.scene.output.fields.contains(&Field::Velocity),
             every: self.scene.output.every,
+            time_steps: self.scene.output.time_steps.clone(),
         };
         let settings = self.settings(&ops.op);
         let mut out = Output::create(

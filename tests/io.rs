@@ -278,3 +278,30 @@ fn post_writes_pictures_and_csv_equal_to_the_file() {
         assert_eq!(uy, u[(k * n + node) * 2 + 1]);
     }
 }
+
+#[test]
+fn fields_are_written_every_k_steps_and_at_given_times() {
+    let dir = scratch("io-times");
+    let scene = scene_variant(
+        "beam.toml",
+        &dir,
+        &[
+            ("steps = 250", "steps = 20"),
+            ("error_steps = [30, 250]", "error_steps = [20]"),
+            ("every = 10", "every = 10\ntimes = [3e-5, 1.2e-4, 1e-4]"),
+        ],
+    );
+    run_scene(2, &scene, &["--param", "h=0.5"]);
+    let f = open(&dir.join("beam-2.h5"));
+    // every 10 steps (0, 10, 20) and at t = 3e-5, 1e-4, 1.2e-4 (steps 3, 10, 12).
+    assert_eq!(raw(&f, "step"), vec![0.0, 3.0, 10.0, 12.0, 20.0]);
+    assert_eq!(f.dataset("fields/velocity").unwrap().shape()[0], 5);
+    // A bad time is a one-line error naming the key.
+    let bad = scene_variant("beam.toml", &dir, &[("every = 10", "every = 10\ntimes = [1.0]")]);
+    let o = massfree(0, &["run", bad.to_str().unwrap(), "--no-output"]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        !o.status.success() && err.contains("output.times[0]") && err.lines().count() == 1,
+        "{err}"
+    );
+}

@@ -78,6 +78,8 @@ pub struct OutputPlan {
     pub displacement: bool,
     pub velocity: bool,
     pub every: usize,
+    /// Extra steps to write (from the scene's output.times).
+    pub time_steps: Vec<usize>,
 }
 
 pub struct Output {
@@ -405,7 +407,7 @@ impl Output {
         self.range
     }
     pub fn wants_fields(&self, step: usize) -> bool {
-        step % self.plan.every == 0
+        step % self.plan.every == 0 || self.plan.time_steps.binary_search(&step).is_ok()
     }
 
     /// Write the nodal fields of one step. `u` and `v` are this rank's natural block

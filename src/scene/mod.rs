@@ -223,6 +223,8 @@ pub struct OutputSpec {
     pub file: PathBuf,
     /// Write every k-th step, >= 1.
     pub every: usize,
+    /// Also write at these steps (from `output.times`, the nearest steps), sorted.
+    pub time_steps: Vec<usize>,
     /// Fields to write, in the order given, without duplicates.
     pub fields: Vec<Field>,
     /// Default false.
@@ -584,6 +586,7 @@ struct RawSolver {
 struct RawOutput {
     file: Option<String>,
     every: Option<i64>,
+    times: Option<Vec<f64>>,
     fields: Option<Vec<Field>>,
     progress: Option<bool>,
 }
@@ -867,8 +870,13 @@ fn build(raw: RawScene, stem: &str, base_dir: &Path) -> VResult<Scene> {
     };
 
     // --- output
-    let o =
-        raw.output.unwrap_or(RawOutput { file: None, every: None, fields: None, progress: None });
+    let o = raw.output.unwrap_or(RawOutput {
+        file: None,
+        every: None,
+        times: None,
+        fields: None,
+        progress: None,
+    });
     let every = o.every.unwrap_or(1);
     if every < 1 {
         return Err(format!(
@@ -888,8 +896,28 @@ fn build(raw: RawScene, stem: &str, base_dir: &Path) -> VResult<Scene> {
             fields.push(f);
         }
     }
-    let output =
-        OutputSpec { file, every: every as usize, fields, progress: o.progress.unwrap_or(true) };
+    // Extra output times: the steps nearest to them (within the run).
+    let mut time_steps = Vec::new();
+    let tau = t.tau;
+    for (i, &time) in o.times.iter().flatten().enumerate() {
+        let n = (time / tau).round();
+        if !(time >= 0.0) || n > steps as f64 {
+            return Err(format!(
+                "output.times[{i}] = {time} is impossible: times must lie in [0, {}] (steps * tau)",
+                steps as f64 * tau
+            ));
+        }
+        time_steps.push(n as usize);
+    }
+    time_steps.sort_unstable();
+    time_steps.dedup();
+    let output = OutputSpec {
+        file,
+        every: every as usize,
+        time_steps,
+        fields,
+        progress: o.progress.unwrap_or(true),
+    };
 
     // --- exact solution
     let exact = match raw.exact {
