@@ -766,9 +766,18 @@ impl<'a> Simulation<'a> {
         let t0 = Instant::now();
         let path = self.opts.output.clone().unwrap_or_else(|| self.scene.output.file.clone());
         let plan = OutputPlan {
-            displacement: self.scene.output.fields.contains(&Field::Displacement),
-            velocity: self.scene.output.fields.contains(&Field::Velocity),
-            every: self.scene.output.every,
+            displacement: self
+                .scene
+                .output
+                .fields
+                .contains(&Field::Displacement)
+                .then(|| self.scene.every_of(Field::Displacement)),
+            velocity: self
+                .scene
+                .output
+                .fields
+                .contains(&Field::Velocity)
+                .then(|| self.scene.every_of(Field::Velocity)),
             time_steps: self.scene.output.time_steps.clone(),
         };
         let settings = self.settings(&ops.op);
@@ -1127,16 +1136,13 @@ impl<'a> Simulation<'a> {
         if self.output.is_none() {
             return Ok(());
         }
-        let fields_due = self.output.as_ref().is_some_and(|o| o.wants_fields(step));
-        let (un, vn) = if fields_due {
-            (self.to_natural(&st.u)?, self.to_natural(&st.v)?)
-        } else {
-            (vec![], vec![])
-        };
+        let (due_u, due_v) = self.output.as_ref().map_or((false, false), |o| o.due_fields(step));
+        let un = if due_u { Some(self.to_natural(&st.u)?) } else { None };
+        let vn = if due_v { Some(self.to_natural(&st.v)?) } else { None };
         let out = self.output.as_mut().expect("output");
         out.write_energy(step, t, &st.energy)?;
-        if fields_due {
-            out.write_fields(step, t, &un, &vn)?;
+        if due_u || due_v {
+            out.write_fields(step, t, un.as_deref(), vn.as_deref())?;
         }
         if let Some(c) = contact {
             out.write_contact(&ContactRow {

@@ -6,7 +6,8 @@
 //!   `/mesh/cells/<kind>` [n, nodes per cell] (0-based indices into coordinates),
 //!   `/mesh/cell_rank` [n_cells] (METIS partition, same order as the cells),
 //! - `/time` [n_out], `/step` [n_out] of the written field steps,
-//! - `/fields/displacement`, `/fields/velocity` [n_out, n_nodes, dim],
+//! - `/fields/displacement`, `/fields/velocity` [n_out, n_nodes, dim], each with its own
+//!   `/fields/<name>_step`, `/fields/<name>_time` (fields may have their own periods),
 //! - `/energy/{step,time,kinetic,potential,total,external_work}` [n_steps + 1], one entry per
 //!   step (external work `W^n = sum_k f^{k+1/2} . du^k`, so `total - total[0] - external_work`
 //!   is the integrator's energy balance, zero up to solver tolerance),
@@ -75,11 +76,29 @@ pub struct ContactRow<'a> {
 /// Which nodal fields are written, and how often.
 #[derive(Debug, Clone)]
 pub struct OutputPlan {
-    pub displacement: bool,
-    pub velocity: bool,
-    pub every: usize,
-    /// Extra steps to write (from the scene's output.times).
+    /// Period of each field in steps (None: not written).
+    pub displacement: Option<usize>,
+    pub velocity: Option<usize>,
+    /// Extra steps to write every field at (from the scene's output.times).
     pub time_steps: Vec<usize>,
+}
+
+impl OutputPlan {
+    fn due(&self, every: Option<usize>, step: usize) -> bool {
+        every.is_some_and(|k| step % k == 0 || self.time_steps.binary_search(&step).is_ok())
+    }
+    /// Whether displacement / velocity are written at `step`.
+    pub fn due_fields(&self, step: usize) -> (bool, bool) {
+        (self.due(self.displacement, step), self.due(self.velocity, step))
+    }
+}
+
+/// One nodal field's datasets: values [T, nodes, dim] and its own step and time axes.
+struct FieldSet {
+    values: Dataset,
+    step: Dataset,
+    time: Dataset,
+    written: usize,
 }
 
 pub struct Output {
@@ -91,8 +110,8 @@ pub struct Output {
     plan: OutputPlan,
     time: Dataset,
     step: Dataset,
-    displacement: Option<Dataset>,
-    velocity: Option<Dataset>,
+    displacement: Option<FieldSet>,
+    velocity: Option<FieldSet>,
     energy: [Dataset; 8],
     contact: Option<ContactDatasets>,
     n_fields_written: usize,
@@ -101,7 +120,8 @@ pub struct Output {
     checkpoint: Option<([Dataset; 3], Dataset, Dataset)>,
     /// For the XDMF index: cell kinds and counts, times of written fields.
     cell_kinds: Vec<(crate::mesh::ElementKind, usize)>,
-    field_times: Vec<f64>,
+    /// (time, row of displacement, row of velocity) of each written step.
+    field_times: Vec<(f64, Option<usize>, Option<usize>)>,
 }
 
 const CHECKPOINT_SCALARS: usize = 10;
@@ -335,15 +355,23 @@ impl Output {
         let time = resizable_1d("time")?;
         let step = resizable_1d("step")?;
         let fg = file.create_group("fields").map_err(|e| h5err(path, "create /fields", e))?;
-        let field = |name: &str| -> Result<Dataset> {
-            fg.new_dataset::<f64>()
+        let field = |name: &str| -> Result<FieldSet> {
+            let values = fg
+                .new_dataset::<f64>()
                 .chunk((1, n.clamp(1, 1 << 16), dim))
                 .shape((0.., n, dim))
                 .create(name)
-                .map_err(|e| h5err(path, &format!("create /fields/{name}"), e))
+                .map_err(|e| h5err(path, &format!("create /fields/{name}"), e))?;
+            Ok(FieldSet {
+                values,
+                step: resizable_1d(&format!("fields/{name}_step"))?,
+                time: resizable_1d(&format!("fields/{name}_time"))?,
+                written: 0,
+            })
         };
-        let displacement = if plan.displacement { Some(field("displacement")?) } else { None };
-        let velocity = if plan.velocity { Some(field("velocity")?) } else { None };
+        let displacement =
+            if plan.displacement.is_some() { Some(field("displacement")?) } else { None };
+        let velocity = if plan.velocity.is_some() { Some(field("velocity")?) } else { None };
         file.create_group("energy").map_err(|e| h5err(path, "create /energy", e))?;
         let energy = [
             resizable_1d("energy/step")?,
@@ -406,38 +434,69 @@ impl Output {
     pub fn natural_range(&self) -> (usize, usize) {
         self.range
     }
+    /// Whether any field is written at `step`.
     pub fn wants_fields(&self, step: usize) -> bool {
-        step % self.plan.every == 0 || self.plan.time_steps.binary_search(&step).is_ok()
+        let (u, v) = self.plan.due_fields(step);
+        u || v
+    }
+
+    /// Which fields are written at `step` (displacement, velocity).
+    pub fn due_fields(&self, step: usize) -> (bool, bool) {
+        self.plan.due_fields(step)
     }
 
     /// Write the nodal fields of one step. `u` and `v` are this rank's natural block
     /// (nodes `range.0..range.1`, interlaced components). Collective.
-    pub fn write_fields(&mut self, step: usize, t: f64, u: &[f64], v: &[f64]) -> Result<()> {
+    pub fn write_fields(
+        &mut self,
+        step: usize,
+        t: f64,
+        u: Option<&[f64]>,
+        v: Option<&[f64]>,
+    ) -> Result<()> {
         let k = self.n_fields_written;
         let (lo, hi) = self.range;
         let path = self.path.clone();
-        for (ds, data, name) in
-            [(&self.displacement, u, "displacement"), (&self.velocity, v, "velocity")]
+        let (dim, rank0) = (self.dim, self.rank == 0);
+        let mut rows = [None, None];
+        for (i, (set, data, name)) in [
+            (self.displacement.as_mut(), u, "displacement"),
+            (self.velocity.as_mut(), v, "velocity"),
+        ]
+        .into_iter()
+        .enumerate()
         {
-            if let Some(ds) = ds {
-                let n = ds.shape()[1];
-                ds.resize((k + 1, n, self.dim))
-                    .map_err(|e| h5err(&path, &format!("resize /fields/{name}"), e))?;
-                let arr = ndarray::Array3::from_shape_vec((1, hi - lo, self.dim), data.to_vec())
-                    .map_err(|_| Error::Io(format!("{name}: block size mismatch")))?;
-                ds.write_slice(&arr, ndarray::s![k..k + 1, lo..hi, ..])
-                    .map_err(|e| h5err(&path, &format!("write /fields/{name}"), e))?;
+            let (Some(set), Some(data)) = (set, data) else { continue };
+            let r = set.written;
+            let n = set.values.shape()[1];
+            set.values
+                .resize((r + 1, n, dim))
+                .map_err(|e| h5err(&path, &format!("resize /fields/{name}"), e))?;
+            let arr = ndarray::Array3::from_shape_vec((1, hi - lo, dim), data.to_vec())
+                .map_err(|_| Error::Io(format!("{name}: block size mismatch")))?;
+            set.values
+                .write_slice(&arr, ndarray::s![r..r + 1, lo..hi, ..])
+                .map_err(|e| h5err(&path, &format!("write /fields/{name}"), e))?;
+            for (ds, val) in [(&set.step, step as f64), (&set.time, t)] {
+                ds.resize((r + 1,)).map_err(|e| h5err(&path, "resize a field axis", e))?;
+                if rank0 {
+                    ds.write_slice(&[val], r..r + 1)
+                        .map_err(|e| h5err(&path, "write a field axis", e))?;
+                }
             }
+            set.written += 1;
+            rows[i] = Some(r);
         }
+        // /time and /step: every step at which some field was written.
         for (ds, val, name) in [(&self.time, t, "time"), (&self.step, step as f64, "step")] {
             ds.resize((k + 1,)).map_err(|e| h5err(&path, &format!("resize /{name}"), e))?;
-            if self.rank == 0 {
+            if rank0 {
                 ds.write_slice(&[val], k..k + 1)
                     .map_err(|e| h5err(&path, &format!("write /{name}"), e))?;
             }
         }
         self.n_fields_written += 1;
-        self.field_times.push(t);
+        self.field_times.push((t, rows[0], rows[1]));
         self.file.flush().map_err(|e| h5err(&path, "flush", e))
     }
 
@@ -673,9 +732,11 @@ impl Output {
                     n_nodes: self.n_nodes,
                     dim: self.dim,
                     cells: &self.cell_kinds,
-                    times: &self.field_times,
-                    displacement: self.displacement.is_some(),
-                    velocity: self.velocity.is_some(),
+                    steps: &self.field_times,
+                    rows: [
+                        self.displacement.as_ref().map_or(0, |f| f.written),
+                        self.velocity.as_ref().map_or(0, |f| f.written),
+                    ],
                 },
             )?;
         }

@@ -16,10 +16,10 @@ pub struct XdmfLayout<'a> {
     pub dim: usize,
     /// Cell kinds with their counts, in the order of /mesh/cells.
     pub cells: &'a [(ElementKind, usize)],
-    /// Times of the written field steps.
-    pub times: &'a [f64],
-    pub displacement: bool,
-    pub velocity: bool,
+    /// Each written step: time, and the row of displacement / velocity written then.
+    pub steps: &'a [(f64, Option<usize>, Option<usize>)],
+    /// Rows of displacement and velocity in the file.
+    pub rows: [usize; 2],
 }
 
 fn topology_name(kind: ElementKind) -> &'static str {
@@ -37,13 +37,13 @@ fn topology_name(kind: ElementKind) -> &'static str {
 pub fn xdmf_text(l: &XdmfLayout) -> String {
     let mut x = String::new();
     let n = l.n_nodes;
-    let t = l.times.len();
+
     let _ = writeln!(x, "<?xml version=\"1.0\" ?>");
     let _ = writeln!(x, "<Xdmf Version=\"3.0\">");
     let _ = writeln!(x, " <Domain>");
     let _ =
         writeln!(x, "  <Grid Name=\"run\" GridType=\"Collection\" CollectionType=\"Temporal\">");
-    for (k, time) in l.times.iter().enumerate() {
+    for (k, &(time, row_u, row_v)) in l.steps.iter().enumerate() {
         let single = l.cells.len() == 1;
         if !single {
             let _ = writeln!(
@@ -70,13 +70,13 @@ pub fn xdmf_text(l: &XdmfLayout) -> String {
                 "    <Geometry GeometryType=\"XYZ\">\n     <DataItem Dimensions=\"{n} 3\" NumberType=\"Float\" Precision=\"8\" Format=\"HDF\">{}:/mesh/coordinates</DataItem>\n    </Geometry>",
                 l.h5_name
             );
-            for (on, name) in [(l.displacement, "displacement"), (l.velocity, "velocity")] {
-                if !on {
-                    continue;
-                }
+            for (row, total, name) in
+                [(row_u, l.rows[0], "displacement"), (row_v, l.rows[1], "velocity")]
+            {
+                let Some(r) = row else { continue };
                 let _ = writeln!(
                     x,
-                    "    <Attribute Name=\"{name}\" AttributeType=\"Vector\" Center=\"Node\">\n     <DataItem ItemType=\"HyperSlab\" Dimensions=\"{n} {d}\" Type=\"HyperSlab\">\n      <DataItem Dimensions=\"3 3\" Format=\"XML\">{k} 0 0 1 1 1 1 {n} {d}</DataItem>\n      <DataItem Dimensions=\"{t} {n} {d}\" NumberType=\"Float\" Precision=\"8\" Format=\"HDF\">{}:/fields/{name}</DataItem>\n     </DataItem>\n    </Attribute>",
+                    "    <Attribute Name=\"{name}\" AttributeType=\"Vector\" Center=\"Node\">\n     <DataItem ItemType=\"HyperSlab\" Dimensions=\"{n} {d}\" Type=\"HyperSlab\">\n      <DataItem Dimensions=\"3 3\" Format=\"XML\">{r} 0 0 1 1 1 1 {n} {d}</DataItem>\n      <DataItem Dimensions=\"{total} {n} {d}\" NumberType=\"Float\" Precision=\"8\" Format=\"HDF\">{}:/fields/{name}</DataItem>\n     </DataItem>\n    </Attribute>",
                     l.h5_name,
                     d = l.dim
                 );

@@ -378,7 +378,6 @@ pub fn post(path: &Path, opts: &PostOptions) -> Result<Vec<String>> {
 
     // Node histories of the nodal fields.
     if !opts.nodes.is_empty() {
-        let ftime = read("time")?;
         let available: Vec<String> = ["displacement", "velocity"]
             .iter()
             .filter(|f| file.dataset(&format!("fields/{f}")).is_ok())
@@ -399,30 +398,33 @@ pub fn post(path: &Path, opts: &PostOptions) -> Result<Vec<String>> {
         for p in &opts.nodes {
             let node = nearest(&coords, &all, *p);
             let tag = tags[node];
-            let mut header = vec!["time".to_string()];
-            let mut cols = vec![ftime.clone()];
             let mut panels_series = Vec::new();
             for f in &fields {
+                // Each field has its own time axis (fields may be written at different periods).
+                let ftime = read(&format!("fields/{f}_time")).or_else(|_| read("time"))?;
                 let ds =
                     file.dataset(&format!("fields/{f}")).map_err(|e| h5(path, "open field", e))?;
                 let dim = ds.shape()[2];
                 let a: ndarray::Array3<f64> =
                     ds.read().map_err(|e| h5(path, &format!("read fields/{f}"), e))?;
+                let mut header = vec!["time".to_string()];
+                let mut cols = vec![ftime.clone()];
                 let mut series = Vec::new();
                 for c in 0..dim {
                     let v: Vec<f64> = (0..a.shape()[0]).map(|k| a[[k, node, c]]).collect();
-                    header.push(format!("{f}_{}", ["x", "y", "z"][c]));
+                    let comp = ["x", "y", "z"][c];
+                    header.push(format!("{f}_{comp}"));
                     series.push(Series {
-                        name: format!("{f} {}", ["x", "y", "z"][c]),
+                        name: format!("{f} {comp}"),
                         points: ftime.iter().copied().zip(v.iter().copied()).collect(),
                     });
                     cols.push(v);
                 }
+                let csv = with_suffix(&format!("-node-{tag}-{f}.csv"));
+                write_csv(&csv, &header, &cols)?;
+                written.push(csv);
                 panels_series.push((f.clone(), series));
             }
-            let csv = with_suffix(&format!("-node-{tag}.csv"));
-            write_csv(&csv, &header, &cols)?;
-            written.push(csv);
             let png = with_suffix(&format!("-node-{tag}.png"));
             let panels: Vec<Plot> = panels_series
                 .iter()

@@ -223,6 +223,8 @@ pub struct OutputSpec {
     pub file: PathBuf,
     /// Write every k-th step, >= 1.
     pub every: usize,
+    /// Per-field periods overriding `every` (`output.field_every`).
+    pub field_every: Vec<(Field, usize)>,
     /// Also write at these steps (from `output.times`, the nearest steps), sorted.
     pub time_steps: Vec<usize>,
     /// Fields to write, in the order given, without duplicates.
@@ -291,6 +293,11 @@ impl Scene {
             contact: self.contact.is_some(),
             exact: self.exact.is_some(),
         }
+    }
+
+    /// The output period of a field: `output.field_every.<field>`, else `output.every`.
+    pub fn every_of(&self, f: Field) -> usize {
+        self.output.field_every.iter().find(|(g, _)| *g == f).map_or(self.output.every, |&(_, k)| k)
     }
 
     /// Override one `.geo` parameter from the command line: `NAME=VALUE`, e.g. `h=0.0625`.
@@ -586,9 +593,18 @@ struct RawSolver {
 struct RawOutput {
     file: Option<String>,
     every: Option<i64>,
+    field_every: Option<RawFieldEvery>,
     times: Option<Vec<f64>>,
     fields: Option<Vec<Field>>,
     progress: Option<bool>,
+}
+
+/// Per-field output periods, overriding `output.every`.
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawFieldEvery {
+    displacement: Option<i64>,
+    velocity: Option<i64>,
 }
 
 #[derive(Deserialize)]
@@ -873,6 +889,7 @@ fn build(raw: RawScene, stem: &str, base_dir: &Path) -> VResult<Scene> {
     let o = raw.output.unwrap_or(RawOutput {
         file: None,
         every: None,
+        field_every: None,
         times: None,
         fields: None,
         progress: None,
@@ -911,9 +928,24 @@ fn build(raw: RawScene, stem: &str, base_dir: &Path) -> VResult<Scene> {
     }
     time_steps.sort_unstable();
     time_steps.dedup();
+    let mut field_every = Vec::new();
+    if let Some(fe) = &o.field_every {
+        for (f, k) in [(Field::Displacement, fe.displacement), (Field::Velocity, fe.velocity)] {
+            if let Some(k) = k {
+                if k < 1 {
+                    return Err(format!(
+                        "output.field_every.{} = {k} is impossible: write every k-th step with k >= 1",
+                        f.name()
+                    ));
+                }
+                field_every.push((f, k as usize));
+            }
+        }
+    }
     let output = OutputSpec {
         file,
         every: every as usize,
+        field_every,
         time_steps,
         fields,
         progress: o.progress.unwrap_or(true),

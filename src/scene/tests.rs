@@ -187,6 +187,7 @@ fn full_scene_round_trips() {
         OutputSpec {
             file: PathBuf::from("results/beam.h5"),
             every: 5,
+            field_every: vec![],
             time_steps: vec![],
             fields: vec![Field::Velocity],
             progress: true,

@@ -85,9 +85,9 @@ fn execute(study: &Study, binary: &Path) -> Result<Vec<Row>> {
     );
     let started = Instant::now();
     let mut done = 0usize;
-    let mut rows = Vec::new();
-    for p in &points {
-        let mut row = Row {
+    let mut rows: Vec<Row> = points
+        .iter()
+        .map(|p| Row {
             label: p.label.clone(),
             h: p.h.or(if study.h.is_empty() { study.scene.h_default } else { None }),
             tau: p.tau,
@@ -100,9 +100,16 @@ fn execute(study: &Study, binary: &Path) -> Result<Vec<Row>> {
             ranks: study.ranks,
             group: p.group,
             ..Default::default()
-        };
-        let mut samples: Vec<Measured> = Vec::new();
-        for k in 0..study.repeat {
+        })
+        .collect();
+    // Repeats go round the whole grid (not one point after the other), so that a passing
+    // load on the machine spreads over the points instead of spoiling one point's median.
+    let mut samples: Vec<Vec<Measured>> = vec![Vec::new(); points.len()];
+    for k in 0..study.repeat {
+        for (i, p) in points.iter().enumerate() {
+            if rows[i].failure.is_some() {
+                continue;
+            }
             let res = run_point(study, binary, p, &runs);
             done += 1;
             let elapsed = started.elapsed().as_secs_f64();
@@ -121,7 +128,7 @@ fn execute(study: &Study, binary: &Path) -> Result<Vec<Row>> {
                         clock(elapsed),
                         clock(eta)
                     );
-                    samples.push(m);
+                    samples[i].push(m);
                 }
                 Err(e) => {
                     eprintln!(
@@ -129,17 +136,17 @@ fn execute(study: &Study, binary: &Path) -> Result<Vec<Row>> {
                         clock(elapsed),
                         clock(eta)
                     );
-                    row.failure = Some(e);
+                    rows[i].failure = Some(e);
                     // The remaining repeats of a failed point are skipped.
                     done += study.repeat - 1 - k;
-                    break;
                 }
             }
         }
-        if row.failure.is_none() {
-            row.measured = Some(median(samples));
+    }
+    for (row, s) in rows.iter_mut().zip(samples) {
+        if row.failure.is_none() && !s.is_empty() {
+            row.measured = Some(median(s));
         }
-        rows.push(row);
     }
 
     compute_errors(study, &points, &mut rows, &runs);
@@ -205,6 +212,9 @@ fn describe(study: &Study) -> String {
         Reference::File(f) => format!("error = relative nodal L2 difference of the displacement at the error time to {}", f.display()),
     };
     let at = match study.end_time {
+        _ if study.scene.has_contact && study.reference != Reference::Exact => {
+            format!("over all {} steps", study.steps.unwrap_or(study.scene.steps))
+        }
         Some(t) => format!("at the end time t = {t}"),
         None => {
             let steps = study.steps.unwrap_or(study.scene.steps);
@@ -215,7 +225,7 @@ fn describe(study: &Study) -> String {
     format!(
         "# Study {}: scene {} on {} rank(s), median of {} repeat(s)\n\n{reference}, {at}; run_s = \
          wall time inside the program (mesh + partition + assembly + setup + stepping + output), \
-         process_s = the whole mpirun process; pareto * = not dominated in (run_s, err_l2).",
+         process_s = the whole mpirun process; pareto * = not dominated in (run_s, err_l2), errors within 0.1 % counting as equal.",
         study.title, study.scene.name, study.ranks, study.repeat
     )
 }
@@ -709,7 +719,9 @@ fn plots(study: &Study, rows: &[Row], c: &Columns) -> Result<Vec<PathBuf>> {
     }
     // Error against run time, with the Pareto front.
     let time = |r: &Row| r.measured.as_ref().map(|m| m.run_s).unwrap_or(f64::NAN);
-    let mut s = series(study, rows, &time, &l2, &by_tau, "", false);
+    // One curve per group along its refinements (per tau when both h and tau are swept).
+    let by_tau_if_grid = |r: &Row| if study.h.len() > 1 { by_tau(r) } else { String::new() };
+    let mut s = series(study, rows, &time, &l2, &by_tau_if_grid, "", false);
     let mut front: Vec<(f64, f64)> =
         rows.iter().filter(|r| r.pareto).filter_map(|r| Some((time(r), r.err_l2?))).collect();
     front.sort_by(|a, b| a.0.total_cmp(&b.0));

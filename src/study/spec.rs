@@ -136,6 +136,8 @@ pub fn parse(path: &Path, text: &str) -> Result<Study> {
     let ranks = get_count(&table, "ranks", 1, 1024).map_err(&bad)?.unwrap_or(2);
     let repeat = get_count(&table, "repeat", 1, 100).map_err(&bad)?.unwrap_or(1);
     let mesh_param = get_str(&table, "mesh_param").map_err(&bad)?.unwrap_or_else(|| "h".into());
+    let mut scene = scene;
+    scene.h_default = scene_param(&scene.table, &mesh_param);
     if mesh_param.is_empty() || mesh_param.contains(['=', ' ']) {
         return Err(bad(format!("mesh_param = {mesh_param:?} is not a parameter name")));
     }
@@ -354,15 +356,11 @@ fn scene_info(path: &Path) -> std::result::Result<SceneInfo, String> {
         dir,
         table,
     })
-    .map(|mut s| {
-        s.h_default = s
-            .table
-            .get("mesh")
-            .and_then(|m| m.get("params"))
-            .and_then(|p| p.get("h"))
-            .and_then(number);
-        s
-    })
+}
+
+/// The scene's own value of a mesh parameter (`mesh.params.NAME`).
+fn scene_param(scene: &Table, name: &str) -> Option<f64> {
+    scene.get("mesh")?.get("params")?.get(name).and_then(number)
 }
 
 fn check_keys(t: &Table, prefix: &str, allowed: &[&str]) -> std::result::Result<(), String> {

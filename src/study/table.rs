@@ -122,20 +122,23 @@ fn opt_rate(e0: Option<f64>, e1: Option<f64>, x0: f64, x1: f64) -> Option<f64> {
 }
 
 /// Which of the points `(cost, error)` are on the Pareto front: no other point is at least as
-/// cheap and at least as accurate and strictly better in one of the two. Points with a
-/// non-finite coordinate are never on the front (and dominate nothing).
-pub fn pareto_front(points: &[(f64, f64)]) -> Vec<bool> {
+/// cheap and at least as accurate and strictly better in one of the two. Errors that differ
+/// by less than the relative tolerance `tol` count as equal (`tol = 0`: the plain definition).
+/// Points with a non-finite coordinate are never on the front (and dominate nothing).
+pub fn pareto_front(points: &[(f64, f64)], tol: f64) -> Vec<bool> {
     let finite = |p: &(f64, f64)| p.0.is_finite() && p.1.is_finite();
+    let dominates = |q: &(f64, f64), p: &(f64, f64)| {
+        q.0 <= p.0 && q.1 <= p.1 * (1.0 + tol) && (q.0 < p.0 || q.1 < p.1 * (1.0 - tol))
+    };
     points
         .iter()
-        .map(|p| {
-            finite(p)
-                && !points
-                    .iter()
-                    .any(|q| finite(q) && q.0 <= p.0 && q.1 <= p.1 && (q.0 < p.0 || q.1 < p.1))
-        })
+        .map(|p| finite(p) && !points.iter().any(|q| finite(q) && dominates(q, p)))
         .collect()
 }
+
+/// Errors closer than this (relative) count as equal on the Pareto front: the table shows
+/// four digits, and a difference in the fifth is no gain in accuracy worth paying for.
+pub const PARETO_TOLERANCE: f64 = 1e-3;
 
 /// Marks the rows on the Pareto front of (run time, L2 error).
 pub fn fill_pareto(rows: &mut [Row]) {
@@ -146,7 +149,7 @@ pub fn fill_pareto(rows: &mut [Row]) {
             _ => (f64::NAN, f64::NAN),
         })
         .collect();
-    for (r, p) in rows.iter_mut().zip(pareto_front(&pts)) {
+    for (r, p) in rows.iter_mut().zip(pareto_front(&pts, PARETO_TOLERANCE)) {
         r.pareto = p;
     }
 }
@@ -364,10 +367,16 @@ mod tests {
             (0.5, f64::INFINITY),
             (3.5, 2.0), // front
         ];
-        let f = pareto_front(&pts);
+        let f = pareto_front(&pts, 0.0);
         assert_eq!(f, vec![true, true, false, true, false, true, false, false, true]);
-        assert_eq!(pareto_front(&[]), Vec::<bool>::new());
-        assert_eq!(pareto_front(&[(1.0, 1.0)]), vec![true]);
+        assert_eq!(pareto_front(&[], 0.0), Vec::<bool>::new());
+        assert_eq!(pareto_front(&[(1.0, 1.0)], 0.0), vec![true]);
+        // A dearer point whose error is smaller only in the fifth digit gains nothing.
+        let near = [(1.0, 3.18960e-6), (2.0, 3.18957e-6)];
+        assert_eq!(pareto_front(&near, 0.0), vec![true, true]);
+        assert_eq!(pareto_front(&near, PARETO_TOLERANCE), vec![true, false]);
+        // Same cost, errors within the tolerance: neither dominates.
+        assert_eq!(pareto_front(&[(1.0, 1.0), (1.0, 1.0005)], PARETO_TOLERANCE), vec![true, true]);
     }
 
     #[test]
@@ -400,7 +409,7 @@ mod tests {
         };
         // Out of order on purpose, two groups.
         let mut rows = vec![
-            row(0.125, 1.0 / 64.0, 0),
+            row(0.125, 1.0 / 16.0, 0),
             row(0.5, 1.0, 0),
             row(0.25, 0.25, 0),
             row(0.5, 2.0, 1),
