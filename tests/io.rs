@@ -266,9 +266,14 @@ fn post_writes_pictures_and_csv_equal_to_the_file() {
         text.lines().skip(1).map(|l| l.split(',').nth(4).unwrap().parse().unwrap()).collect();
     assert_eq!(total, raw(&f, "energy/total"));
     // node CSV = /fields at that node
-    let node_csv = written.iter().find(|w| w.contains("-node-") && w.ends_with(".csv")).unwrap();
-    let tag: u64 =
-        node_csv.rsplit("-node-").next().unwrap().trim_end_matches(".csv").parse().unwrap();
+    let node_csv = written.iter().find(|w| w.ends_with("-displacement.csv")).unwrap();
+    let tag: u64 = node_csv
+        .rsplit("-node-")
+        .next()
+        .unwrap()
+        .trim_end_matches("-displacement.csv")
+        .parse()
+        .unwrap();
     let tags = f.dataset("mesh/node_tags").unwrap().read_raw::<u64>().unwrap();
     let node = tags.iter().position(|&t| t == tag).unwrap();
     let u = raw(&f, "fields/displacement");
