@@ -297,7 +297,35 @@ impl Ranged for LogAxis {
     fn key_points<Hint: KeyPointHint>(&self, hint: Hint) -> Vec<f64> {
         let mut points = self.0.key_points(hint);
         points.dedup_by(|a, b| (*a - *b).abs() <= 1e-9 * b.abs());
-        points
+        if points.len() >= 2 {
+            return points;
+        }
+        // A range inside one decade (e.g. 0.28 .. 0.84) has no power of ten to label: use the
+        // 1-2-5 steps of the decade(s) it spans, else a few log-spaced values.
+        let r = self.0.range();
+        let (lo, hi) = (r.start.min(r.end), r.start.max(r.end));
+        if !(lo > 0.0 && hi > lo) {
+            return points;
+        }
+        for mantissas in [&[1.0, 2.0, 5.0][..], &[1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0, 8.0, 9.0][..]]
+        {
+            let mut ticks = Vec::new();
+            let mut decade = 10f64.powf(lo.log10().floor());
+            while decade <= hi {
+                for m in mantissas {
+                    let v = m * decade;
+                    if v >= lo && v <= hi {
+                        ticks.push(v);
+                    }
+                }
+                decade *= 10.0;
+            }
+            if ticks.len() >= 2 {
+                return ticks;
+            }
+        }
+        let (a, b) = (lo.ln(), hi.ln());
+        (0..5).map(|i| (a + (b - a) * i as f64 / 4.0).exp()).collect()
     }
 
     fn range(&self) -> std::ops::Range<f64> {
