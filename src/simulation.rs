@@ -779,6 +779,7 @@ impl<'a> Simulation<'a> {
                 .contains(&Field::Velocity)
                 .then(|| self.scene.every_of(Field::Velocity)),
             time_steps: self.scene.output.time_steps.clone(),
+            compression: self.scene.output.compression,
         };
         let settings = self.settings(&ops.op);
         let mut out = Output::create(

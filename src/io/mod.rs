@@ -81,6 +81,8 @@ pub struct OutputPlan {
     pub velocity: Option<usize>,
     /// Extra steps to write every field at (from the scene's output.times).
     pub time_steps: Vec<usize>,
+    /// Deflate level for the nodal fields (one rank only).
+    pub compression: Option<u8>,
 }
 
 impl OutputPlan {
@@ -263,10 +265,21 @@ impl Output {
             }
         }
         let comm = world.as_raw();
-        let file = File::with_options()
-            .with_fapl(|p| p.mpio(comm, None))
-            .create(path)
-            .map_err(|e| h5err(path, "create", e))?;
+        // Deflate needs collective parallel I/O, which the HDF5 binding does not expose: it is
+        // offered on one rank, where the file is written without MPI-IO.
+        if plan.compression.is_some() && size > 1 {
+            return Err(Error::Scene(format!(
+                "output.compression works on one rank only (parallel HDF5 filters need collective writes); this run has {size} ranks"
+            )));
+        }
+        let file = if plan.compression.is_some() {
+            File::create(path).map_err(|e| h5err(path, "create", e))?
+        } else {
+            File::with_options()
+                .with_fapl(|p| p.mpio(comm, None))
+                .create(path)
+                .map_err(|e| h5err(path, "create", e))?
+        };
         let dim = mesh.dim;
         let n = mesh.n_nodes();
         let range = natural_range(n, rank, size);
@@ -356,9 +369,12 @@ impl Output {
         let step = resizable_1d("step")?;
         let fg = file.create_group("fields").map_err(|e| h5err(path, "create /fields", e))?;
         let field = |name: &str| -> Result<FieldSet> {
-            let values = fg
-                .new_dataset::<f64>()
-                .chunk((1, n.clamp(1, 1 << 16), dim))
+            let mut b = fg.new_dataset::<f64>();
+            b = b.chunk((1, n.clamp(1, 1 << 16), dim));
+            if let Some(level) = plan.compression {
+                b = b.deflate(level);
+            }
+            let values = b
                 .shape((0.., n, dim))
                 .create(name)
                 .map_err(|e| h5err(path, &format!("create /fields/{name}"), e))?;

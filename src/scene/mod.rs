@@ -221,6 +221,8 @@ impl Field {
 pub struct OutputSpec {
     /// As given, or `out/<name>.h5`; relative paths are relative to the working directory.
     pub file: PathBuf,
+    /// Deflate level of the nodal fields (1-9; one-rank runs), None = off (the default).
+    pub compression: Option<u8>,
     /// Write every k-th step, >= 1.
     pub every: usize,
     /// Per-field periods overriding `every` (`output.field_every`).
@@ -592,6 +594,7 @@ struct RawSolver {
 #[serde(deny_unknown_fields)]
 struct RawOutput {
     file: Option<String>,
+    compression: Option<i64>,
     every: Option<i64>,
     field_every: Option<RawFieldEvery>,
     times: Option<Vec<f64>>,
@@ -888,6 +891,7 @@ fn build(raw: RawScene, stem: &str, base_dir: &Path) -> VResult<Scene> {
     // --- output
     let o = raw.output.unwrap_or(RawOutput {
         file: None,
+        compression: None,
         every: None,
         field_every: None,
         times: None,
@@ -942,8 +946,18 @@ fn build(raw: RawScene, stem: &str, base_dir: &Path) -> VResult<Scene> {
             }
         }
     }
+    let compression = match o.compression {
+        None | Some(0) => None,
+        Some(l) if (1..=9).contains(&l) => Some(l as u8),
+        Some(l) => {
+            return Err(format!(
+                "output.compression = {l} is impossible: a deflate level 0 (off) to 9"
+            ))
+        }
+    };
     let output = OutputSpec {
         file,
+        compression,
         every: every as usize,
         field_every,
         time_steps,

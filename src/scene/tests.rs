@@ -186,6 +186,7 @@ fn full_scene_round_trips() {
         s.output,
         OutputSpec {
             file: PathBuf::from("results/beam.h5"),
+            compression: None,
             every: 5,
             field_every: vec![],
             time_steps: vec![],

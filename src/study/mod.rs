@@ -10,6 +10,7 @@
 //! run time with the Pareto front), plus `runs/` (scene copies, summaries, HDF5 files).
 //! A failed point is a row marked failed with its one-line error; the sweep goes on.
 
+pub mod fieldnorm;
 pub mod reference;
 pub mod spec;
 pub mod table;
@@ -522,11 +523,15 @@ fn median(mut samples: Vec<Measured>) -> Measured {
 /// Fills err_l2 / err_h1 (and the reference flags) of the rows.
 fn compute_errors(study: &Study, points: &[Point], rows: &mut [Row], runs: &Path) {
     let h5 = |p: &Point| runs.join(format!("{}.h5", p.id));
-    let compare = |p: &Point, r: &Path| -> Result<f64> {
+    // Contact scenes: the lowest node's pressure history; others: relative L2 and H1-seminorm
+    // differences of the displacement, integrated with quadrature over the reference's cells.
+    let compare = |p: &Point, r: &Path| -> Result<(f64, Option<f64>)> {
         if study.scene.has_contact {
-            reference::pressure_error(&h5(p), r)
+            reference::pressure_error(&h5(p), r).map(|e| (e, None))
         } else {
-            reference::field_error(&h5(p), r, p.error_step as f64 * p.tau)
+            let t = p.error_step as f64 * p.tau;
+            let (run, refr) = (fieldnorm::read(&h5(p), t)?, fieldnorm::read(r, t)?);
+            fieldnorm::relative_errors(&run, &refr).map(|(l2, h1)| (l2, Some(h1)))
         }
     };
     match &study.reference {
@@ -550,7 +555,10 @@ fn compute_errors(study: &Study, points: &[Point], rows: &mut [Row], runs: &Path
             for (r, p) in rows.iter_mut().zip(points) {
                 if r.ok() {
                     match compare(p, file) {
-                        Ok(e) => r.err_l2 = Some(e),
+                        Ok((l2, h1)) => {
+                            r.err_l2 = Some(l2);
+                            r.err_h1 = h1;
+                        }
                         Err(e) => r.failure = Some(format!("error against the reference: {e}")),
                     }
                 }
@@ -590,7 +598,10 @@ fn compute_errors(study: &Study, points: &[Point], rows: &mut [Row], runs: &Path
                 for &i in members.iter().filter(|&&i| i != f) {
                     if rows[i].ok() {
                         match compare(&points[i], &rpath) {
-                            Ok(e) => rows[i].err_l2 = Some(e),
+                            Ok((l2, h1)) => {
+                                rows[i].err_l2 = Some(l2);
+                                rows[i].err_h1 = h1;
+                            }
                             Err(e) => {
                                 rows[i].failure = Some(format!("error against the reference: {e}"))
                             }
