@@ -336,3 +336,32 @@ fn fields_are_written_every_k_steps_and_at_given_times() {
         "{err}"
     );
 }
+
+#[test]
+fn compression_on_one_rank_keeps_the_data_and_is_refused_on_two() {
+    let dir = scratch("io-deflate");
+    let plain = beam(&dir);
+    let packed = scene_text(
+        &dir,
+        "packed.toml",
+        &std::fs::read_to_string(&plain)
+            .unwrap()
+            .replace("every = 5", "every = 5\ncompression = 4"),
+    );
+    run_scene(1, &plain, &["--param", "h=0.25"]);
+    run_scene(1, &packed, &["--param", "h=0.25"]);
+    let (a, b) = (open(&dir.join("beam-1.h5")), open(&dir.join("packed-1.h5")));
+    assert_eq!(raw(&a, "fields/displacement"), raw(&b, "fields/displacement"));
+    assert!(b.dataset("fields/displacement").unwrap().is_chunked());
+    let o = massfree(2, &["run", packed.to_str().unwrap(), "--no-output"]);
+    assert!(o.status.success(), "no output, no compression: fine on 2 ranks");
+    let o = massfree(
+        2,
+        &["run", packed.to_str().unwrap(), "--overwrite", "-o", dir.join("x.h5").to_str().unwrap()],
+    );
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        !o.status.success() && err.contains("output.compression works on one rank only"),
+        "{err}"
+    );
+}
