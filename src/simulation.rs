@@ -887,13 +887,16 @@ impl<'a> Simulation<'a> {
         let t_loop = Instant::now();
         let mut t_out = 0.0;
         let mut t_contact_steps = 0.0;
+        let mut its_contact_steps = 0usize;
         for n in start..n_steps {
             let t_next = (n + 1) as f64 * tau;
             let t_step = Instant::now();
+            let its_before = st.ksp_iterations;
             let contact = self.solve_step(&mut ops, &mut st, n)?;
             if let Some(c) = &contact {
                 if c.active.iter().any(|&a| a) {
                     t_contact_steps += t_step.elapsed().as_secs_f64();
+                    its_contact_steps += st.ksp_iterations - its_before;
                 }
                 history.push(c, tau);
             }
@@ -973,14 +976,16 @@ impl<'a> Simulation<'a> {
         let peak_memory_mib = sum_over_ranks(self.world, peak_rss_mib());
         let p1 = self.momentum(&st.mv)?;
         let contact = ops.contact.as_ref().map(|c| {
-            history.summary(
+            let mut s = history.summary(
                 c,
                 &self.mesh,
                 p0,
                 p1,
                 st.energy.contact_work,
                 max_over_ranks(self.world, t_contact_steps),
-            )
+            );
+            s.ksp_iterations_contact_steps = its_contact_steps;
+            s
         });
         // Pictures next to the HDF5 file, drawn by rank 0 from the histories in memory. A
         // picture that cannot be drawn (e.g. no font) is a warning, not a failed run; every

@@ -59,6 +59,9 @@ pub struct ContactSummary {
     pub column_solves: usize,
     /// Wall time of the steps with an active contact node (max over ranks), seconds.
     pub contact_steps_seconds: f64,
+    /// KSP iterations of the steps with an active contact node (step solves only; the
+    /// Schur-complement column solves are not counted).
+    pub ksp_iterations_contact_steps: usize,
 }
 
 impl History {
@@ -177,6 +180,7 @@ impl History {
             impulse: (0..dim).map(|i| -self.impulse[i]).collect(),
             column_solves: c.column_solves,
             contact_steps_seconds,
+            ksp_iterations_contact_steps: 0,
         }
     }
 }
