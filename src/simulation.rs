@@ -104,9 +104,6 @@ pub struct RunSummary {
     pub contact: Option<ContactSummary>,
     /// PNG pictures written (rank 0's list).
     pub pictures: Vec<PathBuf>,
-    /// Final displacement in natural node order (this rank's block) for checks.
-    #[serde(skip)]
-    pub final_u_natural: Vec<f64>,
 }
 
 /// Mesh the scene's geometry (gmsh on rank 0, others wait) and read it on every rank.
@@ -971,7 +968,6 @@ impl<'a> Simulation<'a> {
         let stepping = t_loop.elapsed().as_secs_f64() - t_out;
         self.timings.stepping = max_over_ranks(self.world, stepping);
         self.timings.output = max_over_ranks(self.world, self.timings.output + t_out);
-        let final_u_natural = self.to_natural(&st.u)?;
         let matmult_seconds = self.time_matmult(&ops.op.k, &st.v, &mut st.rhs)?;
         let peak_memory_mib = sum_over_ranks(self.world, peak_rss_mib());
         let p1 = self.momentum(&st.mv)?;
@@ -979,8 +975,6 @@ impl<'a> Simulation<'a> {
             let mut s = history.summary(
                 c,
                 &self.mesh,
-                p0,
-                p1,
                 st.energy.contact_work,
                 max_over_ranks(self.world, t_contact_steps),
             );
@@ -1039,7 +1033,6 @@ impl<'a> Simulation<'a> {
             momentum_final: p1[..self.part.dim].to_vec(),
             contact,
             pictures,
-            final_u_natural,
         };
         if let Some(out) = self.output.as_mut() {
             let text = toml::to_string(&summary).unwrap_or_default();

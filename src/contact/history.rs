@@ -119,8 +119,6 @@ impl History {
         &self,
         c: &ActiveSet,
         mesh: &Mesh,
-        _p0: [f64; 3],
-        _p1: [f64; 3],
         contact_work: f64,
         contact_steps_seconds: f64,
     ) -> ContactSummary {
