@@ -469,7 +469,8 @@ impl<'a> Simulation<'a> {
     }
 
     /// Values of `x` at the nodes of this rank's cells (ghosts included), for element loops.
-    fn local_values(&mut self, x: &Vector) -> Result<(Vec<f64>, Vec<usize>)> {
+    /// The values come back; the slot of each node in them stays in `self.local_view`.
+    fn local_values(&mut self, x: &Vector) -> Result<Vec<f64>> {
         if self.local_view.is_none() {
             let dim = self.part.dim;
             let mut nodes: Vec<usize> = self
@@ -499,17 +500,18 @@ impl<'a> Simulation<'a> {
             let sc = Scatter::new(x, &from, &y, &to)?;
             self.local_view = Some((sc, y, slot));
         }
-        let (sc, y, slot) = self.local_view.as_mut().expect("local view");
+        let (sc, y, _) = self.local_view.as_mut().expect("local view");
         sc.forward(x, y)?;
         let mut vals = Vec::new();
         y.with_local_slice(|s| vals.extend_from_slice(s))?;
-        Ok((vals, slot.clone()))
+        Ok(vals)
     }
 
     /// L2 and H1-seminorm errors of `u` against the scene's exact displacement at time t.
     pub fn exact_errors(&mut self, u: &Vector, t: f64) -> Result<Option<(f64, f64)>> {
         let Some(exact) = self.scene.exact.clone() else { return Ok(None) };
-        let (vals, slot) = self.local_values(u)?;
+        let vals = self.local_values(u)?;
+        let slot = &self.local_view.as_ref().expect("local view").2;
         let dim = self.part.dim;
         let disp = &exact.displacement;
         let grad = exact.gradient.as_ref();

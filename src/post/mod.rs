@@ -30,13 +30,16 @@ impl RunCurves {
     }
 }
 
+/// `prefix` with `suffix` appended to its file name (`out/disc` + `-energy.png`).
+fn suffixed(prefix: &Path, suffix: &str) -> PathBuf {
+    let mut p = prefix.as_os_str().to_owned();
+    p.push(suffix);
+    PathBuf::from(p)
+}
+
 /// The files `write_pictures` writes for one run (with or without contact).
 pub fn picture_paths(prefix: &Path, contact: bool) -> Vec<PathBuf> {
-    let with_suffix = |s: &str| {
-        let mut p = prefix.as_os_str().to_owned();
-        p.push(s);
-        PathBuf::from(p)
-    };
+    let with_suffix = |s: &str| suffixed(prefix, s);
     let mut v = vec![with_suffix("-energy.png")];
     if contact {
         v.push(with_suffix("-pressure.png"));
@@ -47,11 +50,7 @@ pub fn picture_paths(prefix: &Path, contact: bool) -> Vec<PathBuf> {
 /// `<out>-energy.png` (kinetic, potential, total; one curve per run) and, when the runs have
 /// contact, `<out>-pressure.png` (the lowest contact node's pressure). Returns the files written.
 pub fn write_pictures(prefix: &Path, runs: &[RunCurves]) -> Result<Vec<PathBuf>> {
-    let with_suffix = |s: &str| {
-        let mut p = prefix.as_os_str().to_owned();
-        p.push(s);
-        PathBuf::from(p)
-    };
+    let with_suffix = |s: &str| suffixed(prefix, s);
     let mut written = Vec::new();
     let kin: Vec<Series> = runs.iter().map(|r| r.series(&r.kinetic, &r.label)).collect();
     let pot: Vec<Series> = runs.iter().map(|r| r.series(&r.potential, &r.label)).collect();
@@ -226,11 +225,7 @@ pub fn post(path: &Path, opts: &PostOptions) -> Result<Vec<String>> {
         p.push("-post");
         PathBuf::from(p)
     });
-    let with_suffix = |s: &str| {
-        let mut p = prefix.as_os_str().to_owned();
-        p.push(s);
-        PathBuf::from(p)
-    };
+    let with_suffix = |s: &str| suffixed(&prefix, s);
     let time = read("energy/time")?;
     let step = read("energy/step")?;
     let kinetic = read("energy/kinetic")?;
