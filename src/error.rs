@@ -23,6 +23,8 @@ pub enum Error {
     Mpi(String),
     /// The run was stopped by SIGINT or SIGTERM (after finishing its step and its output).
     Interrupted(String),
+    /// A bug: a panic, caught and reported as one line.
+    Internal(String),
 }
 
 impl fmt::Display for Error {
@@ -43,6 +45,7 @@ impl fmt::Display for Error {
             Error::Io(m) => write!(f, "I/O error: {m}"),
             Error::Mpi(m) => write!(f, "MPI error: {m}"),
             Error::Interrupted(m) => write!(f, "interrupted: {m}"),
+            Error::Internal(m) => write!(f, "internal error (a bug, please report it): {m}"),
         }
     }
 }
@@ -50,3 +53,36 @@ impl fmt::Display for Error {
 impl std::error::Error for Error {}
 
 pub type Result<T> = std::result::Result<T, Error>;
+
+/// Where and why the last panic happened, kept by the hook of [`install_panic_hook`].
+static LAST_PANIC: std::sync::Mutex<String> = std::sync::Mutex::new(String::new());
+
+/// Replace Rust's multi-line panic report by a record of its message and place: the run turns
+/// the panic into an [`Error::Internal`], marks its output file and prints one line.
+pub fn install_panic_hook() {
+    std::panic::set_hook(Box::new(|info| {
+        let place = info.location().map(|l| format!(" at {}:{}", l.file(), l.line()));
+        let text = info
+            .payload()
+            .downcast_ref::<&str>()
+            .map(|s| s.to_string())
+            .or_else(|| info.payload().downcast_ref::<String>().cloned())
+            .unwrap_or_else(|| "panic".into());
+        if let Ok(mut last) = LAST_PANIC.lock() {
+            *last = format!("{}{}", text.replace('\n', "; "), place.unwrap_or_default());
+        }
+    }));
+}
+
+/// The message of a caught panic (with its place when the hook recorded it).
+pub fn panic_message(payload: &(dyn std::any::Any + Send)) -> String {
+    let recorded = LAST_PANIC.lock().map(|m| m.clone()).unwrap_or_default();
+    if !recorded.is_empty() {
+        return recorded;
+    }
+    payload
+        .downcast_ref::<&str>()
+        .map(|s| s.to_string())
+        .or_else(|| payload.downcast_ref::<String>().cloned())
+        .unwrap_or_else(|| "panic".into())
+}

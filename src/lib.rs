@@ -13,6 +13,7 @@ pub mod mass;
 pub mod mesh;
 pub mod partition;
 pub mod petsc;
+pub mod phase;
 pub mod post;
 pub mod scene;
 pub mod simulation;

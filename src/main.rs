@@ -9,6 +9,7 @@ use mpi::traits::*;
 use massfree::console::Console;
 use massfree::error::{Error, Result};
 use massfree::petsc::Petsc;
+use massfree::phase::{self, HangTimeout};
 use massfree::simulation::{summary_lines, RunOptions, Simulation};
 
 #[derive(Parser, Debug)]
@@ -114,13 +115,21 @@ enum Command {
         /// Write the run's summary (sizes, timings, energies, errors) to this TOML file.
         #[arg(long, value_name = "FILE")]
         summary: Option<PathBuf>,
+        /// End the run when a rank waits this long for the others (a hung collective): auto
+        /// (max(60 s, 1000 x the median step)), off, or seconds.
+        #[arg(long, value_name = "auto|off|SECONDS", default_value = "auto", value_parser = HangTimeout::parse)]
+        hang_timeout: HangTimeout,
         /// PETSc options, e.g. -ksp_type cg -pc_type gamg -log_view (prefix step_ for the step solver).
         #[arg(last = true, allow_hyphen_values = true)]
         petsc: Vec<String>,
     },
 }
 
-fn run(cli: Cli, universe: &mpi::environment::Universe) -> Result<()> {
+fn run(
+    cli: Cli,
+    universe: &mpi::environment::Universe,
+    agree: &mpi::topology::SimpleCommunicator,
+) -> Result<()> {
     if let Command::Post { run, nodes, contact_nodes, fields, out } = &cli.command {
         if universe.world().rank() == 0 {
             let opts = massfree::post::PostOptions {
@@ -176,6 +185,7 @@ fn run(cli: Cli, universe: &mpi::environment::Universe) -> Result<()> {
             partition,
             restart,
             summary: summary_file,
+            hang_timeout,
             petsc,
         } => {
             let program = std::env::args().next().unwrap_or_else(|| "massfree".into());
@@ -200,12 +210,6 @@ fn run(cli: Cli, universe: &mpi::environment::Universe) -> Result<()> {
             }
             let partition = massfree::partition::Strategy::from_name(&partition)
                 .ok_or_else(|| Error::Usage(format!("--partition {partition}: unknown")))?;
-            // SIGINT/SIGTERM: finish the step, checkpoint, mark the file, stop (exit code 130).
-            let interrupt = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
-            for sig in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {
-                signal_hook::flag::register(sig, std::sync::Arc::clone(&interrupt))
-                    .map_err(|e| Error::Usage(format!("cannot handle signal {sig}: {e}")))?;
-            }
             let opts = RunOptions {
                 output,
                 overwrite,
@@ -216,9 +220,9 @@ fn run(cli: Cli, universe: &mpi::environment::Universe) -> Result<()> {
                 partition,
                 restart,
                 petsc_args: petsc,
-                interrupt: Some(interrupt),
+                hang_timeout: Some(hang_timeout),
             };
-            let mut sim = Simulation::setup(&world, &console, scene, opts)?;
+            let mut sim = Simulation::setup(&world, agree, &console, scene, opts)?;
             console.say(format!(
                 "{}: {} nodes, {} cells ({}D), {} DOFs on {} rank(s); assembling",
                 sim.scene.name,
@@ -247,27 +251,47 @@ fn run(cli: Cli, universe: &mpi::environment::Universe) -> Result<()> {
 
 fn main() {
     let cli = Cli::parse();
+    massfree::error::install_panic_hook();
     let code = {
-        let Some(universe) = mpi::initialize() else {
+        // Threads: the watchdog may abort the job from its own thread.
+        let Some((universe, _)) = mpi::initialize_with_threading(mpi::Threading::Multiple) else {
             eprintln!("massfree: MPI error: MPI was already initialized");
             std::process::exit(1);
         };
-        let rank = universe.world().rank();
-        match run(cli, &universe) {
+        let world = universe.world();
+        // Used only to find out whether an error happened on every rank (see phase::all_reached).
+        let agree = world.duplicate();
+        // SIGINT/SIGTERM: the run stops at the next phase boundary or step, marks its file and
+        // exits with code 130.
+        let result = phase::install_signal_handlers()
+            .and_then(|()| massfree::simulation::guard(|| run(cli, &universe, &agree)));
+        match result {
             Ok(()) => 0,
-            Err(e) => {
-                // Scene, mesh and solver errors happen on every rank alike: rank 0 speaks.
-                if rank == 0 || matches!(e, Error::Io(_) | Error::Mpi(_)) {
-                    eprintln!("massfree: {e}");
-                }
-                if matches!(e, Error::Interrupted(_)) {
-                    130
-                } else {
-                    1
-                }
-            }
+            Err(e) => report(&world, &agree, &e),
         }
         // universe dropped here: MPI_Finalize after PETSc's guard was dropped inside run().
     };
     std::process::exit(code);
+}
+
+/// Print an error once and return the exit code (130 for a signal, 1 otherwise). An error that
+/// every rank has is printed by rank 0; one that only this rank has is printed here, and the
+/// job is aborted, since the other ranks wait for this one in some collective operation.
+fn report(
+    world: &mpi::topology::SimpleCommunicator,
+    agree: &mpi::topology::SimpleCommunicator,
+    e: &Error,
+) -> i32 {
+    if !phase::all_reached(agree, std::time::Duration::from_secs(10)) {
+        eprintln!("massfree: rank {}: {e}", world.rank());
+        world.abort(1);
+    }
+    if world.rank() == 0 {
+        eprintln!("massfree: {e}");
+    }
+    if matches!(e, Error::Interrupted(_)) {
+        130
+    } else {
+        1
+    }
 }

@@ -17,12 +17,14 @@ use crate::contact::{ActiveSet, ContactBoundary, Obstacle, StepContact};
 use crate::error::{Error, Result};
 use crate::fem::{self, kernels};
 use crate::io::{
-    natural_range, read_checkpoint, Checkpoint, ContactRow, EnergyRow, Output, OutputPlan,
+    group_key, natural_range, read_checkpoint, Checkpoint, ContactRow, EnergyRow, Meta, Output,
+    OutputPlan, RunFile,
 };
 use crate::mass::{build_layer, mass_matrix, MassFreeLayer};
 use crate::mesh::Mesh;
 use crate::partition::Partition;
 use crate::petsc::{Matrix, NullSpace, Scatter, Vector};
+use crate::phase::{self, HangTimeout, Phase, Watchdog};
 use crate::post::{picture_paths, write_pictures, RunCurves};
 use crate::scene::{Field, MeshSource, Scene};
 use crate::time::{energies, StepOperator, StepSolverDefaults};
@@ -44,8 +46,8 @@ pub struct RunOptions {
     pub restart: Option<PathBuf>,
     /// The PETSc options of the command line (recorded in the output).
     pub petsc_args: Vec<String>,
-    /// Set by SIGINT/SIGTERM: finish the step, write, mark the file, stop.
-    pub interrupt: Option<std::sync::Arc<std::sync::atomic::AtomicBool>>,
+    /// When the watchdog ends a rank that waits for the others (a collective that hangs).
+    pub hang_timeout: Option<HangTimeout>,
 }
 
 /// Wall time of the phases of a run, in seconds (max over ranks).
@@ -118,12 +120,19 @@ pub fn load_mesh(world: &SimpleCommunicator, scene: &Scene) -> Result<Mesh> {
             if rank == 0 {
                 result = crate::mesh::gmsh::mesh_geo(path, params, dim_guess, *binary, &cache);
             }
-            let mut ok = i32::from(result.is_ok());
-            world.process_at_rank(0).broadcast_into(&mut ok);
-            if ok == 0 {
-                return Err(result.err().unwrap_or_else(|| {
-                    Error::Mesh(format!("meshing {} failed on rank 0", path.display()))
-                }));
+            // 1: meshed, 0: failed, 2: stopped by a signal.
+            let mut code = match &result {
+                Ok(_) => 1i32,
+                Err(Error::Interrupted(_)) => 2,
+                Err(_) => 0,
+            };
+            world.process_at_rank(0).broadcast_into(&mut code);
+            if code != 1 {
+                return Err(match result {
+                    Err(e) => e,
+                    Ok(_) if code == 2 => phase::interrupted(),
+                    Ok(_) => Error::Mesh(format!("meshing {} failed on rank 0", path.display())),
+                });
             }
             // The others find rank 0's mesh in the cache (same key, no second gmsh run).
             match result {
@@ -137,8 +146,33 @@ pub fn load_mesh(world: &SimpleCommunicator, scene: &Scene) -> Result<Mesh> {
     Ok(mesh)
 }
 
+/// The output file through a run: created at the start (metadata only), opened in parallel
+/// for the time loop, closed with its status at the end.
+enum RunOutput {
+    None,
+    Closed(RunFile),
+    Open(Output),
+}
+
+impl RunOutput {
+    fn open(&self) -> Option<&Output> {
+        match self {
+            RunOutput::Open(o) => Some(o),
+            _ => None,
+        }
+    }
+    fn open_mut(&mut self) -> Option<&mut Output> {
+        match self {
+            RunOutput::Open(o) => Some(o),
+            _ => None,
+        }
+    }
+}
+
 pub struct Simulation<'a> {
     world: &'a SimpleCommunicator,
+    /// A duplicate of `world` used only to find out whether an error happened on every rank.
+    agree: &'a SimpleCommunicator,
     console: &'a Console,
     pub scene: Scene,
     opts: RunOptions,
@@ -158,7 +192,7 @@ pub struct Simulation<'a> {
     pub v: Option<Vector>,
     natural: Option<(Scatter, Vector)>,
     local_view: Option<(Scatter, Vector, Vec<usize>)>,
-    output: Option<Output>,
+    output: RunOutput,
     /// The mass-free layer (modified mass kinds only).
     pub layer: Option<MassFreeLayer>,
     pub mass_check: Option<MassCheck>,
@@ -222,29 +256,71 @@ fn sum_over_ranks(world: &SimpleCommunicator, x: f64) -> f64 {
 }
 
 impl<'a> Simulation<'a> {
-    /// Scene, mesh and partition.
+    /// Output file, scene, mesh and partition. The output file is created first, so that a
+    /// run that fails or is stopped in any later phase says so in its file.
     pub fn setup(
         world: &'a SimpleCommunicator,
+        agree: &'a SimpleCommunicator,
         console: &'a Console,
         scene: Scene,
         opts: RunOptions,
     ) -> Result<Simulation<'a>> {
+        phase::enter(Phase::Start);
         let rank = world.rank() as usize;
         let size = world.size() as usize;
-        let t0 = Instant::now();
-        let mesh = load_mesh(world, &scene)?;
-        scene.check_dim(mesh.dim)?;
-        let t_mesh = t0.elapsed().as_secs_f64();
-        let t1 = Instant::now();
-        let part = Partition::with_strategy(&mesh, rank, size, opts.partition)?;
-        let t_part = t1.elapsed().as_secs_f64();
-        let timings = Timings {
-            mesh: max_over_ranks(world, t_mesh),
-            partition: max_over_ranks(world, t_part),
-            ..Default::default()
+        let output = if opts.no_output {
+            RunOutput::None
+        } else {
+            let path = opts.output.clone().unwrap_or_else(|| scene.output.file.clone());
+            if let Some(src) = &opts.restart {
+                let same = |a: &Path, b: &Path| match (a.canonicalize(), b.canonicalize()) {
+                    (Ok(x), Ok(y)) => x == y,
+                    _ => a == b,
+                };
+                if same(src, &path) {
+                    return Err(Error::Usage(format!(
+                        "--restart {}: the continued run must be written to another file (-o NEW.h5)",
+                        src.display()
+                    )));
+                }
+            }
+            let items = [
+                Meta::text("scene", scene.text.clone()),
+                Meta::text("version", env!("CARGO_PKG_VERSION")),
+                Meta::text("status", "running"),
+                Meta::int_on("/", "ranks", size as i64),
+            ];
+            RunOutput::Closed(RunFile::create(world, &path, opts.overwrite, &items)?)
+        };
+        let parts = guard(|| {
+            phase::enter(Phase::Meshing);
+            let t0 = Instant::now();
+            let mesh = load_mesh(world, &scene)?;
+            scene.check_dim(mesh.dim)?;
+            let t_mesh = t0.elapsed().as_secs_f64();
+            phase::check_signal(world)?;
+            phase::enter(Phase::Partitioning);
+            let t1 = Instant::now();
+            let part = Partition::with_strategy(&mesh, rank, size, opts.partition)?;
+            let t_part = t1.elapsed().as_secs_f64();
+            phase::check_signal(world)?;
+            let timings = Timings {
+                mesh: max_over_ranks(world, t_mesh),
+                partition: max_over_ranks(world, t_part),
+                ..Default::default()
+            };
+            Ok((mesh, part, timings))
+        });
+        let (mesh, part, timings) = match parts {
+            Ok(p) => p,
+            Err(e) => {
+                end_with_error(world, agree, output, &e);
+                return Err(e);
+            }
         };
         Ok(Simulation {
             world,
+            agree,
             console,
             scene,
             opts,
@@ -262,19 +338,35 @@ impl<'a> Simulation<'a> {
             v: None,
             natural: None,
             local_view: None,
-            output: None,
+            output,
             layer: None,
             mass_check: None,
             contact: None,
         })
     }
 
+    /// End the output file after an error in any phase (`failed: ...` or `interrupted: ...`).
+    fn fail(&mut self, e: &Error) {
+        let output = std::mem::replace(&mut self.output, RunOutput::None);
+        end_with_error(self.world, self.agree, output, e);
+    }
+
     pub fn n_steps(&self) -> usize {
         self.opts.steps.unwrap_or(self.scene.steps)
     }
 
-    /// Stiffness, mass, loads, Dirichlet DOFs, and the step operator with its solver.
+    /// Stiffness, mass, loads, Dirichlet DOFs, and the step operator with its solver. On an
+    /// error (or a signal) the output file is marked.
     pub fn assemble(&mut self) -> Result<()> {
+        let result = guard(|| self.assemble_operators());
+        if let Err(e) = &result {
+            self.fail(e);
+        }
+        result
+    }
+
+    fn assemble_operators(&mut self) -> Result<()> {
+        phase::enter(Phase::Assembling);
         let t0 = Instant::now();
         let mesh = &self.mesh;
         let part = &self.part;
@@ -308,7 +400,9 @@ impl<'a> Simulation<'a> {
         }
         self.dirichlet = dir.into_iter().map(|(k, (v, c, s))| (k, v, c, s)).collect();
         let t_asm = t0.elapsed().as_secs_f64();
+        phase::check_signal(self.world)?;
 
+        phase::enter(Phase::SolverSetup);
         let t1 = Instant::now();
         let nonzero_dirichlet = self.scene.dirichlet.iter().any(|d| !d.value.is_zero());
         let null_space = self.near_null_space()?;
@@ -353,7 +447,7 @@ impl<'a> Simulation<'a> {
                 2.0,
             ));
         }
-        Ok(())
+        phase::check_signal(self.world)
     }
 
     /// Mass-matrix diagnostics, computed once: total mass, first and second moments per
@@ -605,11 +699,9 @@ impl<'a> Simulation<'a> {
 
     /// The whole time loop. Returns the summary; on error the output file is marked failed.
     pub fn run(&mut self) -> Result<RunSummary> {
-        let result = self.time_loop();
+        let result = guard(|| self.time_loop());
         if let Err(e) = &result {
-            if let Some(out) = self.output.as_mut() {
-                let _ = out.finish(&format!("failed: {e}"));
-            }
+            self.fail(e);
         }
         result
     }
@@ -758,12 +850,14 @@ impl<'a> Simulation<'a> {
         Ok(out)
     }
 
+    /// Write the run's settings and the groups' metadata, then open the file in parallel for
+    /// the time series.
     fn open_output(&mut self, ops: &Operators) -> Result<()> {
-        if self.opts.no_output {
+        let RunOutput::Closed(file) = std::mem::replace(&mut self.output, RunOutput::None) else {
             return Ok(());
-        }
+        };
+        phase::enter(Phase::OpeningOutput);
         let t0 = Instant::now();
-        let path = self.opts.output.clone().unwrap_or_else(|| self.scene.output.file.clone());
         let plan = OutputPlan {
             displacement: self
                 .scene
@@ -781,25 +875,29 @@ impl<'a> Simulation<'a> {
             compression: self.scene.output.compression,
         };
         let settings = self.settings(&ops.op);
-        let mut out = Output::create(
-            &path,
-            self.world,
-            self.rank,
-            self.size,
-            &self.mesh,
-            &self.part.cell_rank,
-            &self.scene.text,
-            &settings,
-            plan,
-            self.opts.overwrite,
-        )?;
+        let settings_text: String = settings.iter().map(|(k, v)| format!("{k} = {v}\n")).collect();
+        let solver_options =
+            settings.iter().find(|(k, _)| k == "petsc_options").map_or("", |(_, v)| v.as_str());
+        let mut meta = vec![
+            Meta::text("settings", settings_text),
+            Meta::text("solver_options", solver_options),
+        ];
+        for g in &self.mesh.groups {
+            let object = format!("mesh/groups/{}", group_key(&g.name));
+            meta.push(Meta::int_on(&object, "dim", g.dim as i64));
+        }
+        if let Some(c) = ops.contact.as_ref() {
+            meta.push(Meta::text_on("contact", "group", c.boundary.group.clone()));
+        }
+        file.write_meta(self.world, &meta)?;
+        let mut out = Output::open(file, self.world, &self.mesh, &self.part.cell_rank, plan)?;
         if let Some(mc) = self.mass_check.as_ref() {
             out.write_mass_check(&mc.total_mass, &mc.first_moment, &mc.second_moment, &mc.probe)?;
         }
         if let Some(c) = ops.contact.as_ref() {
-            out.create_contact(&c.boundary.nodes, &c.boundary.weights, &c.boundary.group)?;
+            out.create_contact(&c.boundary.nodes, &c.boundary.weights)?;
         }
-        self.output = Some(out);
+        self.output = RunOutput::Open(out);
         self.timings.output += t0.elapsed().as_secs_f64();
         Ok(())
     }
@@ -839,6 +937,7 @@ impl<'a> Simulation<'a> {
             }
         }
         self.open_output(&ops)?;
+        phase::check_signal(self.world)?;
 
         // Initial energy: the reference of the energy balance reported every step.
         let e0 = restart
@@ -882,6 +981,11 @@ impl<'a> Simulation<'a> {
             }
         }
 
+        phase::enter(Phase::Stepping);
+        phase::step_done(start);
+        let mut watchdog =
+            Watchdog::start(self.opts.hang_timeout.unwrap_or(HangTimeout::Auto), self.rank);
+        watchdog.arm();
         let mut progress = Progress::new(self.console, n_steps, self.scene.output.progress);
         let t_loop = Instant::now();
         let mut t_out = 0.0;
@@ -926,16 +1030,11 @@ impl<'a> Simulation<'a> {
             let t0 = Instant::now();
             self.output_step(n + 1, t_next, &st, history.last_row(ops.contact.as_ref()))?;
             // A signal on any rank stops all ranks after this step, with a checkpoint.
-            let signalled = self
-                .opts
-                .interrupt
-                .as_ref()
-                .is_some_and(|f| f.load(std::sync::atomic::Ordering::SeqCst));
-            let stop = max_over_ranks(self.world, if signalled { 1.0 } else { 0.0 }) > 0.0;
+            let stop = phase::stop_requested(self.world);
             // Checkpoints: every 10 field outputs (they hold three fields), at the end, and
             // when a signal stops the run.
             let due = (n + 1) % (10 * self.scene.output.every) == 0;
-            if self.output.is_some() && (due || stop || n + 1 == n_steps) {
+            if self.output.open().is_some() && (due || stop || n + 1 == n_steps) {
                 let cp = Checkpoint {
                     step: n + 1,
                     time: t_next,
@@ -950,14 +1049,14 @@ impl<'a> Simulation<'a> {
                 self.checkpoint(&cp, &st)?;
             }
             t_out += t0.elapsed().as_secs_f64();
+            phase::step_done(n + 1);
+            watchdog.step_time(t_step.elapsed().as_secs_f64());
             if stop {
                 progress.finish();
-                let msg = format!("a signal stopped the run after step {} (t = {t_next:e}); restart with --restart", n + 1);
-                if let Some(out) = self.output.as_mut() {
-                    out.finish(&format!("interrupted: {msg}"))?;
-                }
-                self.output = None;
-                return Err(Error::Interrupted(msg));
+                return Err(Error::Interrupted(format!(
+                    "a signal stopped the run after step {} (t = {t_next:e}); continue it with --restart",
+                    n + 1
+                )));
             }
             if error_steps.contains(&(n + 1)) {
                 if let Some((l2, h1)) = self.exact_errors(&st.u, t_next)? {
@@ -967,6 +1066,7 @@ impl<'a> Simulation<'a> {
             progress.update(n + 1, t_next, balance);
         }
         progress.finish();
+        phase::enter(Phase::Final);
         let stepping = t_loop.elapsed().as_secs_f64() - t_out;
         self.timings.stepping = max_over_ranks(self.world, stepping);
         self.timings.output = max_over_ranks(self.world, self.timings.output + t_out);
@@ -987,7 +1087,7 @@ impl<'a> Simulation<'a> {
         // picture that cannot be drawn (e.g. no font) is a warning, not a failed run; every
         // rank learns the outcome, since the summary written below must be the same on all.
         let mut pictures = Vec::new();
-        if let Some(out) = self.output.as_ref() {
+        if let Some(out) = self.output.open() {
             let prefix = out.path().with_extension("");
             let mut ok = 1i32;
             if self.rank == 0 {
@@ -1021,7 +1121,7 @@ impl<'a> Simulation<'a> {
             energy_balance: balance,
             energy_drift: drift,
             errors,
-            output: self.output.as_ref().map(|o| o.path().to_path_buf()),
+            output: self.output.open().map(|o| o.path().to_path_buf()),
             matmult_seconds,
             peak_memory_mib,
             ranks: self.size,
@@ -1036,16 +1136,36 @@ impl<'a> Simulation<'a> {
             contact,
             pictures,
         };
-        if let Some(out) = self.output.as_mut() {
+        // The file's final metadata. A signal that arrived in this final phase is reported as
+        // such, with everything already written.
+        let interrupted = phase::stop_requested(self.world);
+        let status = if interrupted {
+            format!(
+                "interrupted: a signal arrived in the final phase after step {n_steps} of {n_steps} (all steps and the summary are written)"
+            )
+        } else {
+            "finished".to_string()
+        };
+        if let RunOutput::Open(out) = std::mem::replace(&mut self.output, RunOutput::None) {
             let text = toml::to_string(&summary).unwrap_or_default();
             let t = &self.timings;
             let timing = format!(
                 "mesh = {:e}\npartition = {:e}\nassembly = {:e}\nsetup = {:e}\nstepping = {:e}\noutput = {:e}\n",
                 t.mesh, t.partition, t.assembly, t.setup, t.stepping, t.output
             );
-            out.set_attr("summary", &text)?;
-            out.set_attr("timings", &timing)?;
-            out.finish("finished")?;
+            out.finish(
+                self.world,
+                &[
+                    Meta::text("status", status.clone()),
+                    Meta::text("summary", text),
+                    Meta::text("timings", timing),
+                ],
+            )?;
+        }
+        watchdog.disarm();
+        phase::enter(Phase::Finished);
+        if interrupted {
+            return Err(Error::Interrupted(status["interrupted: ".len()..].to_string()));
         }
         self.a = Some(ops.a);
         self.m = Some(ops.m);
@@ -1072,12 +1192,12 @@ impl<'a> Simulation<'a> {
 
     /// Write the checkpoint (nothing without an output file).
     fn checkpoint(&mut self, cp: &Checkpoint, st: &State) -> Result<()> {
-        if self.output.is_none() {
+        if self.output.open().is_none() {
             return Ok(());
         }
         let (u, v, du) =
             (self.to_natural(&st.u)?, self.to_natural(&st.v)?, self.to_natural(&st.du)?);
-        self.output.as_mut().expect("output").write_checkpoint(cp, &u, &v, &du)
+        self.output.open_mut().expect("output").write_checkpoint(cp, &u, &v, &du)
     }
 
     /// Continue from a checkpoint: u, v, the last increment (the solver's initial guess), the
@@ -1134,13 +1254,13 @@ impl<'a> Simulation<'a> {
         st: &State,
         contact: Option<ContactRowOwned>,
     ) -> Result<()> {
-        if self.output.is_none() {
+        if self.output.open().is_none() {
             return Ok(());
         }
-        let (due_u, due_v) = self.output.as_ref().map_or((false, false), |o| o.due_fields(step));
+        let (due_u, due_v) = self.output.open().map_or((false, false), |o| o.due_fields(step));
         let un = if due_u { Some(self.to_natural(&st.u)?) } else { None };
         let vn = if due_v { Some(self.to_natural(&st.v)?) } else { None };
-        let out = self.output.as_mut().expect("output");
+        let out = self.output.open_mut().expect("output");
         out.write_energy(step, t, &st.energy)?;
         if due_u || due_v {
             out.write_fields(step, t, un.as_deref(), vn.as_deref())?;
@@ -1210,6 +1330,44 @@ impl<'a> Simulation<'a> {
                 x[dof as usize - lo] = diag * du_d[i];
             }
         })
+    }
+}
+
+/// Run `f`, turning a panic into an error (its message was kept by the panic hook), so that a
+/// panic ends the run like any other error: the file says `failed: ...`.
+pub fn guard<T>(f: impl FnOnce() -> Result<T>) -> Result<T> {
+    match std::panic::catch_unwind(std::panic::AssertUnwindSafe(f)) {
+        Ok(r) => r,
+        Err(payload) => Err(Error::Internal(crate::error::panic_message(payload.as_ref()))),
+    }
+}
+
+/// Mark the output file after an error: `interrupted: ...` for a signal, `failed: ...`
+/// otherwise. Closing a parallel file is collective, so this first makes sure that every rank
+/// has the error; if only this rank has it, it prints the error and aborts the job (the file
+/// then keeps `running`, which `massfree post` reports as a run that did not finish).
+fn end_with_error(
+    world: &SimpleCommunicator,
+    agree: &SimpleCommunicator,
+    output: RunOutput,
+    e: &Error,
+) {
+    if !phase::all_reached(agree, std::time::Duration::from_secs(10)) {
+        eprintln!("massfree: rank {}: {e}", world.rank());
+        world.abort(1);
+    }
+    let status = match e {
+        Error::Interrupted(m) => format!("interrupted: {m}"),
+        other => format!("failed: {other}"),
+    };
+    let status = [Meta::text("status", status)];
+    let marked = match output {
+        RunOutput::None => Ok(()),
+        RunOutput::Closed(f) => f.write_meta(world, &status),
+        RunOutput::Open(out) => out.finish(world, &status),
+    };
+    if let (Err(m), 0) = (marked, world.rank()) {
+        eprintln!("massfree: warning: the output file could not be marked: {m}");
     }
 }
 

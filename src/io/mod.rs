@@ -20,19 +20,56 @@
 //! Dataset creation and resizing are collective; every step is flushed so a run that dies
 //! keeps what it wrote.
 
+pub mod meta;
 pub mod xdmf;
+
+pub use meta::{Meta, MetaValue, RunFile};
 
 use std::path::{Path, PathBuf};
 
-use hdf5::types::VarLenUnicode;
+use hdf5::file::FileCloseDegree;
 use hdf5::{Dataset, File};
-use mpi::traits::AsRaw;
+use mpi::collective::SystemOperation;
+use mpi::traits::*;
 
 use crate::error::{Error, Result};
 use crate::mesh::Mesh;
 
 fn h5err(path: &Path, what: &str, e: hdf5::Error) -> Error {
     Error::Io(format!("{}: {what}: {e}", path.display()))
+}
+
+/// Open a group, or create it (collectively) if the metadata phase did not.
+fn group(parent: &hdf5::Group, name: &str, path: &Path) -> Result<hdf5::Group> {
+    match parent.group(name) {
+        Ok(g) => Ok(g),
+        Err(_) => parent.create_group(name).map_err(|e| h5err(path, &format!("create {name}"), e)),
+    }
+}
+
+/// The name of a physical group's HDF5 group (`/` is not allowed in a name).
+pub fn group_key(name: &str) -> String {
+    name.replace('/', "_")
+}
+
+/// All ranks must create the same datasets: compare the numbers that decide the layout.
+fn agreed_layout(
+    world: &mpi::topology::SimpleCommunicator,
+    key: &[usize],
+    path: &Path,
+) -> Result<()> {
+    let mine: Vec<u64> = key.iter().map(|&k| k as u64).collect();
+    let mut lo = vec![0u64; mine.len()];
+    let mut hi = vec![0u64; mine.len()];
+    world.all_reduce_into(&mine[..], &mut lo[..], SystemOperation::min());
+    world.all_reduce_into(&mine[..], &mut hi[..], SystemOperation::max());
+    if lo != hi {
+        return Err(Error::Io(format!(
+            "{}: the ranks disagree on the file's layout ({lo:?} vs {hi:?}); this is a bug, please report it",
+            path.display()
+        )));
+    }
+    Ok(())
 }
 
 /// The block of natural (original-order) nodes a rank writes: an even split.
@@ -105,6 +142,7 @@ struct FieldSet {
 
 pub struct Output {
     path: PathBuf,
+    run_file: RunFile,
     file: File,
     dim: usize,
     range: (usize, usize),
@@ -222,49 +260,20 @@ pub fn read_checkpoint(
     Ok((cp, fields))
 }
 
-fn write_str_attr(loc: &hdf5::Location, name: &str, value: &str, path: &Path) -> Result<()> {
-    let v: VarLenUnicode = value.parse().map_err(|_| {
-        Error::Io(format!("{}: attribute {name} is not valid text", path.display()))
-    })?;
-    let attr = match loc.attr(name) {
-        Ok(a) => a,
-        Err(_) => loc
-            .new_attr::<VarLenUnicode>()
-            .create(name)
-            .map_err(|e| h5err(path, &format!("create attribute {name}"), e))?,
-    };
-    attr.write_scalar(&v).map_err(|e| h5err(path, &format!("write attribute {name}"), e))
-}
-
 impl Output {
-    /// Create the file collectively on all ranks of `world` and write the mesh and metadata.
-    /// Refuses to overwrite an existing file unless `overwrite`.
-    #[allow(clippy::too_many_arguments)]
-    pub fn create(
-        path: &Path,
+    /// Open the run file in parallel on all ranks of `world` (MPI-IO; a serial handle for a
+    /// compressed one-rank run) and write the mesh; create the time series. Collective. The
+    /// groups that carry metadata (`/mesh/groups/<name>`, `/contact`) were made by
+    /// `RunFile::write_meta` before; this handle writes datasets only.
+    pub fn open(
+        run_file: RunFile,
         world: &mpi::topology::SimpleCommunicator,
-        rank: usize,
-        size: usize,
         mesh: &Mesh,
         cell_rank: &[usize],
-        scene_text: &str,
-        settings: &[(String, String)],
         plan: OutputPlan,
-        overwrite: bool,
     ) -> Result<Output> {
-        if path.exists() && !overwrite {
-            return Err(Error::Io(format!(
-                "{} exists; pass --overwrite to replace it or choose another output.file",
-                path.display()
-            )));
-        }
-        if let Some(dir) = path.parent() {
-            if !dir.as_os_str().is_empty() {
-                std::fs::create_dir_all(dir)
-                    .map_err(|e| Error::Io(format!("cannot create {}: {e}", dir.display())))?;
-            }
-        }
-        let comm = world.as_raw();
+        let (rank, size) = (world.rank() as usize, world.size() as usize);
+        let path = run_file.path();
         // Deflate needs collective parallel I/O, which the HDF5 binding does not expose: it is
         // offered on one rank, where the file is written without MPI-IO.
         if plan.compression.is_some() && size > 1 {
@@ -272,20 +281,39 @@ impl Output {
                 "output.compression works on one rank only (parallel HDF5 filters need collective writes); this run has {size} ranks"
             )));
         }
+        // Every dataset below is created collectively: all ranks must see the same layout. A
+        // disagreement is a bug; it is reported here instead of hanging in HDF5.
+        let kinds_count: Vec<usize> = mesh.cells.iter().fold(vec![0; 8], |mut v, c| {
+            v[c.kind.gmsh_type() as usize % 8] += 1;
+            v
+        });
+        agreed_layout(
+            world,
+            &[
+                [mesh.n_nodes(), mesh.dim, cell_rank.len(), mesh.groups.len()].as_slice(),
+                &kinds_count,
+                &[plan.displacement.unwrap_or(0), plan.velocity.unwrap_or(0)],
+            ]
+            .concat(),
+            path,
+        )?;
+        let comm = world.as_raw();
         let file = if plan.compression.is_some() {
-            File::create(path).map_err(|e| h5err(path, "create", e))?
+            File::open_rw(path).map_err(|e| h5err(path, "open", e))?
         } else {
             File::with_options()
-                .with_fapl(|p| p.mpio(comm, None))
-                .create(path)
-                .map_err(|e| h5err(path, "create", e))?
+                .with_fapl(|p| p.mpio(comm, None).fclose_degree(FileCloseDegree::Strong))
+                .open_rw(path)
+                .map_err(|e| h5err(path, "open in parallel", e))?
         };
+        let path_buf = path.to_path_buf();
+        let path = path_buf.as_path();
         let dim = mesh.dim;
         let n = mesh.n_nodes();
         let range = natural_range(n, rank, size);
 
         // Mesh: every rank holds it; rank 0 writes (datasets are created collectively).
-        let g = file.create_group("mesh").map_err(|e| h5err(path, "create /mesh", e))?;
+        let g = group(&file, "mesh", path)?;
         let coords = g
             .new_dataset::<f64>()
             .shape((n, 3))
@@ -301,7 +329,7 @@ impl Output {
             .shape((cell_rank.len(),))
             .create("cell_rank")
             .map_err(|e| h5err(path, "create /mesh/cell_rank", e))?;
-        let cg = g.create_group("cells").map_err(|e| h5err(path, "create /mesh/cells", e))?;
+        let cg = group(&g, "cells", path)?;
         let mut kinds: Vec<crate::mesh::ElementKind> = mesh.cells.iter().map(|c| c.kind).collect();
         kinds.sort_by_key(|k| k.gmsh_type());
         kinds.dedup();
@@ -336,23 +364,16 @@ impl Output {
         }
 
         // Physical groups: /mesh/groups/<name>/nodes with the group's dimension as attribute.
-        let gg = g.create_group("groups").map_err(|e| h5err(path, "create /mesh/groups", e))?;
+        let gg = group(&g, "groups", path)?;
         for pg in &mesh.groups {
             let nodes: Vec<u64> =
                 mesh.group_nodes(&pg.name)?.into_iter().map(|v| v as u64).collect();
-            let sub = gg
-                .create_group(&pg.name.replace('/', "_"))
-                .map_err(|e| h5err(path, &format!("create /mesh/groups/{}", pg.name), e))?;
+            let sub = group(&gg, &group_key(&pg.name), path)?;
             let ds = sub
                 .new_dataset::<u64>()
                 .shape((nodes.len(),))
                 .create("nodes")
                 .map_err(|e| h5err(path, "create group nodes", e))?;
-            let attr = sub
-                .new_attr::<i32>()
-                .create("dim")
-                .map_err(|e| h5err(path, "create group dim", e))?;
-            attr.write_scalar(&(pg.dim as i32)).map_err(|e| h5err(path, "write group dim", e))?;
             if rank == 0 {
                 ds.write(&nodes).map_err(|e| h5err(path, "write group nodes", e))?;
             }
@@ -367,7 +388,7 @@ impl Output {
         };
         let time = resizable_1d("time")?;
         let step = resizable_1d("step")?;
-        let fg = file.create_group("fields").map_err(|e| h5err(path, "create /fields", e))?;
+        let fg = group(&file, "fields", path)?;
         let field = |name: &str| -> Result<FieldSet> {
             let mut b = fg.new_dataset::<f64>();
             b = b.chunk((1, n.clamp(1, 1 << 16), dim));
@@ -388,7 +409,7 @@ impl Output {
         let displacement =
             if plan.displacement.is_some() { Some(field("displacement")?) } else { None };
         let velocity = if plan.velocity.is_some() { Some(field("velocity")?) } else { None };
-        file.create_group("energy").map_err(|e| h5err(path, "create /energy", e))?;
+        group(&file, "energy", path)?;
         let energy = [
             resizable_1d("energy/step")?,
             resizable_1d("energy/time")?,
@@ -400,26 +421,11 @@ impl Output {
             resizable_1d("energy/dirichlet_work")?,
         ];
 
-        let settings_text: String = settings.iter().map(|(k, v)| format!("{k} = {v}\n")).collect();
-        write_str_attr(&file, "scene", scene_text, path)?;
-        write_str_attr(&file, "settings", &settings_text, path)?;
-        let solver_options = settings
-            .iter()
-            .find(|(k, _)| k == "petsc_options")
-            .map(|(_, v)| v.as_str())
-            .unwrap_or("");
-        write_str_attr(&file, "solver_options", solver_options, path)?;
-        write_str_attr(&file, "version", env!("CARGO_PKG_VERSION"), path)?;
-        write_str_attr(&file, "status", "running", path)?;
-        let ranks = file
-            .new_attr::<i32>()
-            .create("ranks")
-            .map_err(|e| h5err(path, "create attribute ranks", e))?;
-        ranks.write_scalar(&(size as i32)).map_err(|e| h5err(path, "write attribute ranks", e))?;
         file.flush().map_err(|e| h5err(path, "flush", e))?;
 
         Ok(Output {
             path: path.to_path_buf(),
+            run_file,
             file,
             dim,
             range,
@@ -580,10 +586,9 @@ impl Output {
     /// Create `/contact`: `nodes` (0-based rows of /mesh/coordinates), `weights` (boundary
     /// weights D_qq), and per step `pressure`, `force`, `gap`, `active` [steps + 1, contact
     /// nodes], `active_set_size`, `iterations` [steps + 1]. Collective.
-    pub fn create_contact(&mut self, nodes: &[usize], weights: &[f64], group: &str) -> Result<()> {
+    pub fn create_contact(&mut self, nodes: &[usize], weights: &[f64]) -> Result<()> {
         let path = self.path.clone();
-        let g =
-            self.file.create_group("contact").map_err(|e| h5err(&path, "create /contact", e))?;
+        let g = group(&self.file, "contact", &path)?;
         let nc = nodes.len();
         let nodes_ds = g
             .new_dataset::<u64>()
@@ -600,7 +605,6 @@ impl Output {
             nodes_ds.write(&n64).map_err(|e| h5err(&path, "write /contact/nodes", e))?;
             w_ds.write(weights).map_err(|e| h5err(&path, "write /contact/weights", e))?;
         }
-        write_str_attr(&g, "group", group, &path)?;
         let per_node = |name: &str| -> Result<Dataset> {
             g.new_dataset::<f64>()
                 .chunk((64, nc.max(1)))
@@ -728,35 +732,45 @@ impl Output {
         self.file.flush().map_err(|e| h5err(&path, "flush", e))
     }
 
-    /// Record a string attribute on the root (e.g. a result summary). Collective.
-    pub fn set_attr(&self, name: &str, value: &str) -> Result<()> {
-        write_str_attr(&self.file, name, value, &self.path)
-    }
-
-    /// Mark the run's status ("finished", "failed: message", "interrupted: ...") and flush;
-    /// rank 0 writes the XDMF index beside the file. Collective.
-    pub fn finish(&mut self, status: &str) -> Result<()> {
-        write_str_attr(&self.file, "status", status, &self.path)?;
-        self.file.flush().map_err(|e| h5err(&self.path, "flush", e))?;
-        if self.rank == 0 {
-            let name =
-                self.path.file_name().map(|s| s.to_string_lossy().to_string()).unwrap_or_default();
-            xdmf::write_xdmf(
-                &self.path.with_extension("xdmf"),
+    /// End the run's file: flush and close the parallel handle, then write the final metadata
+    /// (`status`: "finished", "failed: message", "interrupted: ..."; summary, timings) through
+    /// the serial handle of rank 0, and the XDMF index beside the file. Collective.
+    pub fn finish(self, world: &mpi::topology::SimpleCommunicator, items: &[Meta]) -> Result<()> {
+        let name =
+            self.path.file_name().map(|s| s.to_string_lossy().to_string()).unwrap_or_default();
+        let rows = [
+            self.displacement.as_ref().map_or(0, |f| f.written),
+            self.velocity.as_ref().map_or(0, |f| f.written),
+        ];
+        let (rank, n_nodes, dim) = (self.rank, self.n_nodes, self.dim);
+        let (cells, steps) = (self.cell_kinds.clone(), self.field_times.clone());
+        let xdmf_path = self.xdmf_path();
+        let run_file = self.close()?;
+        run_file.write_meta(world, items)?;
+        let mut outcome = Ok(());
+        if rank == 0 {
+            outcome = xdmf::write_xdmf(
+                &xdmf_path,
                 &xdmf::XdmfLayout {
                     h5_name: &name,
-                    n_nodes: self.n_nodes,
-                    dim: self.dim,
-                    cells: &self.cell_kinds,
-                    steps: &self.field_times,
-                    rows: [
-                        self.displacement.as_ref().map_or(0, |f| f.written),
-                        self.velocity.as_ref().map_or(0, |f| f.written),
-                    ],
+                    n_nodes,
+                    dim,
+                    cells: &cells,
+                    steps: &steps,
+                    rows,
                 },
-            )?;
+            );
         }
-        Ok(())
+        meta::agree(world, outcome)
+    }
+
+    /// Flush and close the parallel handle (collective); the file can then take metadata.
+    pub fn close(self) -> Result<RunFile> {
+        let Output { file, run_file, path, .. } = self;
+        // The datasets were dropped with the rest of `self`; the file goes last.
+        file.flush().map_err(|e| h5err(&path, "flush", e))?;
+        file.close().map_err(|e| h5err(&path, "close", e))?;
+        Ok(run_file)
     }
 
     /// The XDMF file written beside the HDF5 file.
