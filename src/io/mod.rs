@@ -13,12 +13,35 @@
 //!   is the integrator's energy balance, zero up to solver tolerance),
 //! - `/mesh/groups/<name>/nodes` (attribute `dim`), `/contact/...`, `/checkpoint/...`,
 //! - attributes on `/`: `scene`, `settings` (key = value lines), `solver_options`, `ranks`,
-//!   `version`, `status`, `summary`, `timings`.
+//!   `version`, `status` (`running`, `finished`, `failed: ...`, `interrupted: ...`),
+//!   `summary`, `timings`. The file is created (status `running`) before the mesh is read, so
+//!   a run that fails or is stopped in any phase says so in its file.
 //!
 //! The file is opened with the MPI-IO driver: each rank writes its own contiguous block of
 //! every field (in natural, i.e. original, node order), so no rank gathers a whole field.
-//! Dataset creation and resizing are collective; every step is flushed so a run that dies
-//! keeps what it wrote.
+//! Dataset creation and resizing are collective; every written field step is flushed so a run
+//! that dies keeps what it wrote.
+//!
+//! **Why runs never hang in HDF5.** Parallel HDF5 keeps a metadata cache on every rank and
+//! relies on all ranks performing the same metadata operations in the same order: its
+//! collective points (cache sync points, reads that rank 0 does and broadcasts) are reached by
+//! counting what each rank did. Anything one rank does and another does not makes the caches
+//! diverge, and some later collective then hangs or fails (`MPI_ERR_TRUNCATE` in an
+//! `MPI_Bcast`), after however many steps it takes for the difference to matter. Seen: a
+//! 2-rank disc run hung after 10000 steps in a variable-length attribute write (global heap,
+//! `H5HG_insert -> H5C_protect -> MPI_Bcast` on rank 1 while rank 0 was in `H5Fflush`), and,
+//! with the attributes fixed, the same run with `--every 1000` failed when it created
+//! `/checkpoint` at its end: rank 0 alone had written the energy series, and its writes into
+//! chunked datasets had looked up chunk addresses that the other ranks never loaded. Two rules
+//! make this impossible, and this module is built on them:
+//! 1. Attributes (all text, and the few numbers) are written only by rank 0 through a serial
+//!    handle while no parallel handle is open ([`meta`]); [`Output`] has no attribute method.
+//! 2. While the parallel handle is open, every rank makes the same HDF5 calls: datasets are
+//!    created with shapes all ranks agree on (checked by an allreduce before creation), series
+//!    that every rank holds (energies, axes, contact rows) are written by every rank alike, and
+//!    nodal fields use one chunk per written step, so each rank's block lands in the same
+//!    chunk. Only contiguous datasets (mesh, checkpoint scalars), whose writes touch no
+//!    metadata, are written by rank 0 alone.
 
 pub mod meta;
 pub mod xdmf;
@@ -37,6 +60,13 @@ use crate::mesh::Mesh;
 
 fn h5err(path: &Path, what: &str, e: hdf5::Error) -> Error {
     Error::Io(format!("{}: {what}: {e}", path.display()))
+}
+
+/// Append `val` at row `k` of an extendable 1-D series. Every rank calls this with the same
+/// value: chunked datasets must see the same calls on every rank (see the module doc).
+fn append_replicated(ds: &Dataset, k: usize, val: f64, path: &Path, name: &str) -> Result<()> {
+    ds.resize((k + 1,)).map_err(|e| h5err(path, &format!("resize {name}"), e))?;
+    ds.write_slice(&[val], k..k + 1).map_err(|e| h5err(path, &format!("write {name}"), e))
 }
 
 /// Open a group, or create it (collectively) if the metadata phase did not.
@@ -391,7 +421,9 @@ impl Output {
         let fg = group(&file, "fields", path)?;
         let field = |name: &str| -> Result<FieldSet> {
             let mut b = fg.new_dataset::<f64>();
-            b = b.chunk((1, n.clamp(1, 1 << 16), dim));
+            // One chunk per written step: every rank writes its block into the same chunk, so
+            // all ranks make the same chunk-index lookups (see the module doc).
+            b = b.chunk((1, n.max(1), dim));
             if let Some(level) = plan.compression {
                 b = b.deflate(level);
             }
@@ -479,7 +511,7 @@ impl Output {
         let k = self.n_fields_written;
         let (lo, hi) = self.range;
         let path = self.path.clone();
-        let (dim, rank0) = (self.dim, self.rank == 0);
+        let dim = self.dim;
         let mut rows = [None, None];
         for (i, (set, data, name)) in [
             (self.displacement.as_mut(), u, "displacement"),
@@ -500,22 +532,14 @@ impl Output {
                 .write_slice(&arr, ndarray::s![r..r + 1, lo..hi, ..])
                 .map_err(|e| h5err(&path, &format!("write /fields/{name}"), e))?;
             for (ds, val) in [(&set.step, step as f64), (&set.time, t)] {
-                ds.resize((r + 1,)).map_err(|e| h5err(&path, "resize a field axis", e))?;
-                if rank0 {
-                    ds.write_slice(&[val], r..r + 1)
-                        .map_err(|e| h5err(&path, "write a field axis", e))?;
-                }
+                append_replicated(ds, r, val, &path, "a field axis")?;
             }
             set.written += 1;
             rows[i] = Some(r);
         }
         // /time and /step: every step at which some field was written.
         for (ds, val, name) in [(&self.time, t, "time"), (&self.step, step as f64, "step")] {
-            ds.resize((k + 1,)).map_err(|e| h5err(&path, &format!("resize /{name}"), e))?;
-            if rank0 {
-                ds.write_slice(&[val], k..k + 1)
-                    .map_err(|e| h5err(&path, &format!("write /{name}"), e))?;
-            }
+            append_replicated(ds, k, val, &path, name)?;
         }
         self.n_fields_written += 1;
         self.field_times.push((t, rows[0], rows[1]));
@@ -536,11 +560,7 @@ impl Output {
             e.dirichlet_work,
         ];
         for (ds, val) in self.energy.iter().zip(vals) {
-            ds.resize((k + 1,)).map_err(|e| h5err(&self.path, "resize /energy", e))?;
-            if self.rank == 0 {
-                ds.write_slice(&[val], k..k + 1)
-                    .map_err(|e| h5err(&self.path, "write /energy", e))?;
-            }
+            append_replicated(ds, k, val, &self.path, "/energy")?;
         }
         self.n_energies_written += 1;
         Ok(())
@@ -639,7 +659,6 @@ impl Output {
     /// Append one step's contact data. Collective (resizing), rank 0 writes.
     pub fn write_contact(&mut self, row: &ContactRow) -> Result<()> {
         let path = self.path.clone();
-        let rank0 = self.rank == 0;
         let Some(c) = self.contact.as_mut() else { return Ok(()) };
         let k = c.n_written;
         let nc = row.pressure.len();
@@ -650,30 +669,22 @@ impl Output {
         ] {
             ds.resize((k + 1, nc))
                 .map_err(|e| h5err(&path, &format!("resize /contact/{name}"), e))?;
-            if rank0 {
-                let arr = ndarray::Array2::from_shape_vec((1, nc), vals.to_vec()).expect("shape");
-                ds.write_slice(&arr, ndarray::s![k..k + 1, ..])
-                    .map_err(|e| h5err(&path, &format!("write /contact/{name}"), e))?;
-            }
+            let arr = ndarray::Array2::from_shape_vec((1, nc), vals.to_vec()).expect("shape");
+            ds.write_slice(&arr, ndarray::s![k..k + 1, ..])
+                .map_err(|e| h5err(&path, &format!("write /contact/{name}"), e))?;
         }
         c.active.resize((k + 1, nc)).map_err(|e| h5err(&path, "resize /contact/active", e))?;
-        if rank0 {
-            let act: Vec<u8> = row.active.iter().map(|&a| u8::from(a)).collect();
-            let arr = ndarray::Array2::from_shape_vec((1, nc), act).expect("shape");
-            c.active
-                .write_slice(&arr, ndarray::s![k..k + 1, ..])
-                .map_err(|e| h5err(&path, "write /contact/active", e))?;
-        }
+        let act: Vec<u8> = row.active.iter().map(|&a| u8::from(a)).collect();
+        let arr = ndarray::Array2::from_shape_vec((1, nc), act).expect("shape");
+        c.active
+            .write_slice(&arr, ndarray::s![k..k + 1, ..])
+            .map_err(|e| h5err(&path, "write /contact/active", e))?;
         let size = row.active.iter().filter(|&&a| a).count() as f64;
         for (ds, val, name) in [
             (&c.active_set_size, size, "active_set_size"),
             (&c.iterations, row.iterations as f64, "iterations"),
         ] {
-            ds.resize((k + 1,)).map_err(|e| h5err(&path, &format!("resize /contact/{name}"), e))?;
-            if rank0 {
-                ds.write_slice(&[val], k..k + 1)
-                    .map_err(|e| h5err(&path, &format!("write /contact/{name}"), e))?;
-            }
+            append_replicated(ds, k, val, &path, name)?;
         }
         c.n_written += 1;
         Ok(())

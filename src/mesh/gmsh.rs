@@ -3,7 +3,7 @@
 
 use crate::error::{Error, Result};
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::process::{Command, Output, Stdio};
 use std::sync::atomic::{AtomicUsize, Ordering};
 
 /// Meshes `geo` with gmsh in dimension `dim` and returns the path of the MSH 4.1 file.
@@ -85,11 +85,15 @@ pub fn mesh_geo(
         cmd.arg("-setnumber").arg(name).arg(value.to_string());
     }
     cmd.arg("-o").arg(&tmp).args(["-v", "2"]);
-    let result = cmd.output();
+    let result = run_interruptible(&mut cmd);
     let failed = |why: String| {
         let _ = std::fs::remove_file(&tmp);
         Err(Error::Mesh(format!("gmsh failed on {}: {why}", geo.display())))
     };
+    if crate::phase::signalled() {
+        let _ = std::fs::remove_file(&tmp);
+        return Err(crate::phase::interrupted());
+    }
     let output = match result {
         Ok(o) => o,
         Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Err(not_found()),
@@ -107,6 +111,39 @@ pub fn mesh_geo(
         Error::Mesh(format!("cannot move the mesh into place at {}: {e}", out.display()))
     })?;
     Ok(out)
+}
+
+/// Run gmsh to its end, or until SIGINT/SIGTERM reaches this process: then gmsh is killed at
+/// once (meshing a large model can take minutes, and a stopped run must end quickly).
+fn run_interruptible(cmd: &mut Command) -> std::io::Result<Output> {
+    use std::io::Read;
+    let mut child = cmd.stdout(Stdio::piped()).stderr(Stdio::piped()).spawn()?;
+    let drain = |pipe: Option<Box<dyn Read + Send>>| {
+        std::thread::spawn(move || {
+            let mut buf = Vec::new();
+            if let Some(mut p) = pipe {
+                let _ = p.read_to_end(&mut buf);
+            }
+            buf
+        })
+    };
+    let out = drain(child.stdout.take().map(|p| Box::new(p) as Box<dyn Read + Send>));
+    let err = drain(child.stderr.take().map(|p| Box::new(p) as Box<dyn Read + Send>));
+    let status = loop {
+        if let Some(status) = child.try_wait()? {
+            break status;
+        }
+        if crate::phase::signalled() {
+            let _ = child.kill();
+            break child.wait()?;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    };
+    Ok(Output {
+        status,
+        stdout: out.join().unwrap_or_default(),
+        stderr: err.join().unwrap_or_default(),
+    })
 }
 
 fn not_found() -> Error {

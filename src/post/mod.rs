@@ -226,7 +226,10 @@ pub fn post(path: &Path, opts: &PostOptions) -> Result<Vec<String>> {
         PathBuf::from(p)
     });
     let with_suffix = |s: &str| suffixed(&prefix, s);
-    let time = read("energy/time")?;
+    let status = attr("status");
+    let Ok(time) = read("energy/time") else {
+        return Err(Error::Io(format!("{}: no steps written (status: {status})", path.display())));
+    };
     let step = read("energy/step")?;
     let kinetic = read("energy/kinetic")?;
     let potential = read("energy/potential")?;
@@ -235,7 +238,6 @@ pub fn post(path: &Path, opts: &PostOptions) -> Result<Vec<String>> {
     let cw = read("energy/contact_work").unwrap_or_else(|_| vec![0.0; total.len()]);
     let dw = read("energy/dirichlet_work").unwrap_or_else(|_| vec![0.0; total.len()]);
     let mut lines = Vec::new();
-    let status = attr("status");
     let n = total.len();
     if n == 0 {
         return Err(Error::Io(format!("{}: no steps written (status: {status})", path.display())));
@@ -245,7 +247,17 @@ pub fn post(path: &Path, opts: &PostOptions) -> Result<Vec<String>> {
     let drift = total.iter().map(|e| ((e - e0) / e0).abs()).fold(0.0, f64::max);
     let balance =
         (0..n).map(|i| (total[i] - e0 - ext[i] - cw[i] - dw[i]).abs()).fold(0.0, f64::max) / emax;
-    lines.push(format!("{}: status {status}", path.display()));
+    if status == "running" {
+        // Only a run that was killed (SIGKILL, power loss, a watchdog abort) or is still
+        // running leaves this status: every other end is written into the file.
+        lines.push(format!(
+            "{}: the run did not finish (status still \"running\": killed, or still running): last written step {}",
+            path.display(),
+            step[n - 1]
+        ));
+    } else {
+        lines.push(format!("{}: status {status}", path.display()));
+    }
     lines.push(format!(
         "steps {}..{} (t = {:e} .. {:e}), {} written",
         step[0],
