@@ -14,7 +14,7 @@
 //! with exit code 3, instead of holding the allocation forever.
 
 use std::sync::atomic::{AtomicBool, AtomicU64, AtomicU8, Ordering};
-use std::sync::{Arc, OnceLock};
+use std::sync::OnceLock;
 use std::time::{Duration, Instant};
 
 use mpi::collective::SystemOperation;
@@ -73,7 +73,7 @@ static STEP: AtomicU64 = AtomicU64::new(0);
 static BEAT_MS: AtomicU64 = AtomicU64::new(0);
 /// Watchdog timeout in milliseconds; 0 = disarmed.
 static TIMEOUT_MS: AtomicU64 = AtomicU64::new(0);
-static SIGNAL: OnceLock<Arc<AtomicBool>> = OnceLock::new();
+static SIGNAL: AtomicBool = AtomicBool::new(false);
 
 fn epoch() -> Instant {
     static EPOCH: OnceLock<Instant> = OnceLock::new();
@@ -121,19 +121,33 @@ pub fn describe() -> String {
     }
 }
 
-/// Route SIGINT and SIGTERM to the flag polled by [`signalled`] and [`stop_requested`].
+/// Route SIGINT and SIGTERM to the flag polled by [`signalled`] and [`stop_requested`]. Call
+/// it first thing, before MPI starts its threads.
+///
+/// The two signals are blocked in this thread and so in every thread created after it (MPI's,
+/// PETSc's, the watchdog: they inherit the mask), and one thread takes them with `sigwait`.
+/// No handler runs, so a signal can never cut into a library call: METIS (GKlib) installs its
+/// own SIGTERM handler that jumps out of the partitioner, and a SIGTERM during partitioning
+/// made the run fail with "METIS returned an error" before. (Child processes such as gmsh
+/// start with an empty mask.)
 pub fn install_signal_handlers() -> Result<()> {
-    let flag = SIGNAL.get_or_init(|| Arc::new(AtomicBool::new(false)));
-    for sig in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {
-        signal_hook::flag::register(sig, Arc::clone(flag))
-            .map_err(|e| Error::Usage(format!("cannot handle signal {sig}: {e}")))?;
-    }
+    use nix::sys::signal::{SigSet, Signal};
+    let set: SigSet = [Signal::SIGINT, Signal::SIGTERM].into_iter().collect();
+    set.thread_block().map_err(|e| Error::Usage(format!("cannot block SIGINT/SIGTERM: {e}")))?;
+    std::thread::Builder::new()
+        .name("massfree-signals".into())
+        .spawn(move || loop {
+            if set.wait().is_ok() {
+                SIGNAL.store(true, Ordering::SeqCst);
+            }
+        })
+        .map_err(|e| Error::Usage(format!("cannot start the signal thread: {e}")))?;
     Ok(())
 }
 
 /// Whether this rank received SIGINT or SIGTERM (local, no communication).
 pub fn signalled() -> bool {
-    SIGNAL.get().is_some_and(|f| f.load(Ordering::SeqCst))
+    SIGNAL.load(Ordering::SeqCst)
 }
 
 /// Whether any rank received a signal. Collective: every rank must call it at the same point.

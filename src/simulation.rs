@@ -1051,7 +1051,9 @@ impl<'a> Simulation<'a> {
             t_out += t0.elapsed().as_secs_f64();
             phase::step_done(n + 1);
             watchdog.step_time(t_step.elapsed().as_secs_f64());
-            if stop {
+            // A signal after the last step is the final phase's business: the run still
+            // writes its summary, then says it was interrupted.
+            if stop && n + 1 < n_steps {
                 progress.finish();
                 return Err(Error::Interrupted(format!(
                     "a signal stopped the run after step {} (t = {t_next:e}); continue it with --restart",
@@ -1141,7 +1143,7 @@ impl<'a> Simulation<'a> {
         let interrupted = phase::stop_requested(self.world);
         let status = if interrupted {
             format!(
-                "interrupted: a signal arrived in the final phase after step {n_steps} of {n_steps} (all steps and the summary are written)"
+                "interrupted: a signal arrived after the last step ({n_steps} of {n_steps}); all steps and the summary are written"
             )
         } else {
             "finished".to_string()

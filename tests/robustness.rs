@@ -62,7 +62,9 @@ fn status_by_h5dump(h5: &Path) -> String {
     );
     let text = String::from_utf8_lossy(&o.stdout).to_string();
     let line = text.lines().find(|l| l.trim_start().starts_with("(0):")).unwrap_or("");
-    line.split_once('"').map(|(_, r)| r.trim_end().trim_end_matches('"').to_string()).unwrap_or_default()
+    line.split_once('"')
+        .map(|(_, r)| r.trim_end().trim_end_matches('"').to_string())
+        .unwrap_or_default()
 }
 
 fn raw(h5: &Path, name: &str) -> Vec<f64> {
@@ -202,4 +204,430 @@ fn metadata_from_values_that_differ_between_ranks_cannot_hang() {
     assert_eq!(first_row[0], 0.0);
     assert_eq!(*first_row.last().unwrap(), 2.0);
     assert!(first_row.windows(2).all(|w| w[0] <= w[1]));
+}
+
+/// When to send the signal.
+#[derive(Debug, Clone, Copy)]
+enum Moment {
+    /// This long after the output file appeared (the run is meshing a new mesh, partitioning
+    /// or assembling).
+    Setup(f64),
+    /// This long after the output file appeared (the run is stepping).
+    Stepping(f64),
+    /// As soon as the last step's line is printed (the run is in its final phase).
+    Final,
+}
+
+struct Stopped {
+    status: String,
+    exit: ExitStatus,
+    /// From the signal to the end of the process.
+    after_signal: Duration,
+}
+
+/// Start a run, signal it (SIGTERM; to mpirun, which forwards it, for several ranks) at the
+/// given moment, and report how it ended.
+fn stop_run(ranks: usize, args: &[String], out: &Path, moment: Moment) -> Stopped {
+    let _ = std::fs::remove_file(out);
+    let mut child =
+        launch(ranks, args).stdout(Stdio::piped()).stderr(Stdio::null()).spawn().unwrap();
+    let stdout = child.stdout.take().unwrap();
+    let (tx, rx) = std::sync::mpsc::channel::<String>();
+    std::thread::spawn(move || {
+        for line in BufReader::new(stdout).lines().map_while(|l| l.ok()) {
+            let _ = tx.send(line);
+        }
+    });
+    let steps: usize =
+        args.iter().position(|a| a == "--steps").map(|i| args[i + 1].parse().unwrap()).unwrap();
+    let t0 = Instant::now();
+    match moment {
+        Moment::Setup(d) | Moment::Stepping(d) => {
+            while !out.exists() {
+                assert!(t0.elapsed() < Duration::from_secs(60), "no output file after 60 s");
+                assert!(child.try_wait().unwrap().is_none(), "the run ended before the signal");
+                std::thread::sleep(Duration::from_millis(5));
+            }
+            std::thread::sleep(Duration::from_secs_f64(d));
+        }
+        Moment::Final => {
+            let last = format!("step {steps} ");
+            loop {
+                let line = rx.recv_timeout(Duration::from_secs(60)).expect("no last step line");
+                if line.starts_with(&last) {
+                    break;
+                }
+            }
+        }
+    }
+    let _ = Command::new("kill").args(["-TERM", &child.id().to_string()]).status();
+    let t_signal = Instant::now();
+    let exit = wait_for(&mut child, Duration::from_secs(30), "a signalled run");
+    let after_signal = t_signal.elapsed();
+    Stopped { status: status_by_h5dump(out), exit, after_signal }
+}
+
+#[test]
+fn a_signal_at_any_moment_ends_the_run_with_a_truthful_file() {
+    let dir = scratch("kill-anywhere");
+    let disc = coarse_disc(&dir);
+    let mut final_phase_hits = 0;
+    let mut report = Vec::new();
+    for ranks in [1, 2] {
+        // The second delay is random: it lands in meshing, partitioning, assembly or the first
+        // steps, whichever the machine is at.
+        let late = 0.9 + 0.8 * (rand_seed() % 1000) as f64 / 1000.0;
+        for (trial, delay) in [0.05, late].into_iter().enumerate() {
+            // Meshing: a mesh size no run used before, so that gmsh (about a second) runs.
+            let h =
+                format!("h={}", 0.05 + 1e-5 * (rand_seed() % 1000) as f64 + 1e-3 * trial as f64);
+            let tet = scene_variant("block_tet.toml", &dir, &[]);
+            let out = dir.join(format!("mesh-{ranks}-{trial}.h5"));
+            let args = strings(&[
+                "run",
+                tet.to_str().unwrap(),
+                "-q",
+                "--overwrite",
+                "-o",
+                out.to_str().unwrap(),
+                "--param",
+                &h,
+                "--steps",
+                "100000",
+            ]);
+            let s = stop_run(ranks, &args, &out, Moment::Setup(delay));
+            report.push(format!(
+                "set-up, {ranks} rank(s), +{delay} s: {} after {:.2} s",
+                s.status,
+                s.after_signal.as_secs_f64()
+            ));
+            assert!(
+                s.status.starts_with("interrupted: a signal stopped the run"),
+                "{}",
+                report.last().unwrap()
+            );
+            check_exit(&s, ranks);
+
+            // Stepping: then continue the run from its checkpoint and compare with a run that
+            // was never interrupted.
+            let out = dir.join(format!("step-{ranks}-{trial}.h5"));
+            let mut args = strings(&[
+                "run",
+                disc.to_str().unwrap(),
+                "-q",
+                "--overwrite",
+                "-o",
+                out.to_str().unwrap(),
+                "--steps",
+                "1000000",
+                "--every",
+                "20",
+            ]);
+            args.extend(strings(&["--", "-ksp_rtol", "1e-12"]));
+            let s = stop_run(ranks, &args, &out, Moment::Stepping(1.0 + delay));
+            report.push(format!(
+                "stepping, {ranks} rank(s), +{} s: {} after {:.2} s",
+                1.0 + delay,
+                s.status,
+                s.after_signal.as_secs_f64()
+            ));
+            assert!(
+                s.status.starts_with("interrupted: a signal stopped the run after step"),
+                "{}",
+                report.last().unwrap()
+            );
+            check_exit(&s, ranks);
+            let k = raw(&out, "checkpoint/scalars")[0] as usize;
+            assert_eq!(
+                k as f64,
+                *raw(&out, "energy/step").last().unwrap(),
+                "checkpoint = last step"
+            );
+            let total = (k + 150).to_string();
+            let run_to_end = |o: &Path, restart: Option<&Path>| {
+                let mut a = strings(&[
+                    "run",
+                    disc.to_str().unwrap(),
+                    "-q",
+                    "--overwrite",
+                    "-o",
+                    o.to_str().unwrap(),
+                    "--steps",
+                    &total,
+                    "--every",
+                    "20",
+                ]);
+                if let Some(r) = restart {
+                    a.extend(strings(&["--restart", r.to_str().unwrap()]));
+                }
+                a.extend(strings(&["--", "-ksp_rtol", "1e-12"]));
+                let st = launch(ranks, &a).stdout(Stdio::null()).status().unwrap();
+                assert!(st.success());
+            };
+            let (cont, full) = (dir.join("continued.h5"), dir.join("uninterrupted.h5"));
+            run_to_end(&cont, Some(&out));
+            run_to_end(&full, None);
+            let d = max_rel_diff(&raw(&full, "checkpoint/u"), &raw(&cont, "checkpoint/u"));
+            assert!(d < 1e-9, "restart after step {k} differs from the uninterrupted run by {d:e}");
+            let (ea, eb) = (raw(&full, "energy/total"), raw(&cont, "energy/total"));
+            assert!(rel_diff(*ea.last().unwrap(), *eb.last().unwrap()) < 1e-10);
+
+            // The final phase: summary, pictures, final metadata.
+            let out = dir.join(format!("final-{ranks}-{trial}.h5"));
+            let args = strings(&[
+                "run",
+                disc.to_str().unwrap(),
+                "-v",
+                "--overwrite",
+                "-o",
+                out.to_str().unwrap(),
+                "--steps",
+                "3000",
+            ]);
+            let s = stop_run(ranks, &args, &out, Moment::Final);
+            report.push(format!(
+                "final phase, {ranks} rank(s): {} after {:.2} s",
+                s.status,
+                s.after_signal.as_secs_f64()
+            ));
+            // A signal that comes after the file was marked finished finds a finished run.
+            if s.status.starts_with("interrupted") {
+                assert!(
+                    s.status.contains("after the last step (3000 of 3000)"),
+                    "{}",
+                    report.last().unwrap()
+                );
+                check_exit(&s, ranks);
+                final_phase_hits += 1;
+            } else {
+                assert_eq!(s.status, "finished", "{}", report.last().unwrap());
+            }
+        }
+    }
+    eprintln!("{}", report.join("\n"));
+    assert!(
+        final_phase_hits > 0,
+        "no signal reached a run in its final phase:\n{}",
+        report.join("\n")
+    );
+}
+
+fn rand_seed() -> u64 {
+    std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).unwrap().subsec_nanos()
+        as u64
+}
+
+/// A stopped run exits within seconds (mpirun itself waits about 2 s before it ends), with
+/// exit code 130 when the binary runs alone and non-zero under mpirun.
+fn check_exit(s: &Stopped, ranks: usize) {
+    assert!(s.after_signal < Duration::from_secs(6), "took {:?} to stop", s.after_signal);
+    if ranks == 1 {
+        assert_eq!(s.exit.code(), Some(130));
+    } else {
+        assert!(!s.exit.success());
+    }
+}
+
+#[test]
+fn a_killed_run_leaves_a_readable_file_that_post_reports_as_unfinished() {
+    let dir = scratch("sigkill");
+    let disc = coarse_disc(&dir);
+    for trial in 0..3 {
+        let out = dir.join(format!("killed-{trial}.h5"));
+        let args = strings(&[
+            "run",
+            disc.to_str().unwrap(),
+            "-q",
+            "--overwrite",
+            "-o",
+            out.to_str().unwrap(),
+            "--steps",
+            "1000000",
+        ]);
+        let mut child =
+            launch(2, &args).stdout(Stdio::null()).stderr(Stdio::null()).spawn().unwrap();
+        while !out.exists() {
+            std::thread::sleep(Duration::from_millis(5));
+        }
+        std::thread::sleep(Duration::from_millis(1200 + 150 * trial));
+        // SIGKILL to the ranks (as the kernel's OOM killer would); mpirun then ends the job.
+        let _ = Command::new("pkill").args(["-9", "-P", &child.id().to_string()]).status();
+        let st = wait_for(&mut child, Duration::from_secs(30), "a killed run");
+        assert!(!st.success());
+        assert_eq!(status_by_h5dump(&out), "running");
+        let o =
+            massfree(0, &["post", out.to_str().unwrap(), "-o", dir.join("p").to_str().unwrap()]);
+        let text = String::from_utf8_lossy(&o.stdout);
+        assert!(o.status.success(), "post failed: {}", String::from_utf8_lossy(&o.stderr));
+        let steps = raw(&out, "energy/step");
+        let last = format!("the run did not finish (status still \"running\": killed, or still running): last written step {}", steps.last().unwrap());
+        assert!(text.contains(&last), "post says:\n{text}");
+        assert!(steps.len() > 100, "only {} steps written", steps.len());
+    }
+}
+
+#[test]
+fn the_watchdog_ends_a_run_whose_rank_stopped_responding() {
+    let dir = scratch("watchdog");
+    let disc = coarse_disc(&dir);
+    let out = dir.join("hung.h5");
+    let args = strings(&[
+        "run",
+        disc.to_str().unwrap(),
+        "-q",
+        "--overwrite",
+        "-o",
+        out.to_str().unwrap(),
+        "--steps",
+        "1000000",
+        "--hang-timeout",
+        "2",
+    ]);
+    let mut child = launch(2, &args).stdout(Stdio::null()).stderr(Stdio::piped()).spawn().unwrap();
+    while !out.exists() {
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    std::thread::sleep(Duration::from_millis(1500));
+    // Stop one rank: the other then waits in a collective that never completes.
+    let ranks = Command::new("pgrep").args(["-P", &child.id().to_string()]).output().unwrap();
+    let pids: Vec<String> =
+        String::from_utf8_lossy(&ranks.stdout).split_whitespace().map(String::from).collect();
+    assert_eq!(pids.len(), 2, "rank processes: {pids:?}");
+    let _ = Command::new("kill").args(["-STOP", &pids[1]]).status();
+    let t0 = Instant::now();
+    let st = wait_for(&mut child, Duration::from_secs(30), "a run with a stopped rank");
+    let mut err = String::new();
+    std::io::Read::read_to_string(&mut child.stderr.take().unwrap(), &mut err).unwrap();
+    assert!(!st.success());
+    assert!(t0.elapsed() < Duration::from_secs(15), "the watchdog took {:?}", t0.elapsed());
+    assert!(
+        err.contains("made no progress for") && err.contains("in stepping after step"),
+        "stderr:\n{err}"
+    );
+}
+
+#[test]
+fn results_do_not_depend_on_the_number_of_ranks_from_one_to_four() {
+    let dir = scratch("rank-sweep");
+    // The default scene (the two-disc impact with contact) and the beam (loads, Dirichlet).
+    let disc = scene_variant("disc.toml", &dir, &[("steps = 1000", "steps = 300")]);
+    let beam = scene_variant(
+        "beam.toml",
+        &dir,
+        &[("steps = 250", "steps = 60"), ("error_steps = [30, 250]", "error_steps = [60]")],
+    );
+    for (scene, datasets) in [
+        (
+            &disc,
+            vec![
+                "energy/total",
+                "energy/contact_work",
+                "fields/displacement",
+                "fields/velocity",
+                "contact/pressure",
+                "contact/active",
+            ],
+        ),
+        (
+            &beam,
+            vec!["energy/total", "energy/external_work", "fields/displacement", "fields/velocity"],
+        ),
+    ] {
+        let mut files = Vec::new();
+        for ranks in 1..=4 {
+            let out =
+                dir.join(format!("{}-{ranks}.h5", scene.file_stem().unwrap().to_string_lossy()));
+            let args = strings(&[
+                "run",
+                scene.to_str().unwrap(),
+                "-q",
+                "--overwrite",
+                "-o",
+                out.to_str().unwrap(),
+                "--",
+                "-ksp_rtol",
+                "1e-13",
+            ]);
+            let mut child = launch(ranks, &args).stdout(Stdio::null()).spawn().unwrap();
+            let st = wait_for(&mut child, Duration::from_secs(120), "rank sweep");
+            assert!(st.success(), "{} on {ranks} ranks: {st}", scene.display());
+            assert_eq!(status_by_h5dump(&out), "finished");
+            files.push(out);
+        }
+        for name in &datasets {
+            let one = if name.ends_with("active") {
+                let f = hdf5::File::open(&files[0]).unwrap();
+                f.dataset(name)
+                    .unwrap()
+                    .read_raw::<u8>()
+                    .unwrap()
+                    .iter()
+                    .map(|&x| x as f64)
+                    .collect()
+            } else {
+                raw(&files[0], name)
+            };
+            for (k, other) in files.iter().enumerate().skip(1) {
+                let b: Vec<f64> = if name.ends_with("active") {
+                    let f = hdf5::File::open(other).unwrap();
+                    f.dataset(name)
+                        .unwrap()
+                        .read_raw::<u8>()
+                        .unwrap()
+                        .iter()
+                        .map(|&x| x as f64)
+                        .collect()
+                } else {
+                    raw(other, name)
+                };
+                let d = max_rel_diff(&one, &b);
+                assert!(
+                    d <= 1e-8,
+                    "{}: {name} on {} ranks differs from 1 rank by {d:e}",
+                    scene.display(),
+                    k + 1
+                );
+            }
+        }
+    }
+}
+
+#[test]
+fn the_run_script_works_from_any_directory_and_prints_one_error_line() {
+    let dir = scratch("run-script");
+    let scene = scene_variant(
+        "beam.toml",
+        &dir,
+        &[("steps = 250", "steps = 20"), ("error_steps = [30, 250]", "error_steps = [20]")],
+    );
+    let good = std::fs::read_to_string(&scene).unwrap();
+    assert!(good.contains("E = 200.0"));
+    std::fs::write(dir.join("bad.toml"), good.replace("E = 200.0", "E = -1.0")).unwrap();
+    let script = repo().join("run");
+    let run = |args: &[&str]| {
+        let mut cmd = Command::new(&script);
+        cmd.args(args).current_dir(&dir).env("MASSFREE_PREBUILT", "1");
+        mpi_env(&mut cmd);
+        cmd.output().unwrap()
+    };
+    // Relative scene and output paths are the caller's.
+    let name = scene.file_name().unwrap().to_str().unwrap();
+    let o = run(&[name, "-q", "-o", "results/beam.h5"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert_eq!(status_by_h5dump(&dir.join("results/beam.h5")), "finished");
+    // A bad scene: exactly one line on stderr, naming the key, and a non-zero exit code.
+    let o = run(&["bad.toml"]);
+    assert!(!o.status.success());
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(err.lines().count(), 1, "stderr:\n{err}");
+    assert!(
+        err.starts_with("massfree: scene error: bad.toml:") && err.contains("material.E"),
+        "{err}"
+    );
+    // The same output again: refused (the file exists), once, on one line.
+    let o = run(&[name, "-q", "-o", "results/beam.h5"]);
+    assert!(!o.status.success());
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(err.lines().count(), 1, "stderr:\n{err}");
+    assert!(err.contains("results/beam.h5 exists; pass --overwrite"), "{err}");
 }
