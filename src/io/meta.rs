@@ -109,8 +109,23 @@ impl RunFile {
     }
 }
 
+/// Whether an existing file is the record of a run that ended before its first step (failed
+/// or stopped during set-up): it holds nothing worth keeping, so a new run may replace it
+/// without `--overwrite` (the user fixed the scene and runs again).
+fn holds_no_step(path: &Path) -> bool {
+    let Ok(f) = File::open(path) else { return false };
+    let status = f
+        .attr("status")
+        .and_then(|a| a.read_scalar::<VarLenUnicode>())
+        .map(|s| s.to_string())
+        .unwrap_or_default();
+    let ended = status.starts_with("failed") || status.starts_with("interrupted");
+    let steps = f.dataset("energy/step").map(|d| d.size()).unwrap_or(0);
+    ended && steps == 0
+}
+
 fn create_serial(path: &Path, overwrite: bool, items: &[Meta]) -> Result<()> {
-    if path.exists() && !overwrite {
+    if path.exists() && !overwrite && !holds_no_step(path) {
         return Err(Error::Io(format!(
             "{} exists; pass --overwrite to replace it or choose another output.file",
             path.display()
