@@ -223,16 +223,6 @@ fn run(
                 hang_timeout: Some(hang_timeout),
             };
             let mut sim = Simulation::setup(&world, agree, &console, scene, opts)?;
-            console.say(format!(
-                "{}: {} nodes, {} cells ({}D), {} DOFs on {} rank(s); assembling",
-                sim.scene.name,
-                sim.mesh.n_nodes(),
-                sim.mesh.cells.len(),
-                sim.mesh.dim,
-                sim.part.n_global_dofs(),
-                world.size()
-            ));
-            sim.assemble()?;
             let summary = sim.run()?;
             for line in summary_lines(&sim, &summary) {
                 console.result(line);

@@ -1,9 +1,12 @@
-//! One run of a scene, top to bottom: scene -> mesh -> partition -> assemble A, M, loads ->
-//! step operator (set up once) -> initial energy -> time loop (solve, energies, output,
-//! progress) -> summary. Like deal.II's tutorials, the type has `setup`, `assemble`,
-//! `solve_step`, `output`, `run`.
+//! One run of a scene, in the steps of [`Simulation::run`] (like MFEM's ex10p): the output
+//! file, mesh and partition (`setup`) -> the physics operators `A`, `M` or `M_H`, loads,
+//! Dirichlet data and the contact solver (`assemble`) -> the integrator, the midpoint rule with
+//! its step operator set up once (`integrator`) -> the time loop (step, output, progress) ->
+//! the summary. The physics (here) is separate from the time integrator (`time::Midpoint`)
+//! and from the contact solver (`contact::ContactSolver`).
 
 use std::path::{Path, PathBuf};
+use std::rc::Rc;
 use std::time::Instant;
 
 use mpi::collective::SystemOperation;
@@ -12,13 +15,12 @@ use mpi::traits::*;
 
 use crate::assembly::{self, Loads};
 use crate::console::{Console, Progress};
-use crate::contact::history::{ContactRowOwned, ContactSummary, History as ContactHistory};
-use crate::contact::{ActiveSet, ContactBoundary, Obstacle, StepContact};
+use crate::contact::history::{ContactSummary, History as ContactHistory};
+use crate::contact::{ActiveSet, ContactBoundary, ContactSolver, Obstacle};
 use crate::error::{Error, Result};
 use crate::fem::{self, kernels};
 use crate::io::{
-    group_key, natural_range, read_checkpoint, Checkpoint, ContactRow, EnergyRow, Meta, Output,
-    OutputPlan, RunFile,
+    group_key, natural_range, read_checkpoint, Checkpoint, Meta, Output, OutputPlan, RunFile,
 };
 use crate::mass::{build_layer, mass_matrix, MassFreeLayer};
 use crate::mesh::Mesh;
@@ -27,7 +29,7 @@ use crate::petsc::{Matrix, NullSpace, Scatter, Vector};
 use crate::phase::{self, HangTimeout, Phase, Watchdog};
 use crate::post::{picture_paths, write_pictures, RunCurves};
 use crate::scene::{Field, MeshSource, Scene};
-use crate::time::{energies, StepOperator, StepSolverDefaults};
+use crate::time::{Dirichlet, Energy, Forces, Midpoint, StepOperator, StepSolverDefaults};
 
 /// What the command line adds to a scene.
 #[derive(Debug, Clone, Default)]
@@ -176,58 +178,87 @@ pub struct Simulation<'a> {
     console: &'a Console,
     pub scene: Scene,
     opts: RunOptions,
-    pub mesh: Mesh,
-    pub part: Partition,
+    /// Shared with the loads the integrator assembles (`LoadsAt`).
+    pub mesh: Rc<Mesh>,
+    pub part: Rc<Partition>,
     rank: usize,
     size: usize,
     pub timings: Timings,
-    // Operators (built once).
-    pub a: Option<Matrix>,
-    pub m: Option<Matrix>,
-    loads: Option<Loads>,
-    op: Option<StepOperator>,
-    dirichlet: Vec<(i32, usize, usize, usize)>, // (dof, node, comp, spec)
-    // State.
-    pub u: Option<Vector>,
-    pub v: Option<Vector>,
+    /// Contact nodes and cells of the mass-free layer (once assembled).
+    layer_summary: Option<(usize, usize)>,
+    mass_check: MassCheck,
+    /// Scatter to this rank's block of natural (gmsh) node order, built on first use.
     natural: Option<(Scatter, Vector)>,
+    /// Values at the nodes of this rank's cells, built on first use (exact errors).
     local_view: Option<(Scatter, Vector, Vec<usize>)>,
     output: RunOutput,
-    /// The mass-free layer (modified mass kinds only).
-    pub layer: Option<MassFreeLayer>,
-    pub mass_check: Option<MassCheck>,
-    /// The active-set solver (scenes with contact only).
-    contact: Option<ActiveSet<'a>>,
 }
 
-/// The operators of the time loop, built once.
-struct Operators<'w> {
+/// The physics of a scene, assembled once: stiffness `A`, mass `M` (or `M_H`), loads,
+/// Dirichlet data, the mass-free layer and the contact solver.
+pub struct Physics<'a> {
     a: Matrix,
     m: Matrix,
-    loads: Loads,
-    op: StepOperator,
-    contact: Option<ActiveSet<'w>>,
+    dirichlet: Dirichlet,
+    layer: Option<MassFreeLayer>,
+    mass_check: MassCheck,
+    contact: Option<Box<dyn ContactSolver + 'a>>,
 }
 
-/// The state of the time loop: `u^n`, `v^n`, the products `M v^n`, `A u^n`, work vectors, and
-/// the energies.
-struct State {
-    u: Vector,
-    v: Vector,
-    du: Vector,
-    mv: Vector,
-    au: Vector,
-    rhs: Vector,
-    f_now: Vector,
-    f_next: Vector,
-    f_half: Vector,
-    /// For non-zero Dirichlet values: (du_D padded, K du_D).
-    dirichlet_work: Option<(Vector, Vector)>,
-    /// For non-zero Dirichlet values: the right-hand side before the constrained rows are
-    /// replaced, to compute the reactions' work.
-    rhs_full: Option<Vector>,
-    energy: EnergyRow,
-    ksp_iterations: usize,
+/// The loads of a scene as the integrator sees them: `f(t)` assembled on demand.
+struct LoadsAt {
+    loads: Loads,
+    mesh: Rc<Mesh>,
+    part: Rc<Partition>,
+}
+
+impl Forces for LoadsAt {
+    fn present(&self) -> bool {
+        self.loads.present
+    }
+    fn time_dependent(&self) -> bool {
+        self.loads.time_dependent
+    }
+    fn assemble(&self, t: f64, out: &mut Vector) -> Result<()> {
+        self.loads.assemble(&self.mesh, &self.part, t, out)
+    }
+}
+
+/// What the run keeps while stepping, for the energy balance, the summary and the pictures.
+struct Record {
+    /// Reference of the energy balance (the initial energy, or the restarted run's).
+    e0: f64,
+    p0: [f64; 3],
+    e_max: f64,
+    /// max_n |E^n - E^0 - W^n| / max_n E^n
+    balance: f64,
+    /// max_n |E^n - E^0| / E^0
+    drift: f64,
+    curves: RunCurves,
+    history: ContactHistory,
+    errors: Vec<ErrorSample>,
+    error_steps: Vec<usize>,
+    /// Wall time and KSP iterations of the steps with an active contact node.
+    contact_seconds: f64,
+    contact_ksp_iterations: usize,
+    /// Wall time spent writing output inside the loop.
+    output_seconds: f64,
+}
+
+impl Record {
+    /// Account for one finished step (energies after it at time t).
+    fn step(&mut self, t: f64, e: &Energy) {
+        let total = e.total();
+        self.curves.time.push(t);
+        self.curves.kinetic.push(e.kinetic);
+        self.curves.potential.push(e.potential);
+        self.e_max = self.e_max.max(total.abs());
+        let residual = total - self.e0 - e.external_work - e.contact_work - e.dirichlet_work;
+        self.balance = self.balance.max(residual.abs() / self.e_max.max(f64::MIN_POSITIVE));
+        if self.e0 != 0.0 {
+            self.drift = self.drift.max(((total - self.e0) / self.e0).abs());
+        }
+    }
 }
 
 /// Mass-matrix diagnostics (see `check_mass`), per displacement component.
@@ -312,7 +343,7 @@ impl<'a> Simulation<'a> {
             Ok((mesh, part, timings))
         });
         let (mesh, part, timings) = match parts {
-            Ok(p) => p,
+            Ok((mesh, part, timings)) => (Rc::new(mesh), Rc::new(part), timings),
             Err(e) => {
                 end_with_error(world, agree, output, &e);
                 return Err(e);
@@ -329,19 +360,11 @@ impl<'a> Simulation<'a> {
             rank,
             size,
             timings,
-            a: None,
-            m: None,
-            loads: None,
-            op: None,
-            dirichlet: Vec::new(),
-            u: None,
-            v: None,
+            layer_summary: None,
+            mass_check: MassCheck::default(),
             natural: None,
             local_view: None,
             output,
-            layer: None,
-            mass_check: None,
-            contact: None,
         })
     }
 
@@ -355,17 +378,84 @@ impl<'a> Simulation<'a> {
         self.opts.steps.unwrap_or(self.scene.steps)
     }
 
-    /// Stiffness, mass, loads, Dirichlet DOFs, and the step operator with its solver. On an
-    /// error (or a signal) the output file is marked.
-    pub fn assemble(&mut self) -> Result<()> {
-        let result = guard(|| self.assemble_operators());
+    /// The run after `setup`, top to bottom. On an error (or a signal) in any step the output
+    /// file is marked, and the error comes back.
+    pub fn run(&mut self) -> Result<RunSummary> {
+        let result = guard(|| {
+            // 1. The physics: A, M (or M_H), loads, Dirichlet data, contact.
+            let (physics, loads) = self.assemble()?;
+            let forces =
+                LoadsAt { loads, mesh: Rc::clone(&self.mesh), part: Rc::clone(&self.part) };
+            // 2. The integrator: K = 4/tau^2 M + A and its solver, set up once; the state.
+            let (mut midpoint, mut contact, start, mut record) =
+                self.integrator(physics, &forces)?;
+            // 3. Time loop: step, record, output, progress.
+            let n_steps = self.n_steps();
+            let mut watchdog =
+                Watchdog::start(self.opts.hang_timeout.unwrap_or(HangTimeout::Auto), self.rank);
+            watchdog.arm();
+            phase::enter(Phase::Stepping);
+            phase::step_done(start);
+            let mut progress = Progress::new(self.console, n_steps, self.scene.output.progress);
+            let t_loop = Instant::now();
+            for n in start..n_steps {
+                let t_step = Instant::now();
+                let report = midpoint.step(n, &forces, contact.as_deref_mut())?;
+                let t_next = (n + 1) as f64 * midpoint.tau();
+                if let Some(c) = &report.contact {
+                    if c.row.active.iter().any(|&a| a) {
+                        record.contact_seconds += t_step.elapsed().as_secs_f64();
+                        record.contact_ksp_iterations += report.ksp_iterations;
+                    }
+                    record.history.push(c, midpoint.tau());
+                }
+                record.step(t_next, midpoint.energy());
+                self.report_step(n + 1, t_next, midpoint.energy());
+                let stop = self.output_step(n + 1, &midpoint, contact.as_deref(), &mut record)?;
+                phase::step_done(n + 1);
+                watchdog.step_time(t_step.elapsed().as_secs_f64());
+                // A signal after the last step is the final phase's business: the run still
+                // writes its summary, then says it was interrupted.
+                if stop && n + 1 < n_steps {
+                    progress.finish();
+                    return Err(Error::Interrupted(format!(
+                        "a signal stopped the run after step {} (t = {t_next:e}); continue it with --restart",
+                        n + 1
+                    )));
+                }
+                self.record_errors(n + 1, midpoint.u(), &mut record)?;
+                progress.update(n + 1, t_next, record.balance);
+            }
+            progress.finish();
+            // 4. The summary, the pictures and the file's final metadata.
+            phase::enter(Phase::Final);
+            let stepping = t_loop.elapsed().as_secs_f64() - record.output_seconds;
+            self.timings.stepping = max_over_ranks(self.world, stepping);
+            self.timings.output =
+                max_over_ranks(self.world, self.timings.output + record.output_seconds);
+            let summary = self.summarize(&midpoint, contact.as_deref(), record)?;
+            self.finish(&summary)?;
+            watchdog.disarm();
+            Ok(summary)
+        });
         if let Err(e) = &result {
             self.fail(e);
         }
         result
     }
 
-    fn assemble_operators(&mut self) -> Result<()> {
+    /// Step 1: stiffness, mass, loads, Dirichlet data, the mass-free layer and the contact
+    /// solver.
+    pub fn assemble(&mut self) -> Result<(Physics<'a>, Loads)> {
+        self.console.say(format!(
+            "{}: {} nodes, {} cells ({}D), {} DOFs on {} rank(s); assembling",
+            self.scene.name,
+            self.mesh.n_nodes(),
+            self.mesh.cells.len(),
+            self.mesh.dim,
+            self.part.n_global_dofs(),
+            self.size
+        ));
         phase::enter(Phase::Assembling);
         let t0 = Instant::now();
         let mesh = &self.mesh;
@@ -385,26 +475,35 @@ impl<'a> Simulation<'a> {
         let neumann: Vec<(String, crate::scene::expr::VecExpr)> =
             self.scene.neumann.iter().map(|n| (n.group.clone(), n.traction.clone())).collect();
         let loads = Loads::new(mesh, part, self.scene.body_force.as_ref(), &neumann)?;
-
-        // Dirichlet DOFs owned by this rank (later specs override earlier ones on shared nodes).
-        let mut dir: std::collections::BTreeMap<i32, (usize, usize, usize)> = Default::default();
-        for (si, d) in self.scene.dirichlet.iter().enumerate() {
-            let comps = d.constrained(mesh.dim);
-            for v in mesh.group_nodes(&d.group)? {
-                if part.owns(v) {
-                    for &c in &comps {
-                        dir.insert(part.dof(v, c) as i32, (v, c, si));
-                    }
-                }
-            }
-        }
-        self.dirichlet = dir.into_iter().map(|(k, (v, c, s))| (k, v, c, s)).collect();
-        let t_asm = t0.elapsed().as_secs_f64();
+        let dirichlet = Dirichlet::new(mesh, part, &self.scene.dirichlet)?;
+        let contact: Option<Box<dyn ContactSolver + 'a>> = match &self.scene.contact {
+            Some(spec) => Some(Box::new(ActiveSet::new(
+                self.world,
+                &self.mesh,
+                &self.part,
+                ContactBoundary::build(&self.mesh, &spec.boundary)?,
+                Obstacle::from_scene(&spec.obstacle),
+                Midpoint::CONTACT_FORCE_FACTOR,
+            ))),
+            None => None,
+        };
+        self.timings.assembly = max_over_ranks(self.world, t0.elapsed().as_secs_f64());
+        let mass_check = self.check_mass(&m, layer.as_ref())?;
         phase::check_signal(self.world)?;
+        Ok((Physics { a, m, dirichlet, layer, mass_check, contact }, loads))
+    }
 
+    /// Step 2: the step operator and its solver (set up once), the initial state (or the
+    /// checkpoint's), the output file opened for the time series, and the record of the run.
+    #[allow(clippy::type_complexity)]
+    fn integrator(
+        &mut self,
+        physics: Physics<'a>,
+        forces: &dyn Forces,
+    ) -> Result<(Midpoint, Option<Box<dyn ContactSolver + 'a>>, usize, Record)> {
         phase::enter(Phase::SolverSetup);
         let t1 = Instant::now();
-        let nonzero_dirichlet = self.scene.dirichlet.iter().any(|d| !d.value.is_zero());
+        let Physics { a, m, dirichlet, layer, mass_check, mut contact } = physics;
         let null_space = self.near_null_space()?;
         let mut defaults = StepSolverDefaults::default();
         if let Some(k) = &self.scene.solver.ksp_type {
@@ -417,37 +516,348 @@ impl<'a> Simulation<'a> {
             defaults.rtol = r;
         }
         apply_scene_options(&self.scene.solver.options)?;
-        let dofs: Vec<i32> = self.dirichlet.iter().map(|d| d.0).collect();
         let op = StepOperator::new(
             &m,
             &a,
             self.scene.tau,
-            dofs,
-            nonzero_dirichlet,
+            dirichlet.dofs().to_vec(),
+            dirichlet.nonzero,
             Some(&null_space),
             &defaults,
         )?;
-        let t_setup = t1.elapsed().as_secs_f64();
-        self.timings.assembly = max_over_ranks(self.world, t_asm);
-        self.timings.setup = max_over_ranks(self.world, t_setup);
-        self.mass_check = Some(self.check_mass(&m, layer.as_ref())?);
-        self.a = Some(a);
-        self.m = Some(m);
-        self.loads = Some(loads);
-        self.op = Some(op);
-        self.layer = layer;
-        if let Some(spec) = &self.scene.contact {
-            let boundary = ContactBoundary::build(&self.mesh, &spec.boundary)?;
-            self.contact = Some(ActiveSet::new(
-                self.world,
-                &self.mesh,
-                &self.part,
-                boundary,
-                Obstacle::from_scene(&spec.obstacle),
-                2.0,
+        self.timings.setup = max_over_ranks(self.world, t1.elapsed().as_secs_f64());
+        // The initial state: nodal interpolants of the scene's initial fields.
+        let u0 = match &self.scene.initial_displacement {
+            Some(e) => assembly::interpolate(&self.mesh, &self.part, e, 0.0)?,
+            None => assembly::new_vector(&self.part)?,
+        };
+        let v0 = match &self.scene.initial_velocity {
+            Some(e) => assembly::interpolate(&self.mesh, &self.part, e, 0.0)?,
+            None => assembly::new_vector(&self.part)?,
+        };
+        let mut midpoint = Midpoint::new(op, m, a, dirichlet, self.scene.tau, u0, v0, 0.0, forces)?;
+        let restart = match self.opts.restart.clone() {
+            Some(path) => {
+                Some(self.restore(&path, &mut midpoint, contact.as_deref_mut(), forces)?)
+            }
+            None => None,
+        };
+        let start = restart.as_ref().map_or(0, |cp| cp.step);
+        if start > self.n_steps() {
+            return Err(Error::Usage(format!(
+                "--restart: the checkpoint is at step {start}, beyond the {} steps of the scene",
+                self.n_steps()
+            )));
+        }
+        if let (Some(c), None) = (contact.as_ref(), restart.as_ref()) {
+            let bad = c.penetrating(midpoint.u())?;
+            if !bad.is_empty() {
+                let tags: Vec<String> =
+                    bad.iter().take(10).map(|&v| self.mesh.node_tags[v].to_string()).collect();
+                return Err(Error::Scene(format!(
+                    "contact.obstacle already intersects the body at t = 0: {} contact node(s) penetrate it (gmsh nodes {}{})",
+                    bad.len(),
+                    tags.join(", "),
+                    if bad.len() > 10 { ", ..." } else { "" }
+                )));
+            }
+        }
+        self.open_output(midpoint.operator(), contact.as_deref(), &layer, &mass_check)?;
+        phase::check_signal(self.world)?;
+
+        // The record, from the initial energy (the reference of the energy balance).
+        let e = *midpoint.energy();
+        let e0 = restart.as_ref().map_or(e.total(), |cp| cp.energy_initial);
+        let p0 = match restart.as_ref() {
+            Some(cp) => cp.momentum_initial,
+            None => self.momentum(midpoint.mv())?,
+        };
+        let t_start = start as f64 * self.scene.tau;
+        let n_steps = self.n_steps();
+        let mut record = Record {
+            e0,
+            p0,
+            e_max: e0.abs(),
+            balance: 0.0,
+            drift: 0.0,
+            curves: RunCurves {
+                label: self.scene.mass.kind.name().to_string(),
+                time: vec![t_start],
+                kinetic: vec![e.kinetic],
+                potential: vec![e.potential],
+                lowest_pressure: vec![],
+            },
+            history: ContactHistory::default(),
+            errors: Vec::new(),
+            error_steps: match &self.scene.exact {
+                Some(ex) if !ex.error_steps.is_empty() => ex.error_steps.clone(),
+                Some(_) => vec![n_steps],
+                None => vec![],
+            },
+            contact_seconds: 0.0,
+            contact_ksp_iterations: 0,
+            output_seconds: 0.0,
+        };
+        if let Some(c) = contact.as_deref() {
+            record.history.start(c);
+        }
+        self.layer_summary = layer.as_ref().map(|l| (l.n_contact_nodes(), l.n_layer_cells()));
+        self.mass_check = mass_check;
+        self.write_step(start, &midpoint, &record)?;
+        if self.opts.verbose {
+            self.console.say(format!(
+                "step {start}  t = {t_start:e}  kinetic {:.10e}  potential {:.10e}  total {e0:.10e}",
+                e.kinetic, e.potential
             ));
         }
-        phase::check_signal(self.world)
+        self.record_errors(start, midpoint.u(), &mut record)?;
+        Ok((midpoint, contact, start, record))
+    }
+
+    /// The energies of a step on the console (with --verbose).
+    fn report_step(&self, n: usize, t: f64, e: &Energy) {
+        if self.opts.verbose {
+            self.console.say(format!(
+                "step {n}  t = {t:.6e}  kinetic {:.10e}  potential {:.10e}  total {:.10e}  external work {:.10e}  contact work {:.10e}",
+                e.kinetic,
+                e.potential,
+                e.total(),
+                e.external_work,
+                e.contact_work
+            ));
+        }
+    }
+
+    /// Errors against the exact solution at the scene's error steps.
+    fn record_errors(&mut self, n: usize, u: &Vector, record: &mut Record) -> Result<()> {
+        if record.error_steps.contains(&n) {
+            let t = n as f64 * self.scene.tau;
+            if let Some((l2, h1)) = self.exact_errors(u, t)? {
+                record.errors.push(ErrorSample { step: n, time: t, l2, h1_semi: h1 });
+            }
+        }
+        Ok(())
+    }
+
+    /// Write step n (energies, fields when due, contact row) and the checkpoint when due; find
+    /// out whether a signal asks the run to stop (every rank learns it here). Returns that.
+    fn output_step(
+        &mut self,
+        n: usize,
+        midpoint: &Midpoint,
+        contact: Option<&dyn ContactSolver>,
+        record: &mut Record,
+    ) -> Result<bool> {
+        let t0 = Instant::now();
+        self.write_step(n, midpoint, record)?;
+        // A signal on any rank stops all ranks after this step, with a checkpoint.
+        let stop = phase::stop_requested(self.world);
+        // Checkpoints: every 10 field outputs (they hold three fields), at the end, and
+        // when a signal stops the run.
+        let due = n % (10 * self.scene.output.every) == 0;
+        if self.output.open().is_some() && (due || stop || n == self.n_steps()) {
+            let e = midpoint.energy();
+            let cp = Checkpoint {
+                step: n,
+                time: n as f64 * midpoint.tau(),
+                energy_initial: record.e0,
+                external_work: e.external_work,
+                contact_work: e.contact_work,
+                dirichlet_work: e.dirichlet_work,
+                momentum_initial: record.p0,
+                ksp_iterations: midpoint.ksp_iterations(),
+                active: contact.map(|c| c.active().to_vec()).unwrap_or_default(),
+            };
+            let (u, v, du) = (
+                self.to_natural(midpoint.u())?,
+                self.to_natural(midpoint.v())?,
+                self.to_natural(midpoint.du())?,
+            );
+            self.output.open_mut().expect("output").write_checkpoint(&cp, &u, &v, &du)?;
+        }
+        record.output_seconds += t0.elapsed().as_secs_f64();
+        Ok(stop)
+    }
+
+    /// Write what is due at step n: energies always, fields when due, the contact row.
+    fn write_step(&mut self, n: usize, midpoint: &Midpoint, record: &Record) -> Result<()> {
+        let Some(out) = self.output.open() else { return Ok(()) };
+        let t = n as f64 * midpoint.tau();
+        let (due_u, due_v) = out.due_fields(n);
+        let un = if due_u { Some(self.to_natural(midpoint.u())?) } else { None };
+        let vn = if due_v { Some(self.to_natural(midpoint.v())?) } else { None };
+        let out = self.output.open_mut().expect("output");
+        out.write_energy(n, t, midpoint.energy())?;
+        if due_u || due_v {
+            out.write_fields(n, t, un.as_deref(), vn.as_deref())?;
+        }
+        if let Some(row) = record.history.last_row() {
+            out.write_contact(row)?;
+        }
+        Ok(())
+    }
+
+    /// Continue from a checkpoint: u, v, the last increment (the solver's initial guess), the
+    /// loads at the checkpoint's time, the running work totals and the active set.
+    fn restore(
+        &mut self,
+        path: &Path,
+        midpoint: &mut Midpoint,
+        contact: Option<&mut (dyn ContactSolver + 'a)>,
+        forces: &dyn Forces,
+    ) -> Result<Checkpoint> {
+        let range = natural_range(self.mesh.n_nodes(), self.rank, self.size);
+        let (cp, [u, v, du]) =
+            read_checkpoint(path, self.world, range, self.mesh.n_nodes(), self.part.dim)?;
+        let works = Energy {
+            external_work: cp.external_work,
+            contact_work: cp.contact_work,
+            dirichlet_work: cp.dirichlet_work,
+            ..Default::default()
+        };
+        midpoint.restore(
+            |uu, vv, dd| {
+                self.from_natural(&u, uu)?;
+                self.from_natural(&v, vv)?;
+                self.from_natural(&du, dd)
+            },
+            works,
+            cp.ksp_iterations,
+        )?;
+        midpoint.refresh(forces, cp.time)?;
+        if let Some(c) = contact {
+            if cp.active.len() != c.n_nodes() {
+                return Err(Error::Io(format!(
+                    "{}: the checkpoint's contact set has {} nodes, this scene's {}",
+                    path.display(),
+                    cp.active.len(),
+                    c.n_nodes()
+                )));
+            }
+            c.set_active(cp.active.clone());
+        }
+        self.console.say(format!(
+            "restarting from step {} (t = {:e}) of {}",
+            cp.step,
+            cp.time,
+            path.display()
+        ));
+        Ok(cp)
+    }
+
+    /// The run's summary; rank 0 draws the pictures beside the output file.
+    fn summarize(
+        &mut self,
+        midpoint: &Midpoint,
+        contact: Option<&dyn ContactSolver>,
+        mut record: Record,
+    ) -> Result<RunSummary> {
+        let mut scratch = midpoint.u().duplicate()?;
+        let matmult_seconds =
+            self.time_matmult(&midpoint.operator().k, midpoint.v(), &mut scratch)?;
+        let peak_memory_mib = sum_over_ranks(self.world, peak_rss_mib());
+        let p1 = self.momentum(midpoint.mv())?;
+        let e = midpoint.energy();
+        let contact_summary = contact.map(|c| {
+            let mut s = record.history.summary(
+                c,
+                &self.mesh,
+                e.contact_work,
+                max_over_ranks(self.world, record.contact_seconds),
+            );
+            s.ksp_iterations_contact_steps = record.contact_ksp_iterations;
+            s
+        });
+        // Pictures next to the HDF5 file, drawn by rank 0 from the histories in memory. A
+        // picture that cannot be drawn (e.g. no font) is a warning, not a failed run; every
+        // rank learns the outcome, since the summary written below must be the same on all.
+        let mut pictures = Vec::new();
+        if let Some(out) = self.output.open() {
+            let prefix = out.path().with_extension("");
+            let mut ok = 1i32;
+            if self.rank == 0 {
+                if let Some(c) = contact {
+                    record.curves.lowest_pressure = record.history.pressure(c.lowest());
+                }
+                match write_pictures(&prefix, &[record.curves]) {
+                    Ok(p) => pictures = p,
+                    Err(e) => {
+                        ok = 0;
+                        eprintln!("massfree: warning: pictures not written: {e}");
+                    }
+                }
+            }
+            self.world.process_at_rank(0).broadcast_into(&mut ok);
+            if ok == 1 && self.rank != 0 {
+                pictures = picture_paths(&prefix, contact.is_some());
+            } else if ok == 0 {
+                pictures.clear();
+            }
+        }
+        let ksp = &midpoint.operator().ksp;
+        let (layer_contact_nodes, layer_cells) = self.layer_summary.unwrap_or((0, 0));
+        Ok(RunSummary {
+            n_nodes: self.mesh.n_nodes(),
+            n_dofs: self.part.n_global_dofs(),
+            steps: self.n_steps(),
+            timings: self.timings.clone(),
+            ksp_iterations: midpoint.ksp_iterations(),
+            energy_initial: record.e0,
+            energy_final: e.total(),
+            external_work: e.external_work,
+            energy_balance: record.balance,
+            energy_drift: record.drift,
+            errors: record.errors,
+            output: self.output.open().map(|o| o.path().to_path_buf()),
+            matmult_seconds,
+            peak_memory_mib,
+            ranks: self.size,
+            ksp_type: ksp.ksp_type()?,
+            pc_type: ksp.pc_type()?,
+            mass_kind: self.scene.mass.kind.name().to_string(),
+            layer_contact_nodes,
+            layer_cells,
+            mass: self.mass_check.clone(),
+            momentum_initial: record.p0[..self.part.dim].to_vec(),
+            momentum_final: p1[..self.part.dim].to_vec(),
+            contact: contact_summary,
+            pictures,
+        })
+    }
+
+    /// The file's final metadata. A signal that arrived in the final phase is reported as
+    /// such, with everything already written.
+    fn finish(&mut self, summary: &RunSummary) -> Result<()> {
+        let n_steps = self.n_steps();
+        let interrupted = phase::stop_requested(self.world);
+        let status = if interrupted {
+            format!(
+                "interrupted: a signal arrived after the last step ({n_steps} of {n_steps}); all steps and the summary are written"
+            )
+        } else {
+            "finished".to_string()
+        };
+        if let RunOutput::Open(out) = std::mem::replace(&mut self.output, RunOutput::None) {
+            let text = toml::to_string(summary).unwrap_or_default();
+            let t = &self.timings;
+            let timing = format!(
+                "mesh = {:e}\npartition = {:e}\nassembly = {:e}\nsetup = {:e}\nstepping = {:e}\noutput = {:e}\n",
+                t.mesh, t.partition, t.assembly, t.setup, t.stepping, t.output
+            );
+            out.finish(
+                self.world,
+                &[
+                    Meta::text("status", status.clone()),
+                    Meta::text("summary", text),
+                    Meta::text("timings", timing),
+                ],
+            )?;
+        }
+        phase::enter(Phase::Finished);
+        if interrupted {
+            return Err(Error::Interrupted(status["interrupted: ".len()..].to_string()));
+        }
+        Ok(())
     }
 
     /// Mass-matrix diagnostics, computed once: total mass, first and second moments per
@@ -655,7 +1065,7 @@ impl<'a> Simulation<'a> {
         Ok(Some((l2, h1)))
     }
 
-    fn settings(&self, op: &StepOperator) -> Vec<(String, String)> {
+    fn settings(&self, op: &StepOperator, layer: &Option<MassFreeLayer>) -> Vec<(String, String)> {
         vec![
             ("ranks".into(), self.size.to_string()),
             ("dim".into(), self.mesh.dim.to_string()),
@@ -668,7 +1078,7 @@ impl<'a> Simulation<'a> {
             ),
             (
                 "mass_free_layer".into(),
-                match &self.layer {
+                match layer {
                     Some(l) => format!(
                         "{} contact nodes, {} layer cells",
                         l.n_contact_nodes(),
@@ -697,145 +1107,6 @@ impl<'a> Simulation<'a> {
         ]
     }
 
-    /// The whole time loop. Returns the summary; on error the output file is marked failed.
-    pub fn run(&mut self) -> Result<RunSummary> {
-        let result = guard(|| self.time_loop());
-        if let Err(e) = &result {
-            self.fail(e);
-        }
-        result
-    }
-
-    /// Initial state: nodal interpolants of the scene's initial fields, Dirichlet values set,
-    /// products `M v^0`, `A u^0` and the loads at t = 0.
-    fn initial_state(&self, ops: &Operators) -> Result<State> {
-        let mut u = match &self.scene.initial_displacement {
-            Some(e) => assembly::interpolate(&self.mesh, &self.part, e, 0.0)?,
-            None => assembly::new_vector(&self.part)?,
-        };
-        let v = match &self.scene.initial_velocity {
-            Some(e) => assembly::interpolate(&self.mesh, &self.part, e, 0.0)?,
-            None => assembly::new_vector(&self.part)?,
-        };
-        self.apply_dirichlet_values(&mut u, 0.0, self.part.first_dof())?;
-        let dup = || u.duplicate();
-        let mut state = State {
-            du: dup()?,
-            mv: dup()?,
-            au: dup()?,
-            rhs: dup()?,
-            f_now: dup()?,
-            f_next: dup()?,
-            f_half: dup()?,
-            dirichlet_work: if ops.op.k_free.is_some() { Some((dup()?, dup()?)) } else { None },
-            rhs_full: if ops.op.k_free.is_some() { Some(dup()?) } else { None },
-            u,
-            v,
-            energy: EnergyRow::default(),
-            ksp_iterations: 0,
-        };
-        if ops.loads.present {
-            ops.loads.assemble(&self.mesh, &self.part, 0.0, &mut state.f_now)?;
-            state.f_next.copy_from(&state.f_now)?;
-        }
-        ops.m.mult(&state.v, &mut state.mv)?;
-        ops.a.mult(&state.u, &mut state.au)?;
-        let (k, p) = energies(&state.u, &state.v, &state.mv, &state.au)?;
-        state.energy.kinetic = k;
-        state.energy.potential = p;
-        Ok(state)
-    }
-
-    /// One step n -> n+1 of the midpoint rule (with the active-set loop when the scene has
-    /// contact). Leaves `M v^{n+1}`, `A u^{n+1}` and the new energies in the state.
-    fn solve_step(
-        &mut self,
-        ops: &mut Operators,
-        st: &mut State,
-        n: usize,
-    ) -> Result<Option<StepContact>> {
-        let tau = self.scene.tau;
-        let t_next = (n + 1) as f64 * tau;
-        let lo = self.part.first_dof();
-        // f^{n+1/2} = (f(t_n) + f(t_{n+1}))/2
-        if ops.loads.present {
-            if ops.loads.time_dependent {
-                ops.loads.assemble(&self.mesh, &self.part, t_next, &mut st.f_next)?;
-            }
-            st.f_half.waxpy(1.0, &st.f_now, &st.f_next)?;
-            st.f_half.scale(0.5)?;
-        }
-        // rhs = 2 f^{n+1/2} + (4/tau) M v^n - 2 A u^n
-        st.rhs.copy_from(&st.mv)?;
-        st.rhs.scale(4.0 / tau)?;
-        st.rhs.axpy(-2.0, &st.au)?;
-        if ops.loads.present {
-            st.rhs.axpy(2.0, &st.f_half)?;
-        }
-        if let Some(full) = st.rhs_full.as_mut() {
-            full.copy_from(&st.rhs)?;
-        }
-        // Dirichlet rows: du_D = g(t_{n+1}) - u^n_D.
-        self.dirichlet_rhs(&mut ops.op, &st.u, &mut st.rhs, &mut st.dirichlet_work, t_next, lo)?;
-        let with_step = |e: Error| match e {
-            Error::Solver(m) if !m.starts_with("contact") => {
-                Error::Solver(format!("step {} (t = {t_next:e}): {m}", n + 1))
-            }
-            other => other,
-        };
-        let contact = match ops.contact.as_mut() {
-            None => {
-                let info = ops.op.ksp.solve(&st.rhs, &mut st.du).map_err(with_step)?;
-                st.ksp_iterations += info.iterations;
-                None
-            }
-            Some(active_set) => {
-                let (c, its) = active_set
-                    .solve(&self.mesh, &mut ops.op.ksp, &st.rhs, &st.u, &mut st.du, n + 1, t_next)
-                    .map_err(with_step)?;
-                st.ksp_iterations += its;
-                st.energy.contact_work += c.work;
-                Some(c)
-            }
-        };
-        if ops.loads.present {
-            st.energy.external_work += st.f_half.dot(&st.du)?;
-        }
-        if let (Some(full), Some((_, kdu)), Some(k0)) =
-            (st.rhs_full.as_ref(), st.dirichlet_work.as_mut(), ops.op.k_free.as_ref())
-        {
-            // Reactions r_D: K0 du = rhs + 2 r on the constrained rows; their work is r . du.
-            k0.mult(&st.du, kdu)?;
-            kdu.axpy(-1.0, full)?;
-            let mut w = 0.0;
-            kdu.with_local_slice(|r| {
-                st.du.with_local_slice(|d| {
-                    for &(dof, ..) in &self.dirichlet {
-                        let i = dof as usize - lo;
-                        w += 0.5 * r[i] * d[i];
-                    }
-                })
-            })??;
-            st.energy.dirichlet_work += sum_over_ranks(self.world, w);
-        }
-        st.u.axpy(1.0, &st.du)?;
-        // v^{n+1} = 2 du / tau - v^n
-        st.v.scale(-1.0)?;
-        st.v.axpy(2.0 / tau, &st.du)?;
-        if ops.loads.present {
-            std::mem::swap(&mut st.f_now, &mut st.f_next);
-            if !ops.loads.time_dependent {
-                st.f_next.copy_from(&st.f_now)?;
-            }
-        }
-        ops.m.mult(&st.v, &mut st.mv)?;
-        ops.a.mult(&st.u, &mut st.au)?;
-        let (k, p) = energies(&st.u, &st.v, &st.mv, &st.au)?;
-        st.energy.kinetic = k;
-        st.energy.potential = p;
-        Ok(contact)
-    }
-
     /// Total momentum `1^T M v` per component (from the product `M v` the step keeps).
     fn momentum(&self, mv: &Vector) -> Result<[f64; 3]> {
         let dim = self.part.dim;
@@ -852,7 +1123,13 @@ impl<'a> Simulation<'a> {
 
     /// Write the run's settings and the groups' metadata, then open the file in parallel for
     /// the time series.
-    fn open_output(&mut self, ops: &Operators) -> Result<()> {
+    fn open_output(
+        &mut self,
+        op: &StepOperator,
+        contact: Option<&dyn ContactSolver>,
+        layer: &Option<MassFreeLayer>,
+        mass_check: &MassCheck,
+    ) -> Result<()> {
         let RunOutput::Closed(file) = std::mem::replace(&mut self.output, RunOutput::None) else {
             return Ok(());
         };
@@ -874,7 +1151,7 @@ impl<'a> Simulation<'a> {
             time_steps: self.scene.output.time_steps.clone(),
             compression: self.scene.output.compression,
         };
-        let settings = self.settings(&ops.op);
+        let settings = self.settings(op, layer);
         let settings_text: String = settings.iter().map(|(k, v)| format!("{k} = {v}\n")).collect();
         let solver_options =
             settings.iter().find(|(k, _)| k == "petsc_options").map_or("", |(_, v)| v.as_str());
@@ -886,296 +1163,19 @@ impl<'a> Simulation<'a> {
             let object = format!("mesh/groups/{}", group_key(&g.name));
             meta.push(Meta::int_on(&object, "dim", g.dim as i64));
         }
-        if let Some(c) = ops.contact.as_ref() {
-            meta.push(Meta::text_on("contact", "group", c.boundary.group.clone()));
+        if let Some(c) = contact {
+            meta.push(Meta::text_on("contact", "group", c.boundary().group.clone()));
         }
         file.write_meta(self.world, &meta)?;
         let mut out = Output::open(file, self.world, &self.mesh, &self.part.cell_rank, plan)?;
-        if let Some(mc) = self.mass_check.as_ref() {
-            out.write_mass_check(&mc.total_mass, &mc.first_moment, &mc.second_moment, &mc.probe)?;
-        }
-        if let Some(c) = ops.contact.as_ref() {
-            out.create_contact(&c.boundary.nodes, &c.boundary.weights)?;
+        let mc = mass_check;
+        out.write_mass_check(&mc.total_mass, &mc.first_moment, &mc.second_moment, &mc.probe)?;
+        if let Some(c) = contact {
+            out.create_contact(&c.boundary().nodes, &c.boundary().weights)?;
         }
         self.output = RunOutput::Open(out);
         self.timings.output += t0.elapsed().as_secs_f64();
         Ok(())
-    }
-
-    fn time_loop(&mut self) -> Result<RunSummary> {
-        let tau = self.scene.tau;
-        let n_steps = self.n_steps();
-        let mut ops = Operators {
-            a: self.a.take().expect("assembled"),
-            m: self.m.take().expect("assembled"),
-            loads: self.loads.take().expect("assembled"),
-            op: self.op.take().expect("assembled"),
-            contact: self.contact.take(),
-        };
-        let mut st = self.initial_state(&ops)?;
-        let restart = match self.opts.restart.clone() {
-            Some(path) => Some(self.restore(&path, &mut ops, &mut st)?),
-            None => None,
-        };
-        let start = restart.as_ref().map_or(0, |cp| cp.step);
-        if start > n_steps {
-            return Err(Error::Usage(format!(
-                "--restart: the checkpoint is at step {start}, beyond the {n_steps} steps of the scene"
-            )));
-        }
-        if let (Some(c), None) = (ops.contact.as_ref(), restart.as_ref()) {
-            let bad = c.penetrating(&self.mesh, &st.u)?;
-            if !bad.is_empty() {
-                let tags: Vec<String> =
-                    bad.iter().take(10).map(|&v| self.mesh.node_tags[v].to_string()).collect();
-                return Err(Error::Scene(format!(
-                    "contact.obstacle already intersects the body at t = 0: {} contact node(s) penetrate it (gmsh nodes {}{})",
-                    bad.len(),
-                    tags.join(", "),
-                    if bad.len() > 10 { ", ..." } else { "" }
-                )));
-            }
-        }
-        self.open_output(&ops)?;
-        phase::check_signal(self.world)?;
-
-        // Initial energy: the reference of the energy balance reported every step.
-        let e0 = restart
-            .as_ref()
-            .map_or(st.energy.kinetic + st.energy.potential, |cp| cp.energy_initial);
-        let p0 = match restart.as_ref() {
-            Some(cp) => cp.momentum_initial,
-            None => self.momentum(&st.mv)?,
-        };
-        let mut e_max = e0.abs();
-        let mut balance: f64 = 0.0;
-        let mut drift: f64 = 0.0;
-        let mut history = ContactHistory::default();
-        let t_start = start as f64 * tau;
-        let mut curves = RunCurves {
-            label: self.scene.mass.kind.name().to_string(),
-            time: vec![t_start],
-            kinetic: vec![st.energy.kinetic],
-            potential: vec![st.energy.potential],
-            lowest_pressure: vec![],
-        };
-        if let Some(c) = ops.contact.as_ref() {
-            history.start(c);
-        }
-        self.output_step(start, t_start, &st, history.last_row(ops.contact.as_ref()))?;
-        if self.opts.verbose {
-            self.console.say(format!(
-                "step {start}  t = {t_start:e}  kinetic {:.10e}  potential {:.10e}  total {e0:.10e}",
-                st.energy.kinetic, st.energy.potential
-            ));
-        }
-        let mut errors = Vec::new();
-        let error_steps: Vec<usize> = match &self.scene.exact {
-            Some(ex) if !ex.error_steps.is_empty() => ex.error_steps.clone(),
-            Some(_) => vec![n_steps],
-            None => vec![],
-        };
-        if error_steps.contains(&start) {
-            if let Some((l2, h1)) = self.exact_errors(&st.u, t_start)? {
-                errors.push(ErrorSample { step: start, time: t_start, l2, h1_semi: h1 });
-            }
-        }
-
-        phase::enter(Phase::Stepping);
-        phase::step_done(start);
-        let mut watchdog =
-            Watchdog::start(self.opts.hang_timeout.unwrap_or(HangTimeout::Auto), self.rank);
-        watchdog.arm();
-        let mut progress = Progress::new(self.console, n_steps, self.scene.output.progress);
-        let t_loop = Instant::now();
-        let mut t_out = 0.0;
-        let mut t_contact_steps = 0.0;
-        let mut its_contact_steps = 0usize;
-        for n in start..n_steps {
-            let t_next = (n + 1) as f64 * tau;
-            let t_step = Instant::now();
-            let its_before = st.ksp_iterations;
-            let contact = self.solve_step(&mut ops, &mut st, n)?;
-            if let Some(c) = &contact {
-                if c.active.iter().any(|&a| a) {
-                    t_contact_steps += t_step.elapsed().as_secs_f64();
-                    its_contact_steps += st.ksp_iterations - its_before;
-                }
-                history.push(c, tau);
-            }
-            let e = st.energy.kinetic + st.energy.potential;
-            curves.time.push(t_next);
-            curves.kinetic.push(st.energy.kinetic);
-            curves.potential.push(st.energy.potential);
-            e_max = e_max.max(e.abs());
-            let residual = e
-                - e0
-                - st.energy.external_work
-                - st.energy.contact_work
-                - st.energy.dirichlet_work;
-            balance = balance.max(residual.abs() / e_max.max(f64::MIN_POSITIVE));
-            if e0 != 0.0 {
-                drift = drift.max(((e - e0) / e0).abs());
-            }
-            if self.opts.verbose {
-                self.console.say(format!(
-                    "step {}  t = {t_next:.6e}  kinetic {:.10e}  potential {:.10e}  total {e:.10e}  external work {:.10e}  contact work {:.10e}",
-                    n + 1,
-                    st.energy.kinetic,
-                    st.energy.potential,
-                    st.energy.external_work,
-                    st.energy.contact_work
-                ));
-            }
-            let t0 = Instant::now();
-            self.output_step(n + 1, t_next, &st, history.last_row(ops.contact.as_ref()))?;
-            // A signal on any rank stops all ranks after this step, with a checkpoint.
-            let stop = phase::stop_requested(self.world);
-            // Checkpoints: every 10 field outputs (they hold three fields), at the end, and
-            // when a signal stops the run.
-            let due = (n + 1) % (10 * self.scene.output.every) == 0;
-            if self.output.open().is_some() && (due || stop || n + 1 == n_steps) {
-                let cp = Checkpoint {
-                    step: n + 1,
-                    time: t_next,
-                    energy_initial: e0,
-                    external_work: st.energy.external_work,
-                    contact_work: st.energy.contact_work,
-                    dirichlet_work: st.energy.dirichlet_work,
-                    momentum_initial: p0,
-                    ksp_iterations: st.ksp_iterations,
-                    active: ops.contact.as_ref().map(|c| c.active.clone()).unwrap_or_default(),
-                };
-                self.checkpoint(&cp, &st)?;
-            }
-            t_out += t0.elapsed().as_secs_f64();
-            phase::step_done(n + 1);
-            watchdog.step_time(t_step.elapsed().as_secs_f64());
-            // A signal after the last step is the final phase's business: the run still
-            // writes its summary, then says it was interrupted.
-            if stop && n + 1 < n_steps {
-                progress.finish();
-                return Err(Error::Interrupted(format!(
-                    "a signal stopped the run after step {} (t = {t_next:e}); continue it with --restart",
-                    n + 1
-                )));
-            }
-            if error_steps.contains(&(n + 1)) {
-                if let Some((l2, h1)) = self.exact_errors(&st.u, t_next)? {
-                    errors.push(ErrorSample { step: n + 1, time: t_next, l2, h1_semi: h1 });
-                }
-            }
-            progress.update(n + 1, t_next, balance);
-        }
-        progress.finish();
-        phase::enter(Phase::Final);
-        let stepping = t_loop.elapsed().as_secs_f64() - t_out;
-        self.timings.stepping = max_over_ranks(self.world, stepping);
-        self.timings.output = max_over_ranks(self.world, self.timings.output + t_out);
-        let matmult_seconds = self.time_matmult(&ops.op.k, &st.v, &mut st.rhs)?;
-        let peak_memory_mib = sum_over_ranks(self.world, peak_rss_mib());
-        let p1 = self.momentum(&st.mv)?;
-        let contact = ops.contact.as_ref().map(|c| {
-            let mut s = history.summary(
-                c,
-                &self.mesh,
-                st.energy.contact_work,
-                max_over_ranks(self.world, t_contact_steps),
-            );
-            s.ksp_iterations_contact_steps = its_contact_steps;
-            s
-        });
-        // Pictures next to the HDF5 file, drawn by rank 0 from the histories in memory. A
-        // picture that cannot be drawn (e.g. no font) is a warning, not a failed run; every
-        // rank learns the outcome, since the summary written below must be the same on all.
-        let mut pictures = Vec::new();
-        if let Some(out) = self.output.open() {
-            let prefix = out.path().with_extension("");
-            let mut ok = 1i32;
-            if self.rank == 0 {
-                if let Some(c) = ops.contact.as_ref() {
-                    curves.lowest_pressure = history.pressure(history.lowest(c, &self.mesh));
-                }
-                match write_pictures(&prefix, &[curves]) {
-                    Ok(p) => pictures = p,
-                    Err(e) => {
-                        ok = 0;
-                        eprintln!("massfree: warning: pictures not written: {e}");
-                    }
-                }
-            }
-            self.world.process_at_rank(0).broadcast_into(&mut ok);
-            if ok == 1 && self.rank != 0 {
-                pictures = picture_paths(&prefix, ops.contact.is_some());
-            } else if ok == 0 {
-                pictures.clear();
-            }
-        }
-        let summary = RunSummary {
-            n_nodes: self.mesh.n_nodes(),
-            n_dofs: self.part.n_global_dofs(),
-            steps: n_steps,
-            timings: self.timings.clone(),
-            ksp_iterations: st.ksp_iterations,
-            energy_initial: e0,
-            energy_final: st.energy.kinetic + st.energy.potential,
-            external_work: st.energy.external_work,
-            energy_balance: balance,
-            energy_drift: drift,
-            errors,
-            output: self.output.open().map(|o| o.path().to_path_buf()),
-            matmult_seconds,
-            peak_memory_mib,
-            ranks: self.size,
-            ksp_type: ops.op.ksp.ksp_type()?,
-            pc_type: ops.op.ksp.pc_type()?,
-            mass_kind: self.scene.mass.kind.name().to_string(),
-            layer_contact_nodes: self.layer.as_ref().map_or(0, |l| l.n_contact_nodes()),
-            layer_cells: self.layer.as_ref().map_or(0, |l| l.n_layer_cells()),
-            mass: self.mass_check.clone().unwrap_or_default(),
-            momentum_initial: p0[..self.part.dim].to_vec(),
-            momentum_final: p1[..self.part.dim].to_vec(),
-            contact,
-            pictures,
-        };
-        // The file's final metadata. A signal that arrived in this final phase is reported as
-        // such, with everything already written.
-        let interrupted = phase::stop_requested(self.world);
-        let status = if interrupted {
-            format!(
-                "interrupted: a signal arrived after the last step ({n_steps} of {n_steps}); all steps and the summary are written"
-            )
-        } else {
-            "finished".to_string()
-        };
-        if let RunOutput::Open(out) = std::mem::replace(&mut self.output, RunOutput::None) {
-            let text = toml::to_string(&summary).unwrap_or_default();
-            let t = &self.timings;
-            let timing = format!(
-                "mesh = {:e}\npartition = {:e}\nassembly = {:e}\nsetup = {:e}\nstepping = {:e}\noutput = {:e}\n",
-                t.mesh, t.partition, t.assembly, t.setup, t.stepping, t.output
-            );
-            out.finish(
-                self.world,
-                &[
-                    Meta::text("status", status.clone()),
-                    Meta::text("summary", text),
-                    Meta::text("timings", timing),
-                ],
-            )?;
-        }
-        watchdog.disarm();
-        phase::enter(Phase::Finished);
-        if interrupted {
-            return Err(Error::Interrupted(status["interrupted: ".len()..].to_string()));
-        }
-        self.a = Some(ops.a);
-        self.m = Some(ops.m);
-        self.op = Some(ops.op);
-        self.contact = ops.contact;
-        self.u = Some(st.u);
-        self.v = Some(st.v);
-        Ok(summary)
     }
 
     /// Mean wall time of one `y = K x` (max over ranks), timed after the run: the unit in which
@@ -1190,148 +1190,6 @@ impl<'a> Simulation<'a> {
         }
         let dt = t0.elapsed().as_secs_f64() / reps as f64;
         Ok(max_over_ranks(self.world, dt))
-    }
-
-    /// Write the checkpoint (nothing without an output file).
-    fn checkpoint(&mut self, cp: &Checkpoint, st: &State) -> Result<()> {
-        if self.output.open().is_none() {
-            return Ok(());
-        }
-        let (u, v, du) =
-            (self.to_natural(&st.u)?, self.to_natural(&st.v)?, self.to_natural(&st.du)?);
-        self.output.open_mut().expect("output").write_checkpoint(cp, &u, &v, &du)
-    }
-
-    /// Continue from a checkpoint: u, v, the last increment (the solver's initial guess), the
-    /// loads at the checkpoint's time, the running energy totals and the active set.
-    fn restore(&mut self, path: &Path, ops: &mut Operators, st: &mut State) -> Result<Checkpoint> {
-        let range = natural_range(self.mesh.n_nodes(), self.rank, self.size);
-        let (cp, [u, v, du]) =
-            read_checkpoint(path, self.world, range, self.mesh.n_nodes(), self.part.dim)?;
-        self.from_natural(&u, &mut st.u)?;
-        self.from_natural(&v, &mut st.v)?;
-        self.from_natural(&du, &mut st.du)?;
-        let t = cp.time;
-        if ops.loads.present {
-            ops.loads.assemble(&self.mesh, &self.part, t, &mut st.f_now)?;
-            st.f_next.copy_from(&st.f_now)?;
-        }
-        ops.m.mult(&st.v, &mut st.mv)?;
-        ops.a.mult(&st.u, &mut st.au)?;
-        let (k, p) = energies(&st.u, &st.v, &st.mv, &st.au)?;
-        st.energy = EnergyRow {
-            kinetic: k,
-            potential: p,
-            external_work: cp.external_work,
-            contact_work: cp.contact_work,
-            dirichlet_work: cp.dirichlet_work,
-        };
-        st.ksp_iterations = cp.ksp_iterations;
-        if let Some(c) = ops.contact.as_mut() {
-            if cp.active.len() != c.n_nodes() {
-                return Err(Error::Io(format!(
-                    "{}: the checkpoint's contact set has {} nodes, this scene's {}",
-                    path.display(),
-                    cp.active.len(),
-                    c.n_nodes()
-                )));
-            }
-            c.active = cp.active.clone();
-        }
-        self.console.say(format!(
-            "restarting from step {} (t = {:e}) of {}",
-            cp.step,
-            t,
-            path.display()
-        ));
-        Ok(cp)
-    }
-
-    /// Write what is due at this step: energies always, fields every `output.every` steps,
-    /// contact data when the scene has contact.
-    fn output_step(
-        &mut self,
-        step: usize,
-        t: f64,
-        st: &State,
-        contact: Option<ContactRowOwned>,
-    ) -> Result<()> {
-        if self.output.open().is_none() {
-            return Ok(());
-        }
-        let (due_u, due_v) = self.output.open().map_or((false, false), |o| o.due_fields(step));
-        let un = if due_u { Some(self.to_natural(&st.u)?) } else { None };
-        let vn = if due_v { Some(self.to_natural(&st.v)?) } else { None };
-        let out = self.output.open_mut().expect("output");
-        out.write_energy(step, t, &st.energy)?;
-        if due_u || due_v {
-            out.write_fields(step, t, un.as_deref(), vn.as_deref())?;
-        }
-        if let Some(c) = contact {
-            out.write_contact(&ContactRow {
-                pressure: &c.pressure,
-                force: &c.force,
-                gap: &c.gap,
-                active: &c.active,
-                iterations: c.iterations,
-            })?;
-        }
-        Ok(())
-    }
-
-    /// Set u's Dirichlet DOFs to their prescribed values at time t.
-    fn apply_dirichlet_values(&self, u: &mut Vector, t: f64, lo: usize) -> Result<()> {
-        if self.dirichlet.is_empty() {
-            return Ok(());
-        }
-        let specs = &self.scene.dirichlet;
-        u.with_local_slice_mut(|x| {
-            for &(dof, node, comp, s) in &self.dirichlet {
-                x[dof as usize - lo] = specs[s].value.eval(self.mesh.coords[node], t)[comp];
-            }
-        })
-    }
-
-    /// Constrained rows of the right-hand side: `diag * du_D` with `du_D = g(t_{n+1}) - u^n_D`;
-    /// for non-zero values the known columns `K[:, D] du_D` move to the right-hand side.
-    fn dirichlet_rhs(
-        &self,
-        op: &mut StepOperator,
-        u: &Vector,
-        rhs: &mut Vector,
-        work: &mut Option<(Vector, Vector)>,
-        t_next: f64,
-        lo: usize,
-    ) -> Result<()> {
-        // Decided on the scene, not on this rank's DOFs: the product below is collective,
-        // and a rank may own no constrained DOF.
-        if self.scene.dirichlet.is_empty() {
-            return Ok(());
-        }
-        let specs = &self.scene.dirichlet;
-        let mut du_d = vec![0.0; self.dirichlet.len()];
-        if let Some((w, kw)) = work.as_mut() {
-            u.with_local_slice(|x| {
-                for (i, &(dof, node, comp, s)) in self.dirichlet.iter().enumerate() {
-                    let g = specs[s].value.eval(self.mesh.coords[node], t_next)[comp];
-                    du_d[i] = g - x[dof as usize - lo];
-                }
-            })?;
-            w.zero()?;
-            w.with_local_slice_mut(|x| {
-                for (i, &(dof, ..)) in self.dirichlet.iter().enumerate() {
-                    x[dof as usize - lo] = du_d[i];
-                }
-            })?;
-            op.k_free.as_ref().expect("unconstrained operator").mult(w, kw)?;
-            rhs.axpy(-1.0, kw)?;
-        }
-        let diag = op.dirichlet_diag;
-        rhs.with_local_slice_mut(|x| {
-            for (i, &(dof, ..)) in self.dirichlet.iter().enumerate() {
-                x[dof as usize - lo] = diag * du_d[i];
-            }
-        })
     }
 }
 
@@ -1422,12 +1280,10 @@ pub fn summary_lines(sim: &Simulation, s: &RunSummary) -> Vec<String> {
             sim.mesh.cells.len(),
             sim.size,
             sim.scene.mass.kind.name(),
-            match &sim.layer {
-                Some(l) => format!(
-                    " (mass-free layer along \"{}\": {} contact nodes, {} layer cells)",
+            match sim.layer_summary {
+                Some((nodes, cells)) => format!(
+                    " (mass-free layer along \"{}\": {nodes} contact nodes, {cells} layer cells)",
                     sim.scene.mass.contact_boundary.as_deref().unwrap_or(""),
-                    l.n_contact_nodes(),
-                    l.n_layer_cells()
                 ),
                 None => String::new(),
             }

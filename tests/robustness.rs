@@ -78,6 +78,13 @@ fn max_rel_diff(a: &[f64], b: &[f64]) -> f64 {
     a.iter().zip(b).fold(0.0f64, |m, (x, y)| m.max((x - y).abs())) / scale
 }
 
+/// `run SCENE -q --overwrite -o OUT EXTRA...`
+fn run_args(scene: &str, out: &str, extra: &[&str]) -> Vec<String> {
+    let mut v = strings(&["run", scene, "-q", "--overwrite", "-o", out]);
+    v.extend(strings(extra));
+    v
+}
+
 fn strings(v: &[&str]) -> Vec<String> {
     v.iter().map(|s| s.to_string()).collect()
 }
@@ -97,18 +104,11 @@ fn long_runs_finish_on_two_and_three_ranks() {
     for ranks in [2, 3] {
         for (steps, every) in [(10000, "10"), (12000, "1000"), (20000, "1000")] {
             let out = dir.join(format!("long-{ranks}-{steps}.h5"));
-            let args = strings(&[
-                "run",
+            let args = run_args(
                 scene.to_str().unwrap(),
-                "-q",
-                "--overwrite",
-                "-o",
                 out.to_str().unwrap(),
-                "--steps",
-                &steps.to_string(),
-                "--every",
-                every,
-            ]);
+                &["--steps", &steps.to_string(), "--every", every],
+            );
             let mut child = launch(ranks, &args).stdout(Stdio::null()).spawn().unwrap();
             let what = format!("{steps} steps on {ranks} ranks");
             let st = wait_for(&mut child, Duration::from_secs(240), &what);
@@ -121,7 +121,8 @@ fn long_runs_finish_on_two_and_three_ranks() {
 
 /// The child half of the metadata test: runs under mpirun (see below).
 fn metadata_child(dir: &Path) {
-    use massfree::io::{EnergyRow, Meta, Output, OutputPlan, RunFile};
+    use massfree::io::{Meta, Output, OutputPlan, RunFile};
+    use massfree::time::Energy;
     use mpi::traits::*;
     let universe = mpi::initialize().unwrap();
     let world = universe.world();
@@ -153,7 +154,7 @@ fn metadata_child(dir: &Path) {
     let (lo, hi) = out.natural_range();
     let block = vec![rank as f64; (hi - lo) * mesh.dim];
     for step in 0..12000 {
-        let e = EnergyRow { kinetic: step as f64, ..Default::default() };
+        let e = Energy { kinetic: step as f64, ..Default::default() };
         out.write_energy(step, step as f64, &e).unwrap();
         if step % 50 == 0 {
             out.write_fields(step, step as f64, Some(&block), None).unwrap();
@@ -225,6 +226,13 @@ struct Stopped {
     after_signal: Duration,
 }
 
+impl Stopped {
+    /// One line of the test's report.
+    fn line(&self, what: &str) -> String {
+        format!("{what}: {} after {:.2} s", self.status, self.after_signal.as_secs_f64())
+    }
+}
+
 /// Start a run, signal it (SIGTERM; to mpirun, which forwards it, for several ranks) at the
 /// given moment, and report how it ended.
 fn stop_run(ranks: usize, args: &[String], out: &Path, moment: Moment) -> Stopped {
@@ -283,60 +291,34 @@ fn a_signal_at_any_moment_ends_the_run_with_a_truthful_file() {
                 format!("h={}", 0.05 + 1e-5 * (rand_seed() % 1000) as f64 + 1e-3 * trial as f64);
             let tet = scene_variant("block_tet.toml", &dir, &[]);
             let out = dir.join(format!("mesh-{ranks}-{trial}.h5"));
-            let args = strings(&[
-                "run",
+            let args = run_args(
                 tet.to_str().unwrap(),
-                "-q",
-                "--overwrite",
-                "-o",
                 out.to_str().unwrap(),
-                "--param",
-                &h,
-                "--steps",
-                "100000",
-            ]);
-            let s = stop_run(ranks, &args, &out, Moment::Setup(delay));
-            report.push(format!(
-                "set-up, {ranks} rank(s), +{delay} s: {} after {:.2} s",
-                s.status,
-                s.after_signal.as_secs_f64()
-            ));
-            assert!(
-                s.status.starts_with("interrupted: a signal stopped the run"),
-                "{}",
-                report.last().unwrap()
+                &["--param", &h, "--steps", "100000"],
             );
+            let s = stop_run(ranks, &args, &out, Moment::Setup(delay));
+            let line = s.line(&format!("set-up, {ranks} rank(s), +{delay:.2} s"));
+            assert!(s.status.starts_with("interrupted: a signal stopped the run"), "{line}");
             check_exit(&s, ranks);
+            report.push(line);
 
             // Stepping: then continue the run from its checkpoint and compare with a run that
             // was never interrupted.
             let out = dir.join(format!("step-{ranks}-{trial}.h5"));
-            let mut args = strings(&[
-                "run",
+            let mut args = run_args(
                 disc.to_str().unwrap(),
-                "-q",
-                "--overwrite",
-                "-o",
                 out.to_str().unwrap(),
-                "--steps",
-                "1000000",
-                "--every",
-                "20",
-            ]);
+                &["--steps", "1000000", "--every", "20"],
+            );
             args.extend(strings(&["--", "-ksp_rtol", "1e-12"]));
             let s = stop_run(ranks, &args, &out, Moment::Stepping(1.0 + delay));
-            report.push(format!(
-                "stepping, {ranks} rank(s), +{} s: {} after {:.2} s",
-                1.0 + delay,
-                s.status,
-                s.after_signal.as_secs_f64()
-            ));
+            let line = s.line(&format!("stepping, {ranks} rank(s), +{:.2} s", 1.0 + delay));
             assert!(
                 s.status.starts_with("interrupted: a signal stopped the run after step"),
-                "{}",
-                report.last().unwrap()
+                "{line}"
             );
             check_exit(&s, ranks);
+            report.push(line);
             let k = raw(&out, "checkpoint/scalars")[0] as usize;
             assert_eq!(
                 k as f64,
@@ -345,18 +327,11 @@ fn a_signal_at_any_moment_ends_the_run_with_a_truthful_file() {
             );
             let total = (k + 150).to_string();
             let run_to_end = |o: &Path, restart: Option<&Path>| {
-                let mut a = strings(&[
-                    "run",
+                let mut a = run_args(
                     disc.to_str().unwrap(),
-                    "-q",
-                    "--overwrite",
-                    "-o",
                     o.to_str().unwrap(),
-                    "--steps",
-                    &total,
-                    "--every",
-                    "20",
-                ]);
+                    &["--steps", &total, "--every", "20"],
+                );
                 if let Some(r) = restart {
                     a.extend(strings(&["--restart", r.to_str().unwrap()]));
                 }
@@ -385,23 +360,16 @@ fn a_signal_at_any_moment_ends_the_run_with_a_truthful_file() {
                 "3000",
             ]);
             let s = stop_run(ranks, &args, &out, Moment::Final);
-            report.push(format!(
-                "final phase, {ranks} rank(s): {} after {:.2} s",
-                s.status,
-                s.after_signal.as_secs_f64()
-            ));
+            let line = s.line(&format!("final phase, {ranks} rank(s)"));
             // A signal that comes after the file was marked finished finds a finished run.
             if s.status.starts_with("interrupted") {
-                assert!(
-                    s.status.contains("after the last step (3000 of 3000)"),
-                    "{}",
-                    report.last().unwrap()
-                );
+                assert!(s.status.contains("after the last step (3000 of 3000)"), "{line}");
                 check_exit(&s, ranks);
                 final_phase_hits += 1;
             } else {
-                assert_eq!(s.status, "finished", "{}", report.last().unwrap());
+                assert_eq!(s.status, "finished", "{line}");
             }
+            report.push(line);
         }
     }
     eprintln!("{}", report.join("\n"));
@@ -434,16 +402,7 @@ fn a_killed_run_leaves_a_readable_file_that_post_reports_as_unfinished() {
     let disc = coarse_disc(&dir);
     for trial in 0..3 {
         let out = dir.join(format!("killed-{trial}.h5"));
-        let args = strings(&[
-            "run",
-            disc.to_str().unwrap(),
-            "-q",
-            "--overwrite",
-            "-o",
-            out.to_str().unwrap(),
-            "--steps",
-            "1000000",
-        ]);
+        let args = run_args(disc.to_str().unwrap(), out.to_str().unwrap(), &["--steps", "1000000"]);
         let mut child =
             launch(2, &args).stdout(Stdio::null()).stderr(Stdio::null()).spawn().unwrap();
         while !out.exists() {
@@ -471,18 +430,11 @@ fn the_watchdog_ends_a_run_whose_rank_stopped_responding() {
     let dir = scratch("watchdog");
     let disc = coarse_disc(&dir);
     let out = dir.join("hung.h5");
-    let args = strings(&[
-        "run",
+    let args = run_args(
         disc.to_str().unwrap(),
-        "-q",
-        "--overwrite",
-        "-o",
         out.to_str().unwrap(),
-        "--steps",
-        "1000000",
-        "--hang-timeout",
-        "2",
-    ]);
+        &["--steps", "1000000", "--hang-timeout", "2"],
+    );
     let mut child = launch(2, &args).stdout(Stdio::null()).stderr(Stdio::piped()).spawn().unwrap();
     while !out.exists() {
         std::thread::sleep(Duration::from_millis(5));
@@ -537,17 +489,11 @@ fn results_do_not_depend_on_the_number_of_ranks_from_one_to_four() {
         for ranks in 1..=4 {
             let out =
                 dir.join(format!("{}-{ranks}.h5", scene.file_stem().unwrap().to_string_lossy()));
-            let args = strings(&[
-                "run",
+            let args = run_args(
                 scene.to_str().unwrap(),
-                "-q",
-                "--overwrite",
-                "-o",
                 out.to_str().unwrap(),
-                "--",
-                "-ksp_rtol",
-                "1e-13",
-            ]);
+                &["--", "-ksp_rtol", "1e-13"],
+            );
             let mut child = launch(ranks, &args).stdout(Stdio::null()).spawn().unwrap();
             let st = wait_for(&mut child, Duration::from_secs(120), "rank sweep");
             assert!(st.success(), "{} on {ranks} ranks: {st}", scene.display());
@@ -555,31 +501,10 @@ fn results_do_not_depend_on_the_number_of_ranks_from_one_to_four() {
             files.push(out);
         }
         for name in &datasets {
-            let one = if name.ends_with("active") {
-                let f = hdf5::File::open(&files[0]).unwrap();
-                f.dataset(name)
-                    .unwrap()
-                    .read_raw::<u8>()
-                    .unwrap()
-                    .iter()
-                    .map(|&x| x as f64)
-                    .collect()
-            } else {
-                raw(&files[0], name)
-            };
+            // (u8 active flags are read as numbers too: HDF5 converts them.)
+            let one = raw(&files[0], name);
             for (k, other) in files.iter().enumerate().skip(1) {
-                let b: Vec<f64> = if name.ends_with("active") {
-                    let f = hdf5::File::open(other).unwrap();
-                    f.dataset(name)
-                        .unwrap()
-                        .read_raw::<u8>()
-                        .unwrap()
-                        .iter()
-                        .map(|&x| x as f64)
-                        .collect()
-                } else {
-                    raw(other, name)
-                };
+                let b = raw(other, name);
                 let d = max_rel_diff(&one, &b);
                 assert!(
                     d <= 1e-8,

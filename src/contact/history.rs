@@ -3,26 +3,13 @@
 //! energy and momentum balance across the impact.
 
 use super::metrics::{contact_period, episodes, osc2, tv_index};
-use super::{ActiveSet, StepContact};
+use super::{ContactRow, ContactSolver, StepContact};
 use crate::mesh::Mesh;
-
-/// One step's contact data as written to HDF5.
-#[derive(Debug, Clone)]
-pub struct ContactRowOwned {
-    pub pressure: Vec<f64>,
-    pub force: Vec<f64>,
-    pub gap: Vec<f64>,
-    pub active: Vec<bool>,
-    pub iterations: usize,
-}
 
 #[derive(Debug, Default)]
 pub struct History {
-    /// Per step (index 0 = t = 0): force, gap, active of every contact node.
-    force: Vec<Vec<f64>>,
-    gap: Vec<Vec<f64>>,
-    active: Vec<Vec<bool>>,
-    iterations: Vec<usize>,
+    /// One row per step (index 0 = the start).
+    rows: Vec<ContactRow>,
     /// The obstacle's impulse `tau sum_n sum_q lambda_q n_q` per component.
     impulse: [f64; 3],
     weights: Vec<f64>,
@@ -65,85 +52,65 @@ pub struct ContactSummary {
 }
 
 impl History {
-    pub fn start(&mut self, c: &ActiveSet) {
+    pub fn start(&mut self, c: &dyn ContactSolver) {
         let nc = c.n_nodes();
-        self.weights = c.boundary.weights.clone();
-        self.force.push(vec![0.0; nc]);
-        self.gap.push(vec![f64::NAN; nc]);
+        self.weights = c.boundary().weights.clone();
         // The first row: the set the run starts from (empty, or a restart's checkpoint).
-        self.active.push(c.active.clone());
-        self.iterations.push(0);
+        self.rows.push(ContactRow {
+            force: vec![0.0; nc],
+            gap: vec![f64::NAN; nc],
+            active: c.active().to_vec(),
+            iterations: 0,
+        });
     }
 
     pub fn push(&mut self, c: &StepContact, tau: f64) {
-        self.force.push(c.force.clone());
-        self.gap.push(c.gap.clone());
-        self.active.push(c.active.clone());
-        self.iterations.push(c.iterations);
+        self.rows.push(c.row.clone());
         for i in 0..3 {
             self.impulse[i] += tau * c.resultant[i];
         }
     }
 
-    /// The last step as an output row (None without contact).
-    pub fn last_row(&self, c: Option<&ActiveSet>) -> Option<ContactRowOwned> {
-        c?;
-        let force = self.force.last()?.clone();
-        let pressure = force.iter().zip(&self.weights).map(|(f, w)| f / w).collect();
-        Some(ContactRowOwned {
-            pressure,
-            force,
-            gap: self.gap.last()?.clone(),
-            active: self.active.last()?.clone(),
-            iterations: *self.iterations.last()?,
-        })
-    }
-
-    /// Index (among the contact nodes) of the node closest to the obstacle at t = 0.
-    pub fn lowest(&self, c: &ActiveSet, mesh: &Mesh) -> usize {
-        (0..c.n_nodes())
-            .min_by(|&a, &b| {
-                let ga = c.obstacle.gap_normal(mesh.coords[c.boundary.nodes[a]]).0;
-                let gb = c.obstacle.gap_normal(mesh.coords[c.boundary.nodes[b]]).0;
-                ga.partial_cmp(&gb).unwrap_or(std::cmp::Ordering::Equal).then(a.cmp(&b))
-            })
-            .unwrap_or(0)
+    /// The last step's row.
+    pub fn last_row(&self) -> Option<&ContactRow> {
+        self.rows.last()
     }
 
     /// Pressure history of contact node `k` (index among the contact nodes).
     pub fn pressure(&self, k: usize) -> Vec<f64> {
-        self.force.iter().map(|f| f[k] / self.weights[k]).collect()
+        self.rows.iter().map(|r| r.force[k] / self.weights[k]).collect()
     }
 
     pub fn summary(
         &self,
-        c: &ActiveSet,
+        c: &dyn ContactSolver,
         mesh: &Mesh,
         contact_work: f64,
         contact_steps_seconds: f64,
     ) -> ContactSummary {
         let nc = c.n_nodes();
         let dim = mesh.dim;
-        let steps = self.active.len();
-        let any: Vec<bool> = self.active.iter().map(|a| a.iter().any(|&x| x)).collect();
+        let steps = self.rows.len();
+        let any: Vec<bool> = self.rows.iter().map(|r| r.active.iter().any(|&x| x)).collect();
         let period = contact_period(&any);
         let (first, last) = period.unwrap_or((0, 0));
-        let its: Vec<usize> = (1..steps).filter(|&n| any[n]).map(|n| self.iterations[n]).collect();
-        let lowest = self.lowest(c, mesh);
+        let its: Vec<usize> =
+            (1..steps).filter(|&n| any[n]).map(|n| self.rows[n].iterations).collect();
+        let lowest = c.lowest();
         let pressure_of = |k: usize| self.pressure(k);
-        let active_of = |k: usize| -> Vec<bool> { self.active.iter().map(|a| a[k]).collect() };
+        let active_of = |k: usize| -> Vec<bool> { self.rows.iter().map(|r| r.active[k]).collect() };
         let p_low = pressure_of(lowest);
         let (lowest_osc2, lowest_tv) = match contact_period(&active_of(lowest)) {
             Some(per) => (osc2(&p_low, per), tv_index(&p_low, per)),
             None => (0.0, 0.0),
         };
-        let total: Vec<f64> = self.force.iter().map(|f| f.iter().sum()).collect();
+        let total: Vec<f64> = self.rows.iter().map(|r| r.force.iter().sum()).collect();
         let (tf_tv, tf_osc2) = match period {
             Some(per) => (tv_index(&total, per), osc2(&total, per)),
             None => (0.0, 0.0),
         };
         let eps: Vec<usize> = (0..nc).map(|k| episodes(&active_of(k))).filter(|&e| e > 0).collect();
-        let max_pressure = (0..nc).flat_map(|k| pressure_of(k)).fold(0.0f64, |a, b| a.max(b));
+        let max_pressure = (0..nc).flat_map(pressure_of).fold(0.0f64, |a, b| a.max(b));
         ContactSummary {
             nodes: nc,
             first_contact_step: first,
@@ -157,13 +124,13 @@ impl History {
             active_set_iterations_max: its.iter().copied().max().unwrap_or(0),
             max_pressure,
             max_active_nodes: self
-                .active
+                .rows
                 .iter()
-                .map(|a| a.iter().filter(|&&x| x).count())
+                .map(|r| r.active.iter().filter(|&&x| x).count())
                 .max()
                 .unwrap_or(0),
-            lowest_node: c.boundary.nodes[lowest],
-            lowest_node_tag: mesh.node_tags[c.boundary.nodes[lowest]],
+            lowest_node: c.boundary().nodes[lowest],
+            lowest_node_tag: mesh.node_tags[c.boundary().nodes[lowest]],
             lowest_osc2,
             lowest_tv_index: lowest_tv,
             total_force_tv_index: tf_tv,
@@ -176,7 +143,7 @@ impl History {
             },
             contact_work,
             impulse: (0..dim).map(|i| -self.impulse[i]).collect(),
-            column_solves: c.column_solves,
+            column_solves: c.extra_solves(),
             contact_steps_seconds,
             ksp_iterations_contact_steps: 0,
         }

@@ -110,16 +110,65 @@ impl ContactBoundary {
     }
 }
 
-/// What the active-set loop found in one step (all per contact node, same on every rank).
-#[derive(Debug, Clone, Default)]
-pub struct StepContact {
+/// One step on the contact boundary, per contact node in the order of the boundary's nodes:
+/// the one row type that the solver returns, the history keeps, the file stores (with the
+/// pressure `force / weight` beside it) and `post` reads back.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct ContactRow {
     /// Midpoint contact force `lambda_q` (of the unscaled equation).
     pub force: Vec<f64>,
-    /// Gap at `t_{n+1}`.
+    /// Gap at `t_{n+1}` (NaN before the first step).
     pub gap: Vec<f64>,
     pub active: Vec<bool>,
-    pub normals: Vec<[f64; 3]>,
+    /// Active-set iterations of the step.
     pub iterations: usize,
+}
+
+impl ContactRow {
+    /// Pressure `lambda_q / D_qq` with the boundary weights `D_qq`.
+    pub fn pressure(&self, weights: &[f64]) -> Vec<f64> {
+        self.force.iter().zip(weights).map(|(f, w)| f / w).collect()
+    }
+}
+
+/// A contact solver inside the time step: it gets the step's right-hand side and the state at
+/// `t_n`, solves `K du = rhs - factor B^T lambda` with the contact conditions at `t_{n+1}`
+/// (`factor` comes from the integrator), and reports the contact forces and per-node data.
+/// The rigid-obstacle active set is the first implementation.
+pub trait ContactSolver {
+    /// `u` is `u^n`; `du` holds the previous increment (initial guess) and gets the result.
+    /// Returns the step's contact data and the KSP iterations of its solves.
+    fn solve(
+        &mut self,
+        ksp: &mut Ksp,
+        rhs: &Vector,
+        u: &Vector,
+        du: &mut Vector,
+        step: usize,
+        time: f64,
+    ) -> Result<(StepContact, usize)>;
+    /// The contact boundary (nodes, weights, group).
+    fn boundary(&self) -> &ContactBoundary;
+    /// The active set after the last step.
+    fn active(&self) -> &[bool];
+    /// Continue from a checkpoint's active set.
+    fn set_active(&mut self, active: Vec<bool>);
+    /// Contact nodes (mesh node indices) that penetrate the obstacle at displacement `u`.
+    fn penetrating(&self, u: &Vector) -> Result<Vec<usize>>;
+    /// Index (among the contact nodes) of the node closest to the obstacle at t = 0.
+    fn lowest(&self) -> usize;
+    /// Solves with the step operator beyond the one per step (e.g. Schur-complement columns).
+    fn extra_solves(&self) -> usize;
+    fn n_nodes(&self) -> usize {
+        self.boundary().nodes.len()
+    }
+}
+
+/// What the contact solver found in one step (all per contact node, same on every rank).
+#[derive(Debug, Clone, Default)]
+pub struct StepContact {
+    pub row: ContactRow,
+    pub normals: Vec<[f64; 3]>,
     /// Work of the contact forces in this step, `-sum_q lambda_q n_q . du_q` (<= 0).
     pub work: f64,
     /// `sum_q lambda_q n_q` (the force the obstacle takes; the body gets its negative).
@@ -138,6 +187,10 @@ pub struct ActiveSet<'w> {
     world: &'w SimpleCommunicator,
     pub boundary: ContactBoundary,
     pub obstacle: Obstacle,
+    /// Reference position and gmsh tag of each contact node (the solver needs no more of the
+    /// mesh).
+    coords: Vec<[f64; 3]>,
+    tags: Vec<u64>,
     dim: usize,
     /// Global DOF of (contact node k, component c), and whether this rank owns it.
     dofs: Vec<(i32, bool)>,
@@ -182,6 +235,8 @@ impl<'w> ActiveSet<'w> {
         let n = boundary.nodes.len();
         ActiveSet {
             world,
+            coords: boundary.nodes.iter().map(|&v| mesh.coords[v]).collect(),
+            tags: boundary.nodes.iter().map(|&v| mesh.node_tags[v]).collect(),
             boundary,
             obstacle,
             dim,
@@ -194,10 +249,6 @@ impl<'w> ActiveSet<'w> {
             max_iterations: 50,
             column_solves: 0,
         }
-    }
-
-    pub fn n_nodes(&self) -> usize {
-        self.boundary.nodes.len()
     }
 
     /// Values of a distributed vector at all contact DOFs, on every rank (owners contribute,
@@ -218,14 +269,13 @@ impl<'w> ActiveSet<'w> {
     }
 
     /// Gaps and normals of all contact nodes at displacement `u` (trace given).
-    pub fn frames(&self, mesh: &Mesh, u_trace: &[f64]) -> Vec<(f64, [f64; 3])> {
+    pub fn frames(&self, u_trace: &[f64]) -> Vec<(f64, [f64; 3])> {
         let d = self.dim;
-        self.boundary
-            .nodes
+        self.coords
             .iter()
             .enumerate()
-            .map(|(k, &v)| {
-                let mut y = mesh.coords[v];
+            .map(|(k, &x)| {
+                let mut y = x;
                 for c in 0..d {
                     y[c] += u_trace[k * d + c];
                 }
@@ -235,10 +285,10 @@ impl<'w> ActiveSet<'w> {
     }
 
     /// Contact nodes that penetrate the obstacle at displacement `u` (beyond the tolerance).
-    pub fn penetrating(&self, mesh: &Mesh, u: &Vector) -> Result<Vec<usize>> {
+    fn penetrating_nodes(&self, u: &Vector) -> Result<Vec<usize>> {
         let tr = self.trace(u)?;
         Ok(self
-            .frames(mesh, &tr)
+            .frames(&tr)
             .iter()
             .enumerate()
             .filter(|(_, (g, _))| *g < -self.gap_tol)
@@ -274,10 +324,8 @@ impl<'w> ActiveSet<'w> {
 
     /// One step: solve `K du = rhs - factor sum_q lambda_q n_q e_q` with the active-set loop.
     /// `u` is `u^n`; `du` holds the previous increment (initial guess) and gets the result.
-    #[allow(clippy::too_many_arguments)]
-    pub fn solve(
+    fn solve_step(
         &mut self,
-        mesh: &Mesh,
         ksp: &mut Ksp,
         rhs: &Vector,
         u: &Vector,
@@ -287,7 +335,7 @@ impl<'w> ActiveSet<'w> {
     ) -> Result<(StepContact, usize)> {
         let d = self.dim;
         let nc = self.n_nodes();
-        let frames = self.frames(mesh, &self.trace(u)?);
+        let frames = self.frames(&self.trace(u)?);
         let info = ksp.solve(rhs, du)?;
         let d0 = self.trace(du)?;
         let mut active = self.active.clone();
@@ -347,7 +395,7 @@ impl<'w> ActiveSet<'w> {
             if history.contains(&next) {
                 let flips: Vec<String> = (0..nc)
                     .filter(|&k| next[k] != active[k])
-                    .map(|k| mesh.node_tags[self.boundary.nodes[k]].to_string())
+                    .map(|k| self.tags[k].to_string())
                     .collect();
                 return Err(Error::Solver(format!(
                     "contact at step {step} (t = {time:e}): the active set cycles; gmsh nodes {} flip",
@@ -374,21 +422,23 @@ impl<'w> ActiveSet<'w> {
             }
         }
         let mut out = StepContact {
-            force: vec![0.0; nc],
-            gap: vec![0.0; nc],
-            active: active.clone(),
+            row: ContactRow {
+                force: vec![0.0; nc],
+                gap: vec![0.0; nc],
+                active: active.clone(),
+                iterations,
+            },
             normals: frames.iter().map(|f| f.1).collect(),
-            iterations,
             work: 0.0,
             resultant: [0.0; 3],
         };
         for p in 0..nc {
             let np = frames[p].1;
             let ndu: f64 = (0..d).map(|dd| np[dd] * tr[p * d + dd]).sum();
-            out.gap[p] = frames[p].0 - ndu;
+            out.row.gap[p] = frames[p].0 - ndu;
             if active[p] {
                 let lam = mu[p] / self.factor;
-                out.force[p] = lam;
+                out.row.force[p] = lam;
                 out.work -= lam * ndu;
                 for c in 0..d {
                     out.resultant[c] += lam * np[c];
@@ -397,6 +447,43 @@ impl<'w> ActiveSet<'w> {
         }
         self.active = active;
         Ok((out, info.iterations))
+    }
+}
+
+impl ContactSolver for ActiveSet<'_> {
+    fn solve(
+        &mut self,
+        ksp: &mut Ksp,
+        rhs: &Vector,
+        u: &Vector,
+        du: &mut Vector,
+        step: usize,
+        time: f64,
+    ) -> Result<(StepContact, usize)> {
+        self.solve_step(ksp, rhs, u, du, step, time)
+    }
+    fn boundary(&self) -> &ContactBoundary {
+        &self.boundary
+    }
+    fn active(&self) -> &[bool] {
+        &self.active
+    }
+    fn set_active(&mut self, active: Vec<bool>) {
+        self.active = active;
+    }
+    fn penetrating(&self, u: &Vector) -> Result<Vec<usize>> {
+        self.penetrating_nodes(u)
+    }
+    fn lowest(&self) -> usize {
+        let gap = |k: usize| self.obstacle.gap_normal(self.coords[k]).0;
+        (0..self.coords.len())
+            .min_by(|&a, &b| {
+                gap(a).partial_cmp(&gap(b)).unwrap_or(std::cmp::Ordering::Equal).then(a.cmp(&b))
+            })
+            .unwrap_or(0)
+    }
+    fn extra_solves(&self) -> usize {
+        self.column_solves
     }
 }
 

@@ -55,8 +55,10 @@ use hdf5::{Dataset, File};
 use mpi::collective::SystemOperation;
 use mpi::traits::*;
 
+use crate::contact::ContactRow;
 use crate::error::{Error, Result};
 use crate::mesh::Mesh;
+use crate::time::Energy;
 
 fn h5err(path: &Path, what: &str, e: hdf5::Error) -> Error {
     Error::Io(format!("{}: {what}: {e}", path.display()))
@@ -109,18 +111,6 @@ pub fn natural_range(n_nodes: usize, rank: usize, size: usize) -> (usize, usize)
     (lo, hi)
 }
 
-/// One step's energies: `total - total[0] = external_work + contact_work + dirichlet_work` up
-/// to solver tolerance (the midpoint rule's energy identity).
-#[derive(Debug, Clone, Copy, Default)]
-pub struct EnergyRow {
-    pub kinetic: f64,
-    pub potential: f64,
-    pub external_work: f64,
-    pub contact_work: f64,
-    /// Work of the reactions at non-zero Dirichlet boundaries.
-    pub dirichlet_work: f64,
-}
-
 struct ContactDatasets {
     pressure: Dataset,
     force: Dataset,
@@ -128,16 +118,9 @@ struct ContactDatasets {
     active: Dataset,
     active_set_size: Dataset,
     iterations: Dataset,
+    /// Boundary weights `D_qq`: the pressure written is `force / weight`.
+    weights: Vec<f64>,
     n_written: usize,
-}
-
-/// One step on the contact boundary (per contact node, in the order of `/contact/nodes`).
-pub struct ContactRow<'a> {
-    pub pressure: &'a [f64],
-    pub force: &'a [f64],
-    pub gap: &'a [f64],
-    pub active: &'a [bool],
-    pub iterations: usize,
 }
 
 /// Which nodal fields are written, and how often.
@@ -547,7 +530,7 @@ impl Output {
     }
 
     /// Append one step's energies. Collective (resizing is), rank 0 writes.
-    pub fn write_energy(&mut self, step: usize, t: f64, e: &EnergyRow) -> Result<()> {
+    pub fn write_energy(&mut self, step: usize, t: f64, e: &Energy) -> Result<()> {
         let k = self.n_energies_written;
         let vals = [
             step as f64,
@@ -651,6 +634,7 @@ impl Output {
                 .map_err(|e| h5err(&path, "create /contact/active", e))?,
             active_set_size: per_step("active_set_size")?,
             iterations: per_step("iterations")?,
+            weights: weights.to_vec(),
             n_written: 0,
         });
         Ok(())
@@ -661,11 +645,12 @@ impl Output {
         let path = self.path.clone();
         let Some(c) = self.contact.as_mut() else { return Ok(()) };
         let k = c.n_written;
-        let nc = row.pressure.len();
+        let nc = row.force.len();
+        let pressure = row.pressure(&c.weights);
         for (ds, vals, name) in [
-            (&c.pressure, row.pressure, "pressure"),
-            (&c.force, row.force, "force"),
-            (&c.gap, row.gap, "gap"),
+            (&c.pressure, &pressure[..], "pressure"),
+            (&c.force, &row.force[..], "force"),
+            (&c.gap, &row.gap[..], "gap"),
         ] {
             ds.resize((k + 1, nc))
                 .map_err(|e| h5err(&path, &format!("resize /contact/{name}"), e))?;

@@ -1,0 +1,342 @@
+//! The implicit midpoint rule as an integrator: it owns the step operator, the state
+//! `(u^n, v^n)` with the products `M v^n`, `A u^n`, the Dirichlet lifting and the energy and
+//! work accounting, and advances one step at a time: `step(forces, contact) -> StepReport`.
+//!
+//! One step (METHOD.md section 4, paper (6.1)):
+//!
+//! ```text
+//!   K du = 2 f^{n+1/2} + (4/tau) M v^n - 2 A u^n  [- 2 B^T lambda],   K = 4/tau^2 M + A,
+//!   u^{n+1} = u^n + du,   v^{n+1} = 2 du/tau - v^n,
+//! ```
+//! with `du_D = g(t_{n+1}) - u^n_D` on Dirichlet DOFs. The energy `E^n = 1/2 v.Mv + 1/2 u.Au`
+//! obeys `E^{n+1} - E^n = f^{n+1/2}.du - lambda.B du + r_D.du_D` exactly (the three works are
+//! accumulated in [`Energy`]), which the run checks at every step.
+
+use mpi::collective::SystemOperation;
+use mpi::topology::SimpleCommunicator;
+use mpi::traits::*;
+
+use super::{Dirichlet, StepOperator};
+use crate::contact::{ContactSolver, StepContact};
+use crate::error::{Error, Result};
+use crate::petsc::{Matrix, Vector};
+
+/// The external forces `f(t)` (body forces and tractions, assembled).
+pub trait Forces {
+    /// Whether there are any: without, nothing is assembled or added.
+    fn present(&self) -> bool;
+    /// Whether they change in time: if not, `f` is assembled once.
+    fn time_dependent(&self) -> bool;
+    /// `out = f(t)`.
+    fn assemble(&self, t: f64, out: &mut Vector) -> Result<()>;
+}
+
+/// No external forces.
+pub struct NoForces;
+
+impl Forces for NoForces {
+    fn present(&self) -> bool {
+        false
+    }
+    fn time_dependent(&self) -> bool {
+        false
+    }
+    fn assemble(&self, _t: f64, _out: &mut Vector) -> Result<()> {
+        Ok(())
+    }
+}
+
+/// The energies of the current state and the works done since the start: the midpoint rule
+/// keeps `kinetic + potential - E^0 = external_work + contact_work + dirichlet_work` to solver
+/// tolerance.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct Energy {
+    /// `1/2 v.Mv`
+    pub kinetic: f64,
+    /// `1/2 u.Au`
+    pub potential: f64,
+    /// `sum_k f^{k+1/2}.du^k`
+    pub external_work: f64,
+    /// `-sum_k lambda^{k+1/2}.B du^k` (<= 0)
+    pub contact_work: f64,
+    /// Work of the reactions at non-zero Dirichlet boundaries.
+    pub dirichlet_work: f64,
+}
+
+impl Energy {
+    pub fn total(&self) -> f64 {
+        self.kinetic + self.potential
+    }
+}
+
+/// What one step did.
+pub struct StepReport {
+    /// KSP iterations of the step's solves.
+    pub ksp_iterations: usize,
+    /// The contact solver's result (scenes with contact).
+    pub contact: Option<StepContact>,
+}
+
+/// The implicit midpoint rule for `M u'' + A u = f` with Dirichlet data and contact.
+pub struct Midpoint {
+    tau: f64,
+    op: StepOperator,
+    m: Matrix,
+    a: Matrix,
+    dirichlet: Dirichlet,
+    first_dof: usize,
+    u: Vector,
+    v: Vector,
+    du: Vector,
+    mv: Vector,
+    au: Vector,
+    rhs: Vector,
+    f_now: Vector,
+    f_next: Vector,
+    f_half: Vector,
+    /// For non-zero Dirichlet values: `(du_D padded, K du_D, rhs before its rows are replaced)`.
+    lifting: Option<(Vector, Vector, Vector)>,
+    energy: Energy,
+    ksp_iterations: usize,
+}
+
+impl Midpoint {
+    /// Factor of the contact force in the step equation: the du form is the midpoint equation
+    /// times 2, so `K du = rhs - 2 B^T lambda` with `lambda` the midpoint contact force.
+    pub const CONTACT_FORCE_FACTOR: f64 = 2.0;
+
+    /// Start from `u0`, `v0` (Dirichlet values at t = 0 are imposed on `u0`) at time `t0`.
+    pub fn new(
+        op: StepOperator,
+        m: Matrix,
+        a: Matrix,
+        dirichlet: Dirichlet,
+        tau: f64,
+        mut u: Vector,
+        v: Vector,
+        t0: f64,
+        forces: &dyn Forces,
+    ) -> Result<Midpoint> {
+        let first_dof = u.ownership_range().0;
+        let set = |u: &mut Vector| -> Result<()> {
+            u.with_local_slice_mut(|x| {
+                for (i, &dof) in dirichlet.dofs().iter().enumerate() {
+                    x[dof as usize - first_dof] = dirichlet.value(i, t0);
+                }
+            })
+        };
+        if !dirichlet.dofs().is_empty() {
+            set(&mut u)?;
+        }
+        let dup = || u.duplicate();
+        let lifting = if op.k_free.is_some() { Some((dup()?, dup()?, dup()?)) } else { None };
+        let mut mp = Midpoint {
+            tau,
+            du: dup()?,
+            mv: dup()?,
+            au: dup()?,
+            rhs: dup()?,
+            f_now: dup()?,
+            f_next: dup()?,
+            f_half: dup()?,
+            lifting,
+            op,
+            m,
+            a,
+            dirichlet,
+            first_dof,
+            u,
+            v,
+            energy: Energy::default(),
+            ksp_iterations: 0,
+        };
+        mp.refresh(forces, t0)?;
+        Ok(mp)
+    }
+
+    /// Recompute what follows from `u`, `v` at time `t`: the loads `f(t)`, `M v`, `A u` and the
+    /// energies (after `new`, or after the state was replaced by a restart).
+    pub fn refresh(&mut self, forces: &dyn Forces, t: f64) -> Result<()> {
+        if forces.present() {
+            forces.assemble(t, &mut self.f_now)?;
+            self.f_next.copy_from(&self.f_now)?;
+        }
+        self.update_energies()
+    }
+
+    fn update_energies(&mut self) -> Result<()> {
+        self.m.mult(&self.v, &mut self.mv)?;
+        self.a.mult(&self.u, &mut self.au)?;
+        self.energy.kinetic = 0.5 * self.v.dot(&self.mv)?;
+        self.energy.potential = 0.5 * self.u.dot(&self.au)?;
+        Ok(())
+    }
+
+    /// One step `n -> n + 1`, with the contact solver inside it when there is one.
+    pub fn step<'c>(
+        &mut self,
+        n: usize,
+        forces: &dyn Forces,
+        contact: Option<&mut (dyn ContactSolver + 'c)>,
+    ) -> Result<StepReport> {
+        let tau = self.tau;
+        let t_next = (n + 1) as f64 * tau;
+        // f^{n+1/2} = (f(t_n) + f(t_{n+1}))/2
+        if forces.present() {
+            if forces.time_dependent() {
+                forces.assemble(t_next, &mut self.f_next)?;
+            }
+            self.f_half.waxpy(1.0, &self.f_now, &self.f_next)?;
+            self.f_half.scale(0.5)?;
+        }
+        // rhs = 2 f^{n+1/2} + (4/tau) M v^n - 2 A u^n
+        self.rhs.copy_from(&self.mv)?;
+        self.rhs.scale(4.0 / tau)?;
+        self.rhs.axpy(-2.0, &self.au)?;
+        if forces.present() {
+            self.rhs.axpy(2.0, &self.f_half)?;
+        }
+        if let Some((_, _, full)) = self.lifting.as_mut() {
+            full.copy_from(&self.rhs)?;
+        }
+        self.dirichlet_rows(t_next)?;
+        let with_step = |e: Error| match e {
+            Error::Solver(m) if !m.starts_with("contact") => {
+                Error::Solver(format!("step {} (t = {t_next:e}): {m}", n + 1))
+            }
+            other => other,
+        };
+        let (its, contact) = match contact {
+            None => {
+                let info = self.op.ksp.solve(&self.rhs, &mut self.du).map_err(with_step)?;
+                (info.iterations, None)
+            }
+            Some(solver) => {
+                let (c, its) = solver
+                    .solve(&mut self.op.ksp, &self.rhs, &self.u, &mut self.du, n + 1, t_next)
+                    .map_err(with_step)?;
+                self.energy.contact_work += c.work;
+                (its, Some(c))
+            }
+        };
+        self.ksp_iterations += its;
+        if forces.present() {
+            self.energy.external_work += self.f_half.dot(&self.du)?;
+        }
+        self.reaction_work()?;
+        self.u.axpy(1.0, &self.du)?;
+        // v^{n+1} = 2 du / tau - v^n
+        self.v.scale(-1.0)?;
+        self.v.axpy(2.0 / tau, &self.du)?;
+        if forces.present() {
+            std::mem::swap(&mut self.f_now, &mut self.f_next);
+            if !forces.time_dependent() {
+                self.f_next.copy_from(&self.f_now)?;
+            }
+        }
+        self.update_energies()?;
+        Ok(StepReport { ksp_iterations: its, contact })
+    }
+
+    /// The constrained rows of the right-hand side: `diag * du_D` with
+    /// `du_D = g(t_{n+1}) - u^n_D`; for non-zero values the known columns `K[:, D] du_D` move
+    /// to the right-hand side (the lifting).
+    fn dirichlet_rows(&mut self, t_next: f64) -> Result<()> {
+        // Decided on the scene, not on this rank's DOFs: the product below is collective,
+        // and a rank may own no constrained DOF.
+        if !self.dirichlet.present {
+            return Ok(());
+        }
+        let lo = self.first_dof;
+        let dofs = self.dirichlet.dofs();
+        let mut du_d = vec![0.0; dofs.len()];
+        if let Some((w, kw, _)) = self.lifting.as_mut() {
+            self.u.with_local_slice(|x| {
+                for (i, &dof) in dofs.iter().enumerate() {
+                    du_d[i] = self.dirichlet.value(i, t_next) - x[dof as usize - lo];
+                }
+            })?;
+            w.zero()?;
+            w.with_local_slice_mut(|x| {
+                for (i, &dof) in dofs.iter().enumerate() {
+                    x[dof as usize - lo] = du_d[i];
+                }
+            })?;
+            self.op.k_free.as_ref().expect("unconstrained operator").mult(w, kw)?;
+            self.rhs.axpy(-1.0, kw)?;
+        }
+        let diag = self.op.dirichlet_diag;
+        self.rhs.with_local_slice_mut(|x| {
+            for (i, &dof) in dofs.iter().enumerate() {
+                x[dof as usize - lo] = diag * du_d[i];
+            }
+        })
+    }
+
+    /// Work of the reactions `r_D` at non-zero Dirichlet boundaries: `K0 du = rhs + 2 r` on the
+    /// constrained rows, so the step's work is `r . du`.
+    fn reaction_work(&mut self) -> Result<()> {
+        let (Some((_, kdu, full)), Some(k0)) = (self.lifting.as_mut(), self.op.k_free.as_ref())
+        else {
+            return Ok(());
+        };
+        k0.mult(&self.du, kdu)?;
+        kdu.axpy(-1.0, full)?;
+        let lo = self.first_dof;
+        let mut w = 0.0;
+        kdu.with_local_slice(|r| {
+            self.du.with_local_slice(|d| {
+                for &dof in self.dirichlet.dofs() {
+                    let i = dof as usize - lo;
+                    w += 0.5 * r[i] * d[i];
+                }
+            })
+        })??;
+        let mut sum = 0.0;
+        SimpleCommunicator::world().all_reduce_into(&w, &mut sum, SystemOperation::sum());
+        self.energy.dirichlet_work += sum;
+        Ok(())
+    }
+
+    pub fn tau(&self) -> f64 {
+        self.tau
+    }
+    pub fn energy(&self) -> &Energy {
+        &self.energy
+    }
+    /// KSP iterations of all steps so far.
+    pub fn ksp_iterations(&self) -> usize {
+        self.ksp_iterations
+    }
+    pub fn u(&self) -> &Vector {
+        &self.u
+    }
+    pub fn v(&self) -> &Vector {
+        &self.v
+    }
+    /// The last increment `u^{n+1} - u^n` (the next solve's initial guess).
+    pub fn du(&self) -> &Vector {
+        &self.du
+    }
+    /// `M v` of the current state (the momentum per component is its sum).
+    pub fn mv(&self) -> &Vector {
+        &self.mv
+    }
+    pub fn operator(&self) -> &StepOperator {
+        &self.op
+    }
+
+    /// Replace the state by a checkpoint's `u`, `v`, `du` (set through the closure) and the
+    /// running work totals; then `refresh` recomputes the rest.
+    pub fn restore(
+        &mut self,
+        set: impl FnOnce(&mut Vector, &mut Vector, &mut Vector) -> Result<()>,
+        works: Energy,
+        ksp_iterations: usize,
+    ) -> Result<()> {
+        set(&mut self.u, &mut self.v, &mut self.du)?;
+        self.energy = works;
+        self.ksp_iterations = ksp_iterations;
+        Ok(())
+    }
+}
