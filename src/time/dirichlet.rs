@@ -47,6 +47,11 @@ impl Dirichlet {
         })
     }
 
+    /// No Dirichlet boundary.
+    pub fn none() -> Dirichlet {
+        Dirichlet { dofs: vec![], entries: vec![], values: vec![], present: false, nonzero: false }
+    }
+
     /// The constrained global DOFs owned by this rank.
     pub fn dofs(&self) -> &[i32] {
         &self.dofs
