@@ -36,6 +36,7 @@
 use crate::error::{Error, Result};
 use crate::fem::element::ElementKind;
 use crate::fem::kernels::{mass, MAX_DOFS, MAX_NODES};
+use crate::fem::shape::det3;
 use crate::mesh::topology::{
     boundary_group, cells_near, facet_key, facet_map, node_cells, FacetCells,
 };
@@ -142,12 +143,6 @@ fn gram_det(v: &[[f64; 3]], k: usize, d: usize) -> f64 {
         2 => g[0][0] * g[1][1] - g[0][1] * g[1][0],
         _ => det3(&g),
     }
-}
-
-fn det3(a: &[[f64; 3]; 3]) -> f64 {
-    a[0][0] * (a[1][1] * a[2][2] - a[1][2] * a[2][1])
-        - a[0][1] * (a[1][0] * a[2][2] - a[1][2] * a[2][0])
-        + a[0][2] * (a[1][0] * a[2][1] - a[1][1] * a[2][0])
 }
 
 /// Relative volume of the simplex `pts` (in [0, 1]): sqrt(Gram det) / product of edge lengths
@@ -574,6 +569,7 @@ fn extrapolation_simplex(mesh: &Mesh, pn: &[usize], x: &[f64; 3], d: usize) -> O
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::fem::shape::reference_node;
     use crate::mesh::{Element, PhysicalGroup};
 
     /// A 2D mesh from coordinates, cells and one boundary group of Line2 elements.
@@ -614,7 +610,7 @@ mod tests {
 
     fn quad_det_j(x: &[[f64; 3]], xi: f64, eta: f64) -> f64 {
         // Reference [-1,1]^2, gmsh order.
-        let r = [[-1.0, -1.0], [1.0, -1.0], [1.0, 1.0], [-1.0, 1.0]];
+        let r: Vec<[f64; 3]> = (0..4).map(|a| reference_node(ElementKind::Quad4, a)).collect();
         let mut j = [[0.0; 2]; 2];
         for a in 0..4 {
             let dxi = 0.25 * r[a][0] * (1.0 + r[a][1] * eta);
