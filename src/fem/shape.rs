@@ -311,7 +311,7 @@ pub fn surface_measure(kind: ElementKind, coords: &[[f64; 3]], xi: [f64; 3]) -> 
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
 
     const KINDS: [ElementKind; 6] = [
@@ -390,8 +390,9 @@ mod tests {
     }
 
     /// A fixed affine map x = A xi + b with det A = 2 (3D) or 2.5 (2D), applied to a cell's
-    /// reference nodes, followed by a non-affine perturbation for the tensor kinds.
-    fn mapped_coords(kind: ElementKind, distort: bool) -> Vec<[f64; 3]> {
+    /// reference nodes, followed by a non-affine perturbation (all still valid elements).
+    /// Also the kernel tests' cells.
+    pub(crate) fn mapped_coords(kind: ElementKind, distort: bool) -> Vec<[f64; 3]> {
         (0..kind.n_nodes())
             .map(|a| {
                 let r = reference_node(kind, a);
