@@ -1,7 +1,8 @@
 //! Partition: METIS determinism, ownership rule, contiguous numbering, exact preallocation.
 
+use massfree::mesh::topology::node_cells;
 use massfree::mesh::{Element, ElementKind, Mesh, PhysicalGroup};
-use massfree::partition::{node_cells, Partition};
+use massfree::partition::Partition;
 
 /// A structured nx x ny quad mesh of the unit square (built by hand: no gmsh needed here).
 fn quad_mesh(nx: usize, ny: usize) -> Mesh {

@@ -88,7 +88,7 @@ pub struct ContactBoundary {
 
 impl ContactBoundary {
     pub fn build(mesh: &Mesh, group: &str) -> Result<ContactBoundary> {
-        let elems = crate::mass::layer::boundary_group(mesh, group)?;
+        let elems = crate::mesh::topology::boundary_group(mesh, group)?;
         let mut nodes: Vec<usize> = elems.iter().flat_map(|e| e.nodes().iter().copied()).collect();
         nodes.sort_unstable();
         nodes.dedup();

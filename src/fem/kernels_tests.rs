@@ -1,6 +1,7 @@
 //! Tests of the element kernels; expected values come from theory (closed forms, invariants).
 
 use super::*;
+use crate::fem::shape::tests::mapped_coords as cell_coords;
 use crate::fem::shape::{physical_gradients, reference_node};
 use std::collections::HashMap;
 
@@ -9,30 +10,6 @@ const CELLS: [ElementKind; 4] =
 
 fn mat() -> Material {
     Material::from_young_poisson(210.0, 0.3, 7.8)
-}
-
-/// Reference nodes mapped by a fixed affine map (det > 0), optionally with a non-affine
-/// distortion of the nodes (all still valid elements).
-fn cell_coords(kind: ElementKind, distort: bool) -> Vec<[f64; 3]> {
-    (0..kind.n_nodes())
-        .map(|a| {
-            let r = reference_node(kind, a);
-            let mut x = [
-                1.0 + 2.0 * r[0] + 0.5 * r[1] + 0.1 * r[2],
-                -1.0 + 0.5 * r[0] + 1.5 * r[1] + 0.2 * r[2],
-                0.3 + 0.1 * r[0] - 0.2 * r[1] + 0.9 * r[2],
-            ];
-            if distort {
-                x[0] += 0.15 * (a as f64 * 1.7).sin();
-                x[1] += 0.12 * (a as f64 * 2.3).cos();
-                x[2] += 0.1 * (a as f64 * 0.9).sin();
-            }
-            if kind.dim() < 3 {
-                x[2] = 0.0;
-            }
-            x
-        })
-        .collect()
 }
 
 /// Independent volume: high-order quadrature of det J.

@@ -120,16 +120,7 @@ pub fn shape_grad_ref(kind: ElementKind, xi: [f64; 3], dn: &mut [[f64; 3]]) {
 /// determinant. Works in place: `dn` holds reference gradients on entry.
 #[inline(always)]
 pub(crate) fn map_gradients(d: usize, n: usize, coords: &[[f64; 3]], dn: &mut [[f64; 3]]) -> f64 {
-    let mut j = [[0.0f64; 3]; 3];
-    for a in 0..n {
-        let x = coords[a];
-        let g = dn[a];
-        for r in 0..d {
-            for c in 0..d {
-                j[r][c] += x[r] * g[c];
-            }
-        }
-    }
+    let j = jacobian(d, n, coords, dn);
     match d {
         3 => {
             let c00 = j[1][1] * j[2][2] - j[1][2] * j[2][1];
@@ -195,9 +186,10 @@ pub(crate) fn map_gradients(d: usize, n: usize, coords: &[[f64; 3]], dn: &mut [[
     }
 }
 
-/// det J only (J_ij = sum_a x_a[i] dN_a/dxi_j, i, j < d), from reference gradients.
+/// The Jacobian J_ij = dx_i/dxi_j = sum_a x_a[i] dN_a/dxi_j (i, j < d; other entries 0) of
+/// the nodes `coords[..n]` from their reference gradients `dn[..n]`.
 #[inline(always)]
-pub(crate) fn jacobian_det(d: usize, n: usize, coords: &[[f64; 3]], dn: &[[f64; 3]]) -> f64 {
+pub(crate) fn jacobian(d: usize, n: usize, coords: &[[f64; 3]], dn: &[[f64; 3]]) -> [[f64; 3]; 3] {
     let mut j = [[0.0f64; 3]; 3];
     for a in 0..n {
         let x = coords[a];
@@ -208,7 +200,16 @@ pub(crate) fn jacobian_det(d: usize, n: usize, coords: &[[f64; 3]], dn: &[[f64; 
             }
         }
     }
+    j
+}
+
+/// det J only (J_ij = sum_a x_a[i] dN_a/dxi_j, i, j < d), from reference gradients.
+#[inline(always)]
+pub(crate) fn jacobian_det(d: usize, n: usize, coords: &[[f64; 3]], dn: &[[f64; 3]]) -> f64 {
+    let j = jacobian(d, n, coords, dn);
     match d {
+        // `det3` with the middle cofactor negated: the same value up to the sign of an exact
+        // zero, kept so that the kernels' results stay bit-for-bit what they were.
         3 => {
             j[0][0] * (j[1][1] * j[2][2] - j[1][2] * j[2][1])
                 + j[0][1] * (j[1][2] * j[2][0] - j[1][0] * j[2][2])
@@ -218,6 +219,16 @@ pub(crate) fn jacobian_det(d: usize, n: usize, coords: &[[f64; 3]], dn: &[[f64; 
         1 => j[0][0],
         _ => 1.0,
     }
+}
+
+/// Determinant of a 3 x 3 matrix (cofactor expansion along the first row): one copy for the
+/// mesh checks' Jacobians and volumes and the mass-free layer's Gram determinants and
+/// barycentric coordinates.
+#[inline]
+pub fn det3(a: &[[f64; 3]; 3]) -> f64 {
+    a[0][0] * (a[1][1] * a[2][2] - a[1][2] * a[2][1])
+        - a[0][1] * (a[1][0] * a[2][2] - a[1][2] * a[2][0])
+        + a[0][2] * (a[1][0] * a[2][1] - a[1][1] * a[2][0])
 }
 
 /// Physical shape-function gradients of a cell at reference point `xi`.
@@ -300,7 +311,7 @@ pub fn surface_measure(kind: ElementKind, coords: &[[f64; 3]], xi: [f64; 3]) -> 
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
 
     const KINDS: [ElementKind; 6] = [
@@ -379,8 +390,9 @@ mod tests {
     }
 
     /// A fixed affine map x = A xi + b with det A = 2 (3D) or 2.5 (2D), applied to a cell's
-    /// reference nodes, followed by a non-affine perturbation for the tensor kinds.
-    fn mapped_coords(kind: ElementKind, distort: bool) -> Vec<[f64; 3]> {
+    /// reference nodes, followed by a non-affine perturbation (all still valid elements).
+    /// Also the kernel tests' cells.
+    pub(crate) fn mapped_coords(kind: ElementKind, distort: bool) -> Vec<[f64; 3]> {
         (0..kind.n_nodes())
             .map(|a| {
                 let r = reference_node(kind, a);

@@ -33,11 +33,13 @@
 
 #![allow(clippy::needless_range_loop)] // index-heavy small dense linear algebra
 
-use std::collections::HashMap;
-
 use crate::error::{Error, Result};
 use crate::fem::element::ElementKind;
 use crate::fem::kernels::{mass, MAX_DOFS, MAX_NODES};
+use crate::fem::shape::det3;
+use crate::mesh::topology::{
+    boundary_group, cells_near, facet_key, facet_map, node_cells, FacetCells,
+};
 use crate::mesh::Mesh;
 
 /// Which interpolation operator defines the layer (METHOD.md section 3).
@@ -94,115 +96,6 @@ pub struct MassFreeLayer {
     cell_layer: Vec<u32>,
 }
 
-/// Sorted facet node list padded with `usize::MAX` (facets have at most 4 nodes).
-type FacetKey = [usize; 4];
-
-fn facet_key(cell_nodes: &[usize], local: &[usize]) -> FacetKey {
-    let mut k = [usize::MAX; 4];
-    for (i, &a) in local.iter().enumerate() {
-        k[i] = cell_nodes[a];
-    }
-    k[..local.len()].sort_unstable();
-    k
-}
-
-/// Cells on each side of a facet: `(first, second, count)`.
-type FacetCells = HashMap<FacetKey, (usize, usize, usize)>;
-
-/// The facets of the given cells. Built only over the contact layer and its neighbours (the
-/// only facets the layer needs), so its cost follows the layer's size, not the mesh's.
-fn facet_map(mesh: &Mesh, cells: &[usize]) -> FacetCells {
-    let mut map: FacetCells = HashMap::new();
-    for &c in cells {
-        let e = &mesh.cells[c];
-        for f in e.kind.facets() {
-            let entry = map.entry(facet_key(e.nodes(), f)).or_insert((c, usize::MAX, 0));
-            if entry.2 == 1 {
-                entry.1 = c;
-            }
-            entry.2 += 1;
-        }
-    }
-    map
-}
-
-/// The elements of a contact boundary group, checked: a group of dimension dim - 1, not
-/// empty, and on the boundary of the body (each element a facet of exactly one cell).
-/// Errors name the group and an offending gmsh element.
-pub fn boundary_group<'m>(mesh: &'m Mesh, name: &str) -> Result<Vec<&'m crate::mesh::Element>> {
-    let group = mesh.group(name).map_err(|e| match e {
-        Error::Mesh(m) => Error::Scene(format!("contact group: {m}")),
-        other => other,
-    })?;
-    if group.dim + 1 != mesh.dim {
-        return Err(Error::Scene(format!(
-            "contact group \"{name}\" has dimension {}, but the contact boundary of a {}D \
-             body must be a physical group of dimension {}",
-            group.dim,
-            mesh.dim,
-            mesh.dim - 1
-        )));
-    }
-    let elems = mesh.group_elements(name)?;
-    if elems.is_empty() {
-        return Err(Error::Scene(format!("contact group \"{name}\" has no elements")));
-    }
-
-    // The contact group must lie on the boundary: each of its elements is a facet of
-    // exactly one cell.
-    let facets = facet_map(mesh, &cells_near(mesh, &elems));
-    for e in &elems {
-        let all: Vec<usize> = (0..e.kind.n_nodes()).collect();
-        let key = facet_key(e.nodes(), &all);
-        match facets.get(&key) {
-            Some(&(_, _, 1)) => {}
-            Some(&(c0, c1, n)) => {
-                let other = if c1 == usize::MAX {
-                    String::new()
-                } else {
-                    format!(" (between elements {} and {})", mesh.cells[c0].tag, mesh.cells[c1].tag)
-                };
-                return Err(Error::Scene(format!(
-                    "contact group \"{name}\" is not on the boundary of the body: its \
-                     element {} is a facet of {n} elements{other}",
-                    e.tag
-                )));
-            }
-            None => {
-                return Err(Error::Mesh(format!(
-                    "contact group \"{name}\": its element {} is not a facet of any {}D \
-                     element (non-conforming mesh?)",
-                    e.tag, mesh.dim
-                )));
-            }
-        }
-    }
-
-    Ok(elems)
-}
-
-/// Cells that share a node with a cell touching the given boundary elements: every facet a
-/// boundary element or a layer cell can share lies among their facets.
-fn cells_near(mesh: &Mesh, elems: &[&crate::mesh::Element]) -> Vec<usize> {
-    let mut near_contact = vec![false; mesh.n_nodes()];
-    for e in elems {
-        for &n in e.nodes() {
-            near_contact[n] = true;
-        }
-    }
-    let mut near_layer = vec![false; mesh.n_nodes()];
-    for cell in &mesh.cells {
-        if cell.nodes().iter().any(|&n| near_contact[n]) {
-            for &n in cell.nodes() {
-                near_layer[n] = true;
-            }
-        }
-    }
-    (0..mesh.cells.len())
-        .filter(|&c| mesh.cells[c].nodes().iter().any(|&n| near_layer[n]))
-        .collect()
-}
-
 /// Relative tolerance for near-ties in the partner choice (times the element's diameter).
 const TIE_TOL: f64 = 1e-10;
 /// A vertex is accepted into the extrapolation simplex of a quad/hex partner if the simplex
@@ -250,12 +143,6 @@ fn gram_det(v: &[[f64; 3]], k: usize, d: usize) -> f64 {
         2 => g[0][0] * g[1][1] - g[0][1] * g[1][0],
         _ => det3(&g),
     }
-}
-
-fn det3(a: &[[f64; 3]; 3]) -> f64 {
-    a[0][0] * (a[1][1] * a[2][2] - a[1][2] * a[2][1])
-        - a[0][1] * (a[1][0] * a[2][2] - a[1][2] * a[2][0])
-        + a[0][2] * (a[1][0] * a[2][1] - a[1][1] * a[2][0])
 }
 
 /// Relative volume of the simplex `pts` (in [0, 1]): sqrt(Gram det) / product of edge lengths
@@ -525,28 +412,6 @@ fn map_variant0(mesh: &Mesh, c: usize, is_contact: &[bool], name: &str) -> Resul
     Ok(ElementMap { sources, weights })
 }
 
-/// `node -> cells` in CSR form (cells ascending for each node).
-fn node_cells(mesh: &Mesh) -> (Vec<usize>, Vec<usize>) {
-    let mut start = vec![0usize; mesh.n_nodes() + 1];
-    for e in &mesh.cells {
-        for &g in e.nodes() {
-            start[g + 1] += 1;
-        }
-    }
-    for i in 0..mesh.n_nodes() {
-        start[i + 1] += start[i];
-    }
-    let mut fill = start.clone();
-    let mut list = vec![0usize; start[mesh.n_nodes()]];
-    for (c, e) in mesh.cells.iter().enumerate() {
-        for &g in e.nodes() {
-            list[fill[g]] = c;
-            fill[g] += 1;
-        }
-    }
-    (start, list)
-}
-
 /// Variant 1 partner of layer cell `c` (see the module docs for the rule).
 fn partner(
     mesh: &Mesh,
@@ -704,6 +569,7 @@ fn extrapolation_simplex(mesh: &Mesh, pn: &[usize], x: &[f64; 3], d: usize) -> O
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::fem::shape::reference_node;
     use crate::mesh::{Element, PhysicalGroup};
 
     /// A 2D mesh from coordinates, cells and one boundary group of Line2 elements.
@@ -744,7 +610,7 @@ mod tests {
 
     fn quad_det_j(x: &[[f64; 3]], xi: f64, eta: f64) -> f64 {
         // Reference [-1,1]^2, gmsh order.
-        let r = [[-1.0, -1.0], [1.0, -1.0], [1.0, 1.0], [-1.0, 1.0]];
+        let r: Vec<[f64; 3]> = (0..4).map(|a| reference_node(ElementKind::Quad4, a)).collect();
         let mut j = [[0.0; 2]; 2];
         for a in 0..4 {
             let dxi = 0.25 * r[a][0] * (1.0 + r[a][1] * eta);

@@ -3,6 +3,7 @@
 
 use super::{Element, ElementKind, Mesh};
 use crate::error::{Error, Result};
+use crate::fem::shape::{det3, jacobian, reference_node, shape_grad_ref};
 
 /// Relative tolerance below which a cell counts as degenerate: |measure| <= TOL * h^dim.
 const TOL: f64 = 1e-12;
@@ -47,11 +48,6 @@ fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
     [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
 }
 
-fn det3(a: [f64; 3], b: [f64; 3], c: [f64; 3]) -> f64 {
-    a[0] * (b[1] * c[2] - b[2] * c[1]) - a[1] * (b[0] * c[2] - b[2] * c[0])
-        + a[2] * (b[0] * c[1] - b[1] * c[0])
-}
-
 /// Longest edge: the length scale for the degeneracy tolerance.
 fn size(x: &[[f64; 3]], kind: ElementKind) -> f64 {
     kind.edges()
@@ -63,59 +59,29 @@ fn size(x: &[[f64; 3]], kind: ElementKind) -> f64 {
         .fold(0.0, f64::max)
 }
 
-/// Reference coordinates of the corners in gmsh order.
-const QUAD_REF: [[f64; 2]; 4] = [[-1.0, -1.0], [1.0, -1.0], [1.0, 1.0], [-1.0, 1.0]];
-const HEX_REF: [[f64; 3]; 8] = [
-    [-1.0, -1.0, -1.0],
-    [1.0, -1.0, -1.0],
-    [1.0, 1.0, -1.0],
-    [-1.0, 1.0, -1.0],
-    [-1.0, -1.0, 1.0],
-    [1.0, -1.0, 1.0],
-    [1.0, 1.0, 1.0],
-    [-1.0, 1.0, 1.0],
-];
+/// det J of the bilinear (quad) or trilinear (hex) map of the cell with nodes `x` at the
+/// reference point `xi`.
+fn jacobian_det_at(x: &[[f64; 3]], kind: ElementKind, xi: [f64; 3]) -> f64 {
+    let mut dn = [[0.0; 3]; 8];
+    shape_grad_ref(kind, xi, &mut dn);
+    let j = jacobian(kind.dim(), kind.n_nodes(), x, &dn);
+    match kind {
+        ElementKind::Quad4 => j[0][0] * j[1][1] - j[0][1] * j[1][0],
+        // Expanded along the first column (det3 of J^T), as these checks always have.
+        ElementKind::Hex8 => det3(&[
+            [j[0][0], j[1][0], j[2][0]],
+            [j[0][1], j[1][1], j[2][1]],
+            [j[0][2], j[1][2], j[2][2]],
+        ]),
+        _ => unreachable!("jacobian_det_at is for quads and hexes"),
+    }
+}
 
 /// Jacobian determinants at the corners, scaled to the corner's parallelogram area
 /// (x4 for quads) or parallelepiped volume (x8 for hexes) so they compare with h^dim.
 fn corner_measures(x: &[[f64; 3]], kind: ElementKind) -> Vec<f64> {
-    match kind {
-        ElementKind::Quad4 => QUAD_REF
-            .iter()
-            .map(|&[xi, eta]| {
-                let mut j = [[0.0; 2]; 2]; // j[r][c] = d x_r / d xi_c
-                for (a, &[xa, ea]) in QUAD_REF.iter().enumerate() {
-                    let dn = [xa * (1.0 + ea * eta) / 4.0, ea * (1.0 + xa * xi) / 4.0];
-                    for r in 0..2 {
-                        for c in 0..2 {
-                            j[r][c] += x[a][r] * dn[c];
-                        }
-                    }
-                }
-                4.0 * (j[0][0] * j[1][1] - j[0][1] * j[1][0])
-            })
-            .collect(),
-        ElementKind::Hex8 => HEX_REF
-            .iter()
-            .map(|&[xi, eta, zeta]| {
-                let mut cols = [[0.0; 3]; 3]; // cols[c][r] = d x_r / d xi_c
-                for (a, &[xa, ea, za]) in HEX_REF.iter().enumerate() {
-                    let dn = [
-                        xa * (1.0 + ea * eta) * (1.0 + za * zeta) / 8.0,
-                        ea * (1.0 + xa * xi) * (1.0 + za * zeta) / 8.0,
-                        za * (1.0 + xa * xi) * (1.0 + ea * eta) / 8.0,
-                    ];
-                    for (c, col) in cols.iter_mut().enumerate() {
-                        for r in 0..3 {
-                            col[r] += x[a][r] * dn[c];
-                        }
-                    }
-                }
-                8.0 * det3(cols[0], cols[1], cols[2])
-            })
-            .collect(),
-        _ => unreachable!("corner_measures is for quads and hexes"),
-    }
+    let scale = if kind == ElementKind::Quad4 { 4.0 } else { 8.0 };
+    (0..kind.n_nodes()).map(|a| scale * jacobian_det_at(x, kind, reference_node(kind, a))).collect()
 }
 
 fn check_cell(mesh: &Mesh, e: &Element) -> Result<()> {
@@ -140,7 +106,7 @@ fn check_cell(mesh: &Mesh, e: &Element) -> Result<()> {
                 let (a, b) = (sub(x[1], x[0]), sub(x[2], x[0]));
                 (0.5 * (a[0] * b[1] - a[1] * b[0]), "signed area")
             } else {
-                (det3(sub(x[1], x[0]), sub(x[2], x[0]), sub(x[3], x[0])) / 6.0, "signed volume")
+                (det3(&[sub(x[1], x[0]), sub(x[2], x[0]), sub(x[3], x[0])]) / 6.0, "signed volume")
             };
             if m.abs() <= tol {
                 return mesh_err(format!(
@@ -211,43 +177,14 @@ pub fn cell_measure(mesh: &Mesh, e: &Element) -> f64 {
             let (a, b) = (sub(x[1], x[0]), sub(x[2], x[0]));
             0.5 * (a[0] * b[1] - a[1] * b[0])
         }
-        ElementKind::Tet4 => det3(sub(x[1], x[0]), sub(x[2], x[0]), sub(x[3], x[0])) / 6.0,
-        ElementKind::Quad4 => {
+        ElementKind::Tet4 => det3(&[sub(x[1], x[0]), sub(x[2], x[0]), sub(x[3], x[0])]) / 6.0,
+        ElementKind::Quad4 | ElementKind::Hex8 => {
+            // The 2x2(x2) Gauss points are the corners scaled by 1/sqrt(3), weights 1.
             let g = 1.0 / 3f64.sqrt();
             let mut s = 0.0;
-            for (xi, eta) in [(-g, -g), (g, -g), (g, g), (-g, g)] {
-                let mut j = [[0.0; 2]; 2];
-                for (a, &[xa, ea]) in QUAD_REF.iter().enumerate() {
-                    let dn = [xa * (1.0 + ea * eta) / 4.0, ea * (1.0 + xa * xi) / 4.0];
-                    for r in 0..2 {
-                        for c in 0..2 {
-                            j[r][c] += x[a][r] * dn[c];
-                        }
-                    }
-                }
-                s += j[0][0] * j[1][1] - j[0][1] * j[1][0];
-            }
-            s
-        }
-        ElementKind::Hex8 => {
-            let g = 1.0 / 3f64.sqrt();
-            let mut s = 0.0;
-            for &[xi, eta, zeta] in HEX_REF.iter() {
-                let (xi, eta, zeta) = (xi * g, eta * g, zeta * g);
-                let mut cols = [[0.0; 3]; 3];
-                for (a, &[xa, ea, za]) in HEX_REF.iter().enumerate() {
-                    let dn = [
-                        xa * (1.0 + ea * eta) * (1.0 + za * zeta) / 8.0,
-                        ea * (1.0 + xa * xi) * (1.0 + za * zeta) / 8.0,
-                        za * (1.0 + xa * xi) * (1.0 + ea * eta) / 8.0,
-                    ];
-                    for (c, col) in cols.iter_mut().enumerate() {
-                        for r in 0..3 {
-                            col[r] += x[a][r] * dn[c];
-                        }
-                    }
-                }
-                s += det3(cols[0], cols[1], cols[2]);
+            for a in 0..e.kind.n_nodes() {
+                let xi = reference_node(e.kind, a).map(|v| v * g);
+                s += jacobian_det_at(&x, e.kind, xi);
             }
             s
         }

@@ -1,10 +1,12 @@
 //! The plain mesh every rank holds: node coordinates, elements by dimension, and gmsh
 //! physical groups by name. Reading (MSH 4.1, ASCII and binary) lives in `msh`, meshing
-//! `.geo` sources with the gmsh command in `gmsh`, geometric checks in `check`.
+//! `.geo` sources with the gmsh command in `gmsh`, geometric checks in `check`, which cells
+//! share facets and nodes (and the checked contact boundary groups) in `topology`.
 
 pub mod check;
 pub mod gmsh;
 pub mod msh;
+pub mod topology;
 
 use crate::error::{Error, Result};
 pub use crate::fem::element::ElementKind;

@@ -8,6 +8,7 @@
 //! entry across rank counts.
 
 use crate::error::{Error, Result};
+use crate::mesh::topology::node_cells;
 use crate::mesh::Mesh;
 
 /// The fixed METIS seed: the partition must be the same on every rank and every run.
@@ -32,29 +33,6 @@ pub struct Partition {
     pub local_cells: Vec<usize>,
     /// `preallocation` computed once (every matrix shares the pattern).
     prealloc: std::sync::OnceLock<(Vec<i32>, Vec<i32>)>,
-}
-
-/// Node -> cells adjacency in CSR form (offsets of length n_nodes + 1).
-pub fn node_cells(mesh: &Mesh) -> (Vec<usize>, Vec<usize>) {
-    let n = mesh.n_nodes();
-    let mut count = vec![0usize; n + 1];
-    for c in &mesh.cells {
-        for &v in c.nodes() {
-            count[v + 1] += 1;
-        }
-    }
-    for i in 0..n {
-        count[i + 1] += count[i];
-    }
-    let mut fill = count.clone();
-    let mut list = vec![0usize; count[n]];
-    for (ci, c) in mesh.cells.iter().enumerate() {
-        for &v in c.nodes() {
-            list[fill[v]] = ci;
-            fill[v] += 1;
-        }
-    }
-    (count, list)
 }
 
 /// METIS keeps its random-number state in globals: calls from several threads (tests) must
