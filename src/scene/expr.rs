@@ -24,8 +24,6 @@ use std::fmt;
 
 /// Deepest evaluation stack a compiled expression may need.
 const STACK: usize = 32;
-/// Points evaluated together by [`Expr::eval_batch`].
-pub const LANES: usize = 8;
 /// Deepest parenthesis / unary nesting the parser accepts (guards the recursion).
 const MAX_NESTING: usize = 200;
 
@@ -371,116 +369,6 @@ impl Expr {
                 Op::SubV(i) => top -= v[i as usize & 3],
                 Op::MulV(i) => top *= v[i as usize & 3],
                 Op::DivV(i) => top /= v[i as usize & 3],
-            }
-        }
-        top
-    }
-
-    /// Evaluates at many points at once: `out[k] = f(xs[k], t)`. The instruction dispatch is
-    /// paid once per [`LANES`] points, so this is several times faster per point than calling
-    /// [`Expr::eval`] in a loop (e.g. for all quadrature points of an element or a partition).
-    /// Allocation-free. Panics if `xs` and `out` differ in length.
-    pub fn eval_batch(&self, xs: &[[f64; 3]], t: f64, out: &mut [f64]) {
-        assert_eq!(xs.len(), out.len(), "Expr::eval_batch: xs and out differ in length");
-        if let Some(c) = self.as_constant() {
-            out.fill(c);
-            return;
-        }
-        for (xc, oc) in xs.chunks(LANES).zip(out.chunks_mut(LANES)) {
-            let mut v = [[t; LANES]; 4];
-            for (l, p) in xc.iter().enumerate() {
-                v[0][l] = p[0];
-                v[1][l] = p[1];
-                v[2][l] = p[2];
-            }
-            let r = self.run_lanes(&v);
-            oc.copy_from_slice(&r[..oc.len()]);
-        }
-    }
-
-    /// [`Expr::run`] on `LANES` points at once.
-    fn run_lanes(&self, v: &[[f64; LANES]; 4]) -> [f64; LANES] {
-        let mut st = [[0.0f64; LANES]; STACK];
-        let mut sp = 0usize;
-        let mut top = [0.0f64; LANES];
-        macro_rules! un {
-            (|$a:ident| $e:expr) => {
-                for $a in top.iter_mut() {
-                    *$a = $e;
-                }
-            };
-        }
-        macro_rules! bin {
-            (|$a:ident, $b:ident| $e:expr) => {{
-                sp -= 1;
-                for ($b, $a) in top.iter_mut().zip(st[sp].iter()) {
-                    let $a = *$a;
-                    *$b = {
-                        let $b = *$b;
-                        $e
-                    };
-                }
-            }};
-        }
-        for op in self.ops.iter() {
-            match *op {
-                Op::Const(c) => {
-                    st[sp] = top;
-                    sp += 1;
-                    top = [c; LANES];
-                }
-                Op::Var(i) => {
-                    st[sp] = top;
-                    sp += 1;
-                    top = v[i as usize & 3];
-                }
-                Op::Neg => un!(|a| -*a),
-                Op::Sin => un!(|a| a.sin()),
-                Op::Cos => un!(|a| a.cos()),
-                Op::Tan => un!(|a| a.tan()),
-                Op::Exp => un!(|a| a.exp()),
-                Op::Log => un!(|a| a.ln()),
-                Op::Sqrt => un!(|a| a.sqrt()),
-                Op::Abs => un!(|a| a.abs()),
-                Op::Sinh => un!(|a| a.sinh()),
-                Op::Cosh => un!(|a| a.cosh()),
-                Op::Tanh => un!(|a| a.tanh()),
-                Op::Asin => un!(|a| a.asin()),
-                Op::Acos => un!(|a| a.acos()),
-                Op::Atan => un!(|a| a.atan()),
-                Op::Add => bin!(|a, b| a + b),
-                Op::Sub => bin!(|a, b| a - b),
-                Op::Mul => bin!(|a, b| a * b),
-                Op::Div => bin!(|a, b| a / b),
-                Op::Pow => bin!(|a, b| a.powf(b)),
-                Op::Atan2 => bin!(|a, b| a.atan2(b)),
-                Op::Min => bin!(|a, b| a.min(b)),
-                Op::Max => bin!(|a, b| a.max(b)),
-                Op::PowI(n) => un!(|a| powi(*a, n)),
-                Op::AddC(c) => un!(|a| *a + c),
-                Op::MulC(c) => un!(|a| *a * c),
-                Op::RSubC(c) => un!(|a| c - *a),
-                Op::RDivC(c) => un!(|a| c / *a),
-                Op::AddV(i) => {
-                    for (a, b) in top.iter_mut().zip(v[i as usize & 3].iter()) {
-                        *a += b;
-                    }
-                }
-                Op::SubV(i) => {
-                    for (a, b) in top.iter_mut().zip(v[i as usize & 3].iter()) {
-                        *a -= b;
-                    }
-                }
-                Op::MulV(i) => {
-                    for (a, b) in top.iter_mut().zip(v[i as usize & 3].iter()) {
-                        *a *= b;
-                    }
-                }
-                Op::DivV(i) => {
-                    for (a, b) in top.iter_mut().zip(v[i as usize & 3].iter()) {
-                        *a /= b;
-                    }
-                }
             }
         }
         top
@@ -1098,29 +986,6 @@ mod tests {
         // Folding inside a larger expression: sin(2*pi*t) keeps one constant.
         let e = Expr::parse("sin(2*pi*t)").unwrap();
         assert_eq!(e.ops.len(), 3);
-    }
-
-    #[test]
-    fn batch_matches_scalar() {
-        let srcs = [
-            "0.02*x*(10-x)*y^2*sin(2*pi*t)",
-            "atan2(y, x) - min(x, z) + max(1, y)^2 / (1 + z) - 3/x",
-            "pow(abs(y), 1.5) + sqrt(z) * exp(-t) + cosh(x)/y - tanh(x)*z + x^-2",
-            "4",
-        ];
-        for src in srcs {
-            let e = Expr::parse(src).unwrap();
-            for n in [0, 1, 7, 8, 9, 23] {
-                let xs: Vec<[f64; 3]> = (0..n)
-                    .map(|i| [0.3 + i as f64, 0.1 - 0.05 * i as f64, 0.7 + 0.01 * i as f64])
-                    .collect();
-                let mut out = vec![f64::NAN; n];
-                e.eval_batch(&xs, 0.4, &mut out);
-                for (p, o) in xs.iter().zip(&out) {
-                    assert_eq!(o.to_bits(), e.eval(*p, 0.4).to_bits(), "{src} at {p:?}");
-                }
-            }
-        }
     }
 
     #[test]
