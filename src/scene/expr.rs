@@ -24,8 +24,6 @@ use std::fmt;
 
 /// Deepest evaluation stack a compiled expression may need.
 const STACK: usize = 32;
-/// Points evaluated together by [`Expr::eval_batch`].
-pub const LANES: usize = 8;
 /// Deepest parenthesis / unary nesting the parser accepts (guards the recursion).
 const MAX_NESTING: usize = 200;
 
@@ -34,7 +32,7 @@ const FUNCTIONS: &str =
     "sin, cos, tan, exp, log, sqrt, abs, sinh, cosh, tanh, asin, acos, atan, atan2, min, max, pow";
 
 #[derive(Clone, Copy, Debug, PartialEq)]
-enum Un {
+pub(super) enum Un {
     Neg,
     Sin,
     Cos,
@@ -51,24 +49,40 @@ enum Un {
     Atan,
 }
 
+/// The one-argument functions by name (the parser reads them, [`Node`]'s `Display` writes them).
+const UNARY_FUNCTIONS: [(&str, Un); 13] = [
+    ("sin", Un::Sin),
+    ("cos", Un::Cos),
+    ("tan", Un::Tan),
+    ("exp", Un::Exp),
+    ("log", Un::Log),
+    ("sqrt", Un::Sqrt),
+    ("abs", Un::Abs),
+    ("sinh", Un::Sinh),
+    ("cosh", Un::Cosh),
+    ("tanh", Un::Tanh),
+    ("asin", Un::Asin),
+    ("acos", Un::Acos),
+    ("atan", Un::Atan),
+];
+
+/// The two-argument functions by name.
+const BINARY_FUNCTIONS: [(&str, Bin); 4] =
+    [("atan2", Bin::Atan2), ("min", Bin::Min), ("max", Bin::Max), ("pow", Bin::Pow)];
+
+/// The entry of `table` called `name`.
+fn by_name<T: Copy>(table: &[(&str, T)], name: &str) -> Option<T> {
+    table.iter().find(|(n, _)| *n == name).map(|&(_, f)| f)
+}
+
+/// The name of `f` in `table` ("" if absent: never for the functions the parser builds).
+fn name_of<T: Copy + PartialEq>(table: &[(&'static str, T)], f: T) -> &'static str {
+    table.iter().find(|(_, g)| *g == f).map_or("", |&(n, _)| n)
+}
+
 impl Un {
     fn from_name(name: &str) -> Option<Un> {
-        Some(match name {
-            "sin" => Un::Sin,
-            "cos" => Un::Cos,
-            "tan" => Un::Tan,
-            "exp" => Un::Exp,
-            "log" => Un::Log,
-            "sqrt" => Un::Sqrt,
-            "abs" => Un::Abs,
-            "sinh" => Un::Sinh,
-            "cosh" => Un::Cosh,
-            "tanh" => Un::Tanh,
-            "asin" => Un::Asin,
-            "acos" => Un::Acos,
-            "atan" => Un::Atan,
-            _ => return None,
-        })
+        by_name(&UNARY_FUNCTIONS, name)
     }
 
     #[inline(always)]
@@ -93,7 +107,7 @@ impl Un {
 }
 
 #[derive(Clone, Copy, Debug, PartialEq)]
-enum Bin {
+pub(super) enum Bin {
     Add,
     Sub,
     Mul,
@@ -106,13 +120,7 @@ enum Bin {
 
 impl Bin {
     fn from_name(name: &str) -> Option<Bin> {
-        Some(match name {
-            "atan2" => Bin::Atan2,
-            "min" => Bin::Min,
-            "max" => Bin::Max,
-            "pow" => Bin::Pow,
-            _ => return None,
-        })
+        by_name(&BINARY_FUNCTIONS, name)
     }
 
     #[inline(always)]
@@ -130,13 +138,107 @@ impl Bin {
     }
 }
 
-/// Parse tree; only lives during compilation.
-#[derive(Debug, Clone)]
-enum Node {
+/// Parse tree: what [`Expr::parse`] compiles, and what [`super::separate`] splits.
+/// `Var` indices are 0..3 = x, y, z, t.
+#[derive(Debug, Clone, PartialEq)]
+pub(super) enum Node {
     Num(f64),
     Var(u8),
     Un(Un, Box<Node>),
     Bin(Bin, Box<Node>, Box<Node>),
+}
+
+impl Node {
+    /// Whether a variable whose index satisfies `pred` occurs.
+    fn uses_var(&self, pred: &impl Fn(u8) -> bool) -> bool {
+        match self {
+            Node::Num(_) => false,
+            Node::Var(i) => pred(*i),
+            Node::Un(_, a) => a.uses_var(pred),
+            Node::Bin(_, a, b) => a.uses_var(pred) || b.uses_var(pred),
+        }
+    }
+
+    /// Whether `t` occurs (as [`Expr::depends_on_t`]).
+    pub(super) fn depends_on_t(&self) -> bool {
+        self.uses_var(&|i| i == 3)
+    }
+
+    /// Whether any of `x`, `y`, `z` occurs (as [`Expr::depends_on_x`]).
+    pub(super) fn depends_on_x(&self) -> bool {
+        self.uses_var(&|i| i < 3)
+    }
+
+    /// How tightly the written form binds, as in the grammar: 1 sum, 2 product, 3 sign,
+    /// 4 power, 5 primary (a negative number is written with its sign).
+    fn binding(&self) -> u8 {
+        match self {
+            Node::Bin(Bin::Add | Bin::Sub, ..) => 1,
+            Node::Bin(Bin::Mul | Bin::Div, ..) => 2,
+            Node::Un(Un::Neg, _) => 3,
+            Node::Num(v) if v.is_finite() && v.is_sign_negative() => 3,
+            Node::Bin(Bin::Pow, ..) => 4,
+            _ => 5,
+        }
+    }
+}
+
+/// Text that [`parse_tree`] reads back into the same tree (numbers to the bit): operands are
+/// parenthesized exactly where the grammar would otherwise group them differently, so
+/// `a - (b - c)` and `(a*b)*c` vs `a*(b*c)` keep their shape and thus their rounding.
+impl fmt::Display for Node {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let operand = |f: &mut fmt::Formatter<'_>, n: &Node, parens: bool| {
+            if parens {
+                write!(f, "({n})")
+            } else {
+                write!(f, "{n}")
+            }
+        };
+        match self {
+            // Both forms are the shortest digits that parse back to the same f64; `{}` never
+            // uses an exponent (1e-300 would take 300 digits), `{:?}` writes 2 as "2.0".
+            Node::Num(v) if v.is_finite() => {
+                let plain = v.to_string();
+                if plain.len() <= 20 {
+                    f.write_str(&plain)
+                } else {
+                    write!(f, "{v:?}")
+                }
+            }
+            // Non-finite constants (from folding, e.g. 1/0) as expressions that fold back.
+            Node::Num(v) if v.is_nan() => f.write_str("(0/0)"),
+            Node::Num(v) => f.write_str(if *v > 0.0 { "(1/0)" } else { "(-1/0)" }),
+            Node::Var(i) => f.write_str(["x", "y", "z", "t"][*i as usize & 3]),
+            Node::Un(Un::Neg, a) => {
+                f.write_str("-")?;
+                operand(f, a, a.binding() < 3)
+            }
+            Node::Un(g, a) => write!(f, "{}({a})", name_of(&UNARY_FUNCTIONS, *g)),
+            Node::Bin(op @ (Bin::Atan2 | Bin::Min | Bin::Max), a, b) => {
+                write!(f, "{}({a}, {b})", name_of(&BINARY_FUNCTIONS, *op))
+            }
+            Node::Bin(op, a, b) => {
+                let (symbol, own) = match op {
+                    Bin::Add => (" + ", 1),
+                    Bin::Sub => (" - ", 1),
+                    Bin::Mul => ("*", 2),
+                    Bin::Div => ("/", 2),
+                    _ => ("^", 4),
+                };
+                // `^` is right-associative with a primary base and a signed exponent; the
+                // others are left-associative.
+                let (left, right) = if own == 4 {
+                    (a.binding() <= 4, b.binding() < 3)
+                } else {
+                    (a.binding() < own, b.binding() <= own)
+                };
+                operand(f, a, left)?;
+                f.write_str(symbol)?;
+                operand(f, b, right)
+            }
+        }
+    }
 }
 
 /// One instruction of the compiled postfix program (flat, so the interpreter dispatches once per
@@ -249,20 +351,7 @@ impl fmt::Display for Expr {
 impl Expr {
     /// Compiles `src`. The error says what went wrong and at which (1-based) character column.
     pub fn parse(src: &str) -> std::result::Result<Expr, String> {
-        let tokens = lex(src)?;
-        let mut p = Parser { tokens, pos: 0, depth: 0 };
-        if p.peek().tok == Tok::End {
-            return Err("empty expression".to_string());
-        }
-        let node = p.expr()?;
-        let t = p.peek();
-        if t.tok != Tok::End {
-            return Err(match t.tok {
-                Tok::Close => format!("unmatched ')' at column {}", t.col),
-                _ => p.unexpected(t),
-            });
-        }
-        let node = fold(node);
+        let node = parse_tree(src)?;
         let mut ops = Vec::new();
         emit(&node, &mut ops);
         let depth = stack_depth(&ops);
@@ -371,116 +460,6 @@ impl Expr {
                 Op::SubV(i) => top -= v[i as usize & 3],
                 Op::MulV(i) => top *= v[i as usize & 3],
                 Op::DivV(i) => top /= v[i as usize & 3],
-            }
-        }
-        top
-    }
-
-    /// Evaluates at many points at once: `out[k] = f(xs[k], t)`. The instruction dispatch is
-    /// paid once per [`LANES`] points, so this is several times faster per point than calling
-    /// [`Expr::eval`] in a loop (e.g. for all quadrature points of an element or a partition).
-    /// Allocation-free. Panics if `xs` and `out` differ in length.
-    pub fn eval_batch(&self, xs: &[[f64; 3]], t: f64, out: &mut [f64]) {
-        assert_eq!(xs.len(), out.len(), "Expr::eval_batch: xs and out differ in length");
-        if let Some(c) = self.as_constant() {
-            out.fill(c);
-            return;
-        }
-        for (xc, oc) in xs.chunks(LANES).zip(out.chunks_mut(LANES)) {
-            let mut v = [[t; LANES]; 4];
-            for (l, p) in xc.iter().enumerate() {
-                v[0][l] = p[0];
-                v[1][l] = p[1];
-                v[2][l] = p[2];
-            }
-            let r = self.run_lanes(&v);
-            oc.copy_from_slice(&r[..oc.len()]);
-        }
-    }
-
-    /// [`Expr::run`] on `LANES` points at once.
-    fn run_lanes(&self, v: &[[f64; LANES]; 4]) -> [f64; LANES] {
-        let mut st = [[0.0f64; LANES]; STACK];
-        let mut sp = 0usize;
-        let mut top = [0.0f64; LANES];
-        macro_rules! un {
-            (|$a:ident| $e:expr) => {
-                for $a in top.iter_mut() {
-                    *$a = $e;
-                }
-            };
-        }
-        macro_rules! bin {
-            (|$a:ident, $b:ident| $e:expr) => {{
-                sp -= 1;
-                for ($b, $a) in top.iter_mut().zip(st[sp].iter()) {
-                    let $a = *$a;
-                    *$b = {
-                        let $b = *$b;
-                        $e
-                    };
-                }
-            }};
-        }
-        for op in self.ops.iter() {
-            match *op {
-                Op::Const(c) => {
-                    st[sp] = top;
-                    sp += 1;
-                    top = [c; LANES];
-                }
-                Op::Var(i) => {
-                    st[sp] = top;
-                    sp += 1;
-                    top = v[i as usize & 3];
-                }
-                Op::Neg => un!(|a| -*a),
-                Op::Sin => un!(|a| a.sin()),
-                Op::Cos => un!(|a| a.cos()),
-                Op::Tan => un!(|a| a.tan()),
-                Op::Exp => un!(|a| a.exp()),
-                Op::Log => un!(|a| a.ln()),
-                Op::Sqrt => un!(|a| a.sqrt()),
-                Op::Abs => un!(|a| a.abs()),
-                Op::Sinh => un!(|a| a.sinh()),
-                Op::Cosh => un!(|a| a.cosh()),
-                Op::Tanh => un!(|a| a.tanh()),
-                Op::Asin => un!(|a| a.asin()),
-                Op::Acos => un!(|a| a.acos()),
-                Op::Atan => un!(|a| a.atan()),
-                Op::Add => bin!(|a, b| a + b),
-                Op::Sub => bin!(|a, b| a - b),
-                Op::Mul => bin!(|a, b| a * b),
-                Op::Div => bin!(|a, b| a / b),
-                Op::Pow => bin!(|a, b| a.powf(b)),
-                Op::Atan2 => bin!(|a, b| a.atan2(b)),
-                Op::Min => bin!(|a, b| a.min(b)),
-                Op::Max => bin!(|a, b| a.max(b)),
-                Op::PowI(n) => un!(|a| powi(*a, n)),
-                Op::AddC(c) => un!(|a| *a + c),
-                Op::MulC(c) => un!(|a| *a * c),
-                Op::RSubC(c) => un!(|a| c - *a),
-                Op::RDivC(c) => un!(|a| c / *a),
-                Op::AddV(i) => {
-                    for (a, b) in top.iter_mut().zip(v[i as usize & 3].iter()) {
-                        *a += b;
-                    }
-                }
-                Op::SubV(i) => {
-                    for (a, b) in top.iter_mut().zip(v[i as usize & 3].iter()) {
-                        *a -= b;
-                    }
-                }
-                Op::MulV(i) => {
-                    for (a, b) in top.iter_mut().zip(v[i as usize & 3].iter()) {
-                        *a *= b;
-                    }
-                }
-                Op::DivV(i) => {
-                    for (a, b) in top.iter_mut().zip(v[i as usize & 3].iter()) {
-                        *a /= b;
-                    }
-                }
             }
         }
         top
@@ -678,6 +657,24 @@ fn is_ident_char(c: char) -> bool {
 
 // ---------------------------------------------------------------------------------------------
 // Parser
+
+/// Parses `src` into its constant-folded tree; the errors of [`Expr::parse`].
+pub(super) fn parse_tree(src: &str) -> std::result::Result<Node, String> {
+    let tokens = lex(src)?;
+    let mut p = Parser { tokens, pos: 0, depth: 0 };
+    if p.peek().tok == Tok::End {
+        return Err("empty expression".to_string());
+    }
+    let node = p.expr()?;
+    let t = p.peek();
+    if t.tok != Tok::End {
+        return Err(match t.tok {
+            Tok::Close => format!("unmatched ')' at column {}", t.col),
+            _ => p.unexpected(t),
+        });
+    }
+    Ok(fold(node))
+}
 
 struct Parser {
     tokens: Vec<Token>,
@@ -1101,26 +1098,29 @@ mod tests {
     }
 
     #[test]
-    fn batch_matches_scalar() {
+    fn tree_text_parses_back_to_the_same_tree() {
         let srcs = [
-            "0.02*x*(10-x)*y^2*sin(2*pi*t)",
-            "atan2(y, x) - min(x, z) + max(1, y)^2 / (1 + z) - 3/x",
-            "pow(abs(y), 1.5) + sqrt(z) * exp(-t) + cosh(x)/y - tanh(x)*z + x^-2",
-            "4",
+            "x - (y - z)",
+            "x*(y*z) + (x*y)*z",
+            "x/(y/z) - x/y/z",
+            "(x^2)^3 + 2^3^x + x^-2 + x^-y^2",
+            "-x^2 + (-2)^x + -(x*y) - -y + --x",
+            "-x*y + x*-y + x*-2.5 - (-3)*t",
+            "atan2(y, x) + min(x, t)*max(1, z) + pow(x, y) + log(abs(sin(x + t)))",
+            "1e-300*x + 1e300*y + 0.1*z + 2*t + -0*x",
+            "1/0*x + (-1/0)*y + x^(1/0)",
+            "0.08*pi^2*x*y^2*(x - 10) + 140/13*x*(x - 10) + 40/13*y^2",
         ];
         for src in srcs {
-            let e = Expr::parse(src).unwrap();
-            for n in [0, 1, 7, 8, 9, 23] {
-                let xs: Vec<[f64; 3]> = (0..n)
-                    .map(|i| [0.3 + i as f64, 0.1 - 0.05 * i as f64, 0.7 + 0.01 * i as f64])
-                    .collect();
-                let mut out = vec![f64::NAN; n];
-                e.eval_batch(&xs, 0.4, &mut out);
-                for (p, o) in xs.iter().zip(&out) {
-                    assert_eq!(o.to_bits(), e.eval(*p, 0.4).to_bits(), "{src} at {p:?}");
-                }
-            }
+            let tree = parse_tree(src).unwrap();
+            let text = tree.to_string();
+            assert_eq!(parse_tree(&text).unwrap(), tree, "{src} -> {text}");
         }
+        // NaN is not equal to itself: compare the texts.
+        let nan = parse_tree("sqrt(-1)*x").unwrap().to_string();
+        assert_eq!(nan, "(0/0)*x");
+        assert_eq!(parse_tree(&nan).unwrap().to_string(), nan);
+        assert_eq!(parse_tree("x - (y - 2*z)^2").unwrap().to_string(), "x - (y - 2*z)^2");
     }
 
     #[test]

@@ -7,7 +7,8 @@
 //! `scene error: beam.toml: material.nu = 0.5 is impossible: Poisson's ratio must be in (-1, 0.5)`.
 //!
 //! Vector-valued keys must have exactly `dim` components, but `dim` is only known after meshing:
-//! call [`Scene::check_dim`] then. [`Scene::effects`] tells what the scene asks to be built.
+//! call [`Scene::check_dim`] then. [`Scene::effects`] tells what the scene asks to be built
+//! ([`Effects::summary`]: the one-line report a run prints).
 //!
 //! ```toml
 //! name = "beam"                       # optional, default: file stem
@@ -60,8 +61,11 @@
 //!
 //! Numbers are accepted wherever an expression is (`value = [0, -1.5]`).
 
+pub mod effects;
 pub mod expr;
 pub mod separate;
+
+pub use effects::{Effects, ObstacleKind, Variation};
 
 use crate::error::{Error, Result};
 use expr::{Expr, VecExpr};
@@ -261,42 +265,7 @@ pub struct ContactSpec {
     pub obstacle: Obstacle,
 }
 
-/// What the scene asks the program to build and compute (everything else is skipped).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-pub struct Effects {
-    /// A body force is present and not identically zero.
-    pub body_force: bool,
-    pub body_force_time_dependent: bool,
-    /// Some Neumann boundary has a traction that is not identically zero.
-    pub neumann: bool,
-    pub neumann_time_dependent: bool,
-    /// Some Dirichlet boundary prescribes a value that is not identically zero.
-    pub dirichlet_nonzero: bool,
-    pub dirichlet_time_dependent: bool,
-    pub contact: bool,
-    pub exact: bool,
-}
-
 impl Scene {
-    /// What must be built: only what the scene asks for.
-    pub fn effects(&self) -> Effects {
-        let body = self.body_force.as_ref().filter(|b| !b.is_zero());
-        let neumann: Vec<&NeumannSpec> =
-            self.neumann.iter().filter(|n| !n.traction.is_zero()).collect();
-        let dirichlet: Vec<&DirichletSpec> =
-            self.dirichlet.iter().filter(|d| !d.value.is_zero()).collect();
-        Effects {
-            body_force: body.is_some(),
-            body_force_time_dependent: body.is_some_and(|b| b.depends_on_t()),
-            neumann: !neumann.is_empty(),
-            neumann_time_dependent: neumann.iter().any(|n| n.traction.depends_on_t()),
-            dirichlet_nonzero: !dirichlet.is_empty(),
-            dirichlet_time_dependent: dirichlet.iter().any(|d| d.value.depends_on_t()),
-            contact: self.contact.is_some(),
-            exact: self.exact.is_some(),
-        }
-    }
-
     /// The output period of a field: `output.field_every.<field>`, else `output.every`.
     pub fn every_of(&self, f: Field) -> usize {
         self.output.field_every.iter().find(|(g, _)| *g == f).map_or(self.output.every, |&(_, k)| k)

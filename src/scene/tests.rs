@@ -225,7 +225,10 @@ fn minimal_scene_defaults() {
     assert_eq!(s.output.fields, vec![Field::Displacement, Field::Velocity]);
     assert!(s.output.progress, "progress is on by default (only rank 0 on a terminal shows a bar)");
     assert!(s.exact.is_none() && s.contact.is_none());
-    assert_eq!(s.effects(), Effects::default());
+    assert_eq!(
+        s.effects().summary(),
+        "effects: elasticity, consistent mass; not built: mass-free layer, initial displacement, initial velocity, body force, tractions, Dirichlet, Dirichlet lifting, contact, exact errors"
+    );
     s.check_dim(2).unwrap();
     s.check_dim(3).unwrap();
 }
@@ -271,7 +274,7 @@ fn sphere_obstacle() {
         s.contact.as_ref().unwrap().obstacle,
         Obstacle::Sphere { center: vec![0.0, 2.0, 0.0], radius: 1.5 }
     );
-    assert!(s.effects().contact);
+    assert_eq!(s.effects().contact, Some(ObstacleKind::Sphere));
     s.check_dim(3).unwrap();
     let m = s.check_dim(2).unwrap_err().to_string();
     assert!(m.contains("contact.obstacle.center has 3 components but the mesh is 2D"), "{m}");
@@ -523,37 +526,71 @@ fn check_dim_names_the_key() {
 fn effects_follow_the_scene() {
     let dir = workspace();
     let s = parse_in(&dir, FULL).unwrap();
+    let varying = Some(Variation::TimeDependent);
     assert_eq!(
         s.effects(),
         Effects {
-            body_force: true,
-            body_force_time_dependent: true,
-            neumann: true,
-            neumann_time_dependent: true,
-            dirichlet_nonzero: true,
-            dirichlet_time_dependent: true,
-            contact: true,
-            exact: true,
+            mass: MassKind::Modified1,
+            layer_boundary: Some("bottom".into()),
+            initial_displacement: false,
+            initial_velocity: true,
+            body_force: varying,
+            tractions: varying,
+            dirichlet: true,
+            dirichlet_lifting: varying,
+            contact: Some(ObstacleKind::Plane),
+            exact_errors: true,
         }
     );
     let text = format!(
-        "{MINIMAL}\n[body_force]\nvalue = [0, \"0.0\"]\n[[neumann]]\ngroup = \"top\"\ntraction = [\"0\", \"-2*x\"]\n[[neumann]]\ngroup = \"side\"\ntraction = [0, 0]\n[[dirichlet]]\ngroup = \"left\"\n[[dirichlet]]\ngroup = \"right\"\nvalue = [\"0\", \"0.1\"]\n"
+        "{MINIMAL}\n[body_force]\nvalue = [0, \"0.0\"]\n[[neumann]]\ngroup = \"top\"\ntraction = [\"0\", \"-2*x\"]\n[[neumann]]\ngroup = \"side\"\ntraction = [0, 0]\n[[dirichlet]]\ngroup = \"left\"\n[[dirichlet]]\ngroup = \"right\"\nvalue = [\"0\", \"0.1\"]\n[mass]\nkind = \"lumped\"\ncontact_boundary = \"bottom\"\n"
     );
     let s = parse_in(&dir, &text).unwrap();
     assert!(s.body_force.as_ref().unwrap().is_zero());
     assert_eq!(
         s.effects(),
         Effects {
-            body_force: false,
-            body_force_time_dependent: false,
-            neumann: true,
-            neumann_time_dependent: false,
-            dirichlet_nonzero: true,
-            dirichlet_time_dependent: false,
-            contact: false,
-            exact: false,
+            mass: MassKind::Lumped,
+            layer_boundary: None, // no layer for a lumped mass, though a boundary is named
+            initial_displacement: false,
+            initial_velocity: false,
+            body_force: None,
+            tractions: Some(Variation::Steady),
+            dirichlet: true,
+            dirichlet_lifting: Some(Variation::Steady),
+            contact: None,
+            exact_errors: false,
         }
     );
+    assert_eq!(
+        s.effects().summary(),
+        "effects: elasticity, lumped mass, tractions (steady), Dirichlet (non-zero values), Dirichlet lifting (steady); not built: mass-free layer, initial displacement, initial velocity, body force, contact, exact errors"
+    );
+}
+
+#[test]
+fn effects_summary_lines() {
+    let dir = workspace();
+    let s = parse_in(&dir, FULL).unwrap();
+    assert_eq!(
+        s.effects().summary(),
+        "effects: elasticity, mass-free layer (modified1 along \"bottom\"), initial velocity, body force (time-dependent), tractions (time-dependent), Dirichlet (non-zero values), Dirichlet lifting (time-dependent), contact (plane obstacle), exact errors; not built: initial displacement"
+    );
+    let all = full_with("displacement = [\"0\", \"0\"]", "displacement = [\"0\", \"1e-3*x\"]");
+    let line = parse_in(&dir, &all).unwrap().effects().summary();
+    assert!(line.starts_with("effects: elasticity, mass-free layer"), "{line}");
+    assert!(line.contains(", initial displacement, initial velocity, "), "{line}");
+    assert!(line.ends_with("exact errors; not built: none"), "{line}");
+    // The layer along the contact boundary (the default), zero Dirichlet values: no lifting.
+    let text = format!(
+        "{MINIMAL}\n[[dirichlet]]\ngroup = \"left\"\nvalue = [\"0\", \"2-2\"]\n[mass]\nkind = \"modified1\"\n[contact]\nboundary = \"contact\"\nobstacle = {{ type = \"plane\", point = [0, 0], normal = [0, 1] }}\n[initial]\nvelocity = [0, 0]\n"
+    );
+    let line = parse_in(&dir, &text).unwrap().effects().summary();
+    assert_eq!(
+        line,
+        "effects: elasticity, mass-free layer (modified1 along \"contact\"), Dirichlet (zero values), contact (plane obstacle); not built: initial displacement, initial velocity, body force, tractions, Dirichlet lifting, exact errors"
+    );
+    assert!(!line.contains('\n'));
 }
 
 #[test]
