@@ -53,7 +53,7 @@ pub struct RunOptions {
 }
 
 /// Wall time of the phases of a run, in seconds (max over ranks).
-#[derive(Debug, Clone, Default, serde::Serialize)]
+#[derive(Debug, Clone, Default, serde::Serialize, serde::Deserialize)]
 pub struct Timings {
     pub mesh: f64,
     pub partition: f64,
@@ -64,7 +64,7 @@ pub struct Timings {
 }
 
 /// Errors of the displacement against the scene's exact solution at one step.
-#[derive(Debug, Clone, Copy, serde::Serialize)]
+#[derive(Debug, Clone, Copy, serde::Serialize, serde::Deserialize)]
 pub struct ErrorSample {
     pub step: usize,
     pub time: f64,
@@ -73,7 +73,7 @@ pub struct ErrorSample {
 }
 
 /// What a finished run reports (written by `--summary FILE` as TOML).
-#[derive(Debug, Clone, serde::Serialize)]
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 pub struct RunSummary {
     pub n_nodes: usize,
     pub n_dofs: usize,
@@ -108,6 +108,8 @@ pub struct RunSummary {
     pub contact: Option<ContactSummary>,
     /// PNG pictures written (rank 0's list).
     pub pictures: Vec<PathBuf>,
+    /// What the run simulated and what it did not build (`Effects::summary`).
+    pub effects: String,
 }
 
 /// Mesh the scene's geometry (gmsh on rank 0, others wait) and read it on every rank.
@@ -262,7 +264,7 @@ impl Record {
 }
 
 /// Mass-matrix diagnostics (see `check_mass`), per displacement component.
-#[derive(Debug, Clone, Default, serde::Serialize)]
+#[derive(Debug, Clone, Default, serde::Serialize, serde::Deserialize)]
 pub struct MassCheck {
     pub total_mass: Vec<f64>,
     pub first_moment: Vec<f64>,
@@ -319,6 +321,7 @@ impl<'a> Simulation<'a> {
                 Meta::text("scene", scene.text.clone()),
                 Meta::text("version", env!("CARGO_PKG_VERSION")),
                 Meta::text("status", "running"),
+                Meta::text("effects", scene.effects().summary()),
                 Meta::int_on("/", "ranks", size as i64),
             ];
             RunOutput::Closed(RunFile::create(world, &path, opts.overwrite, &items)?)
@@ -456,6 +459,7 @@ impl<'a> Simulation<'a> {
             self.part.n_global_dofs(),
             self.size
         ));
+        self.console.say(self.scene.effects().summary());
         phase::enter(Phase::Assembling);
         let t0 = Instant::now();
         let mesh = &self.mesh;
@@ -822,6 +826,7 @@ impl<'a> Simulation<'a> {
             momentum_final: p1[..self.part.dim].to_vec(),
             contact: contact_summary,
             pictures,
+            effects: self.scene.effects().summary(),
         })
     }
 

@@ -16,7 +16,7 @@ pub struct History {
 }
 
 /// What a contact run reports (written by `--summary` under `[contact]`).
-#[derive(Debug, Clone, Default, serde::Serialize)]
+#[derive(Debug, Clone, Default, serde::Serialize, serde::Deserialize)]
 pub struct ContactSummary {
     pub nodes: usize,
     /// First and last step with an active node (0 if none).
