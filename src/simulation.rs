@@ -20,7 +20,8 @@ use crate::contact::{ActiveSet, ContactBoundary, ContactSolver, Obstacle};
 use crate::error::{Error, Result};
 use crate::fem::{self, kernels};
 use crate::io::{
-    group_key, natural_range, read_checkpoint, Checkpoint, Meta, Output, OutputPlan, RunFile,
+    group_key, natural_range, read_checkpoint, Checkpoint, Meta, Output, OutputPlan, PlannedField,
+    RunFile,
 };
 use crate::mass::{build_layer, mass_matrix, MassFreeLayer};
 use crate::mesh::Mesh;
@@ -687,18 +688,28 @@ impl<'a> Simulation<'a> {
     fn write_step(&mut self, n: usize, midpoint: &Midpoint, record: &Record) -> Result<()> {
         let Some(out) = self.output.open() else { return Ok(()) };
         let t = n as f64 * midpoint.tau();
-        let (due_u, due_v) = out.due_fields(n);
-        let un = if due_u { Some(self.to_natural(midpoint.u())?) } else { None };
-        let vn = if due_v { Some(self.to_natural(midpoint.v())?) } else { None };
+        let due = out.due_fields(n);
+        let mut blocks = Vec::with_capacity(due.len());
+        for (&field, due) in self.scene.output.fields.clone().iter().zip(due) {
+            blocks.push(if due { Some(self.field_block(field, midpoint)?) } else { None });
+        }
         let out = self.output.open_mut().expect("output");
         out.write_energy(n, t, midpoint.energy())?;
-        if due_u || due_v {
-            out.write_fields(n, t, un.as_deref(), vn.as_deref())?;
+        if blocks.iter().any(Option::is_some) {
+            out.write_fields(n, t, &blocks)?;
         }
         if let Some(row) = record.history.last_row() {
             out.write_contact(row)?;
         }
         Ok(())
+    }
+
+    /// This rank's block of an output field (natural order, components interlaced).
+    fn field_block(&mut self, field: Field, midpoint: &Midpoint) -> Result<Vec<f64>> {
+        match field {
+            Field::Displacement => self.to_natural(midpoint.u()),
+            Field::Velocity => self.to_natural(midpoint.v()),
+        }
     }
 
     /// Continue from a checkpoint: u, v, the last increment (the solver's initial guess), the
@@ -1140,19 +1151,11 @@ impl<'a> Simulation<'a> {
         };
         phase::enter(Phase::OpeningOutput);
         let t0 = Instant::now();
+        let dim = self.mesh.dim;
         let plan = OutputPlan {
-            displacement: self
-                .scene
-                .output
-                .fields
-                .contains(&Field::Displacement)
-                .then(|| self.scene.every_of(Field::Displacement)),
-            velocity: self
-                .scene
-                .output
-                .fields
-                .contains(&Field::Velocity)
-                .then(|| self.scene.every_of(Field::Velocity)),
+            fields: (self.scene.output.fields.iter())
+                .map(|&f| PlannedField { spec: f.spec(dim), every: self.scene.every_of(f) })
+                .collect(),
             time_steps: self.scene.output.time_steps.clone(),
             compression: self.scene.output.compression,
         };

@@ -43,9 +43,12 @@
 //!    chunk. Only contiguous datasets (mesh, checkpoint scalars), whose writes touch no
 //!    metadata, are written by rank 0 alone.
 
+pub mod fields;
+pub mod layout;
 pub mod meta;
 pub mod xdmf;
 
+pub use fields::{FieldSpec, Location, PlannedField};
 pub use meta::{Meta, MetaValue, RunFile};
 
 use std::path::{Path, PathBuf};
@@ -123,30 +126,27 @@ struct ContactDatasets {
     n_written: usize,
 }
 
-/// Which nodal fields are written, and how often.
+/// Which fields are written, and how often.
 #[derive(Debug, Clone)]
 pub struct OutputPlan {
-    /// Period of each field in steps (None: not written).
-    pub displacement: Option<usize>,
-    pub velocity: Option<usize>,
+    pub fields: Vec<PlannedField>,
     /// Extra steps to write every field at (from the scene's output.times).
     pub time_steps: Vec<usize>,
-    /// Deflate level for the nodal fields (one rank only).
+    /// Deflate level for the fields (one rank only).
     pub compression: Option<u8>,
 }
 
 impl OutputPlan {
-    fn due(&self, every: Option<usize>, step: usize) -> bool {
-        every.is_some_and(|k| step % k == 0 || self.time_steps.binary_search(&step).is_ok())
-    }
-    /// Whether displacement / velocity are written at `step`.
-    pub fn due_fields(&self, step: usize) -> (bool, bool) {
-        (self.due(self.displacement, step), self.due(self.velocity, step))
+    /// Which fields (in plan order) are written at `step`.
+    pub fn due_fields(&self, step: usize) -> Vec<bool> {
+        let extra = self.time_steps.binary_search(&step).is_ok();
+        self.fields.iter().map(|f| step % f.every == 0 || extra).collect()
     }
 }
 
-/// One nodal field's datasets: values [T, nodes, dim] and its own step and time axes.
+/// One field's datasets: values [T, nodes or cells, components] and its own step and time axes.
 struct FieldSet {
+    spec: FieldSpec,
     values: Dataset,
     step: Dataset,
     time: Dataset,
@@ -163,9 +163,9 @@ pub struct Output {
     plan: OutputPlan,
     time: Dataset,
     step: Dataset,
-    displacement: Option<FieldSet>,
-    velocity: Option<FieldSet>,
-    energy: [Dataset; 8],
+    fields: Vec<FieldSet>,
+    /// The series of `layout::ENERGY_SERIES`, in that order.
+    energy: Vec<Dataset>,
     contact: Option<ContactDatasets>,
     n_fields_written: usize,
     n_energies_written: usize,
@@ -173,8 +173,10 @@ pub struct Output {
     checkpoint: Option<([Dataset; 3], Dataset, Dataset)>,
     /// For the XDMF index: cell kinds and counts, times of written fields.
     cell_kinds: Vec<(crate::mesh::ElementKind, usize)>,
-    /// (time, row of displacement, row of velocity) of each written step.
-    field_times: Vec<(f64, Option<usize>, Option<usize>)>,
+    /// (time, row of each field written then) of each written step.
+    field_times: Vec<(f64, Vec<Option<usize>>)>,
+    /// This rank's block of natural cells (for cell fields).
+    cell_range: (usize, usize),
 }
 
 const CHECKPOINT_SCALARS: usize = 10;
@@ -225,7 +227,7 @@ pub fn read_checkpoint(
         .with_fapl(|p| p.mpio(comm, None))
         .open(path)
         .map_err(|e| h5err(path, "open for restart", e))?;
-    let g = file.group("checkpoint").map_err(|_| {
+    let g = file.group(layout::CHECKPOINT).map_err(|_| {
         Error::Io(format!(
             "{}: no checkpoint to restart from (was output written?)",
             path.display()
@@ -244,7 +246,7 @@ pub fn read_checkpoint(
         .collect();
     let (lo, hi) = range;
     let mut fields = [Vec::new(), Vec::new(), Vec::new()];
-    for (i, name) in ["u", "v", "du"].iter().enumerate() {
+    for (i, name) in layout::CHECKPOINT_STATE.iter().enumerate() {
         let ds =
             g.dataset(name).map_err(|e| h5err(path, &format!("open /checkpoint/{name}"), e))?;
         if ds.shape() != [n_nodes, dim] {
@@ -305,7 +307,7 @@ impl Output {
             &[
                 [mesh.n_nodes(), mesh.dim, cell_rank.len(), mesh.groups.len()].as_slice(),
                 &kinds_count,
-                &[plan.displacement.unwrap_or(0), plan.velocity.unwrap_or(0)],
+                &plan.fields.iter().map(|f| f.every * 4 + f.spec.components).collect::<Vec<_>>(),
             ]
             .concat(),
             path,
@@ -399,42 +401,41 @@ impl Output {
                 .create(name)
                 .map_err(|e| h5err(path, &format!("create {name}"), e))
         };
-        let time = resizable_1d("time")?;
-        let step = resizable_1d("step")?;
-        let fg = group(&file, "fields", path)?;
-        let field = |name: &str| -> Result<FieldSet> {
+        let time = resizable_1d(layout::TIME)?;
+        let step = resizable_1d(layout::STEP)?;
+        let fg = group(&file, layout::FIELDS, path)?;
+        let n_cells = cell_rank.len();
+        let field = |spec: &FieldSpec| -> Result<FieldSet> {
+            let (name, c) = (spec.name.as_str(), spec.components);
+            let rows = match spec.location {
+                Location::Nodal => n,
+                Location::Cell => n_cells,
+            };
             let mut b = fg.new_dataset::<f64>();
             // One chunk per written step: every rank writes its block into the same chunk, so
             // all ranks make the same chunk-index lookups (see the module doc).
-            b = b.chunk((1, n.max(1), dim));
+            b = b.chunk((1, rows.max(1), c));
             if let Some(level) = plan.compression {
                 b = b.deflate(level);
             }
             let values = b
-                .shape((0.., n, dim))
+                .shape((0.., rows, c))
                 .create(name)
                 .map_err(|e| h5err(path, &format!("create /fields/{name}"), e))?;
             Ok(FieldSet {
+                spec: spec.clone(),
                 values,
-                step: resizable_1d(&format!("fields/{name}_step"))?,
-                time: resizable_1d(&format!("fields/{name}_time"))?,
+                step: resizable_1d(&layout::field_step(name))?,
+                time: resizable_1d(&layout::field_time(name))?,
                 written: 0,
             })
         };
-        let displacement =
-            if plan.displacement.is_some() { Some(field("displacement")?) } else { None };
-        let velocity = if plan.velocity.is_some() { Some(field("velocity")?) } else { None };
+        let fields = plan.fields.iter().map(|f| field(&f.spec)).collect::<Result<Vec<_>>>()?;
         group(&file, "energy", path)?;
-        let energy = [
-            resizable_1d("energy/step")?,
-            resizable_1d("energy/time")?,
-            resizable_1d("energy/kinetic")?,
-            resizable_1d("energy/potential")?,
-            resizable_1d("energy/total")?,
-            resizable_1d("energy/external_work")?,
-            resizable_1d("energy/contact_work")?,
-            resizable_1d("energy/dirichlet_work")?,
-        ];
+        let energy = layout::ENERGY_SERIES
+            .map(|name| resizable_1d(&layout::energy(name)))
+            .into_iter()
+            .collect::<Result<Vec<_>>>()?;
 
         file.flush().map_err(|e| h5err(path, "flush", e))?;
 
@@ -448,8 +449,7 @@ impl Output {
             plan,
             time,
             step,
-            displacement,
-            velocity,
+            fields,
             energy,
             contact: None,
             n_fields_written: 0,
@@ -461,6 +461,7 @@ impl Output {
                 .map(|k| (*k, mesh.cells.iter().filter(|c| c.kind == *k).count()))
                 .collect(),
             field_times: Vec::new(),
+            cell_range: natural_range(cell_rank.len(), rank, size),
         })
     }
 
@@ -471,45 +472,42 @@ impl Output {
     pub fn natural_range(&self) -> (usize, usize) {
         self.range
     }
-    /// Whether any field is written at `step`.
-    pub fn wants_fields(&self, step: usize) -> bool {
-        let (u, v) = self.plan.due_fields(step);
-        u || v
+    /// The fields of the plan, in order.
+    pub fn field_specs(&self) -> impl Iterator<Item = &FieldSpec> {
+        self.fields.iter().map(|f| &f.spec)
     }
 
-    /// Which fields are written at `step` (displacement, velocity).
-    pub fn due_fields(&self, step: usize) -> (bool, bool) {
+    /// Which fields (in plan order) are written at `step`.
+    pub fn due_fields(&self, step: usize) -> Vec<bool> {
         self.plan.due_fields(step)
     }
 
-    /// Write the nodal fields of one step. `u` and `v` are this rank's natural block
-    /// (nodes `range.0..range.1`, interlaced components). Collective.
-    pub fn write_fields(
-        &mut self,
-        step: usize,
-        t: f64,
-        u: Option<&[f64]>,
-        v: Option<&[f64]>,
-    ) -> Result<()> {
+    /// This rank's block of the natural nodes or cells a field of `location` is written in.
+    pub fn block(&self, location: Location) -> (usize, usize) {
+        match location {
+            Location::Nodal => self.range,
+            Location::Cell => self.cell_range,
+        }
+    }
+
+    /// Write the fields of one step: `blocks[i]` is this rank's block (see [`Output::block`],
+    /// components interlaced) of the i-th field of the plan, `None` when it is not written now.
+    /// Collective.
+    pub fn write_fields(&mut self, step: usize, t: f64, blocks: &[Option<Vec<f64>>]) -> Result<()> {
         let k = self.n_fields_written;
-        let (lo, hi) = self.range;
         let path = self.path.clone();
-        let dim = self.dim;
-        let mut rows = [None, None];
-        for (i, (set, data, name)) in [
-            (self.displacement.as_mut(), u, "displacement"),
-            (self.velocity.as_mut(), v, "velocity"),
-        ]
-        .into_iter()
-        .enumerate()
-        {
-            let (Some(set), Some(data)) = (set, data) else { continue };
+        let mut rows = vec![None; self.fields.len()];
+        for (i, data) in blocks.iter().enumerate() {
+            let Some(data) = data else { continue };
+            let (lo, hi) = self.block(self.fields[i].spec.location);
+            let set = &mut self.fields[i];
+            let (name, c) = (set.spec.name.as_str(), set.spec.components);
             let r = set.written;
             let n = set.values.shape()[1];
             set.values
-                .resize((r + 1, n, dim))
+                .resize((r + 1, n, c))
                 .map_err(|e| h5err(&path, &format!("resize /fields/{name}"), e))?;
-            let arr = ndarray::Array3::from_shape_vec((1, hi - lo, dim), data.to_vec())
+            let arr = ndarray::Array3::from_shape_vec((1, hi - lo, c), data.to_vec())
                 .map_err(|_| Error::Io(format!("{name}: block size mismatch")))?;
             set.values
                 .write_slice(&arr, ndarray::s![r..r + 1, lo..hi, ..])
@@ -525,7 +523,7 @@ impl Output {
             append_replicated(ds, k, val, &path, name)?;
         }
         self.n_fields_written += 1;
-        self.field_times.push((t, rows[0], rows[1]));
+        self.field_times.push((t, rows));
         self.file.flush().map_err(|e| h5err(&path, "flush", e))
     }
 
@@ -559,7 +557,8 @@ impl Output {
         probe: &[f64],
     ) -> Result<()> {
         let path = self.path.clone();
-        let g = self.file.create_group("mass").map_err(|e| h5err(&path, "create /mass", e))?;
+        let g =
+            self.file.create_group(layout::MASS).map_err(|e| h5err(&path, "create /mass", e))?;
         for (name, vals) in
             [("total_mass", total), ("first_moment", first), ("second_moment", second)]
         {
@@ -591,7 +590,7 @@ impl Output {
     /// nodes], `active_set_size`, `iterations` [steps + 1]. Collective.
     pub fn create_contact(&mut self, nodes: &[usize], weights: &[f64]) -> Result<()> {
         let path = self.path.clone();
-        let g = group(&self.file, "contact", &path)?;
+        let g = group(&self.file, layout::CONTACT, &path)?;
         let nc = nodes.len();
         let nodes_ds = g
             .new_dataset::<u64>()
@@ -689,7 +688,7 @@ impl Output {
         if self.checkpoint.is_none() {
             let g = self
                 .file
-                .create_group("checkpoint")
+                .create_group(layout::CHECKPOINT)
                 .map_err(|e| h5err(&path, "create /checkpoint", e))?;
             let mk = |name: &str| -> Result<Dataset> {
                 g.new_dataset::<f64>()
@@ -697,7 +696,8 @@ impl Output {
                     .create(name)
                     .map_err(|e| h5err(&path, &format!("create /checkpoint/{name}"), e))
             };
-            let ds = [mk("u")?, mk("v")?, mk("du")?];
+            let [u, v, du] = layout::CHECKPOINT_STATE;
+            let ds = [mk(u)?, mk(v)?, mk(du)?];
             let scalars = g
                 .new_dataset::<f64>()
                 .shape((CHECKPOINT_SCALARS,))
@@ -734,10 +734,8 @@ impl Output {
     pub fn finish(self, world: &mpi::topology::SimpleCommunicator, items: &[Meta]) -> Result<()> {
         let name =
             self.path.file_name().map(|s| s.to_string_lossy().to_string()).unwrap_or_default();
-        let rows = [
-            self.displacement.as_ref().map_or(0, |f| f.written),
-            self.velocity.as_ref().map_or(0, |f| f.written),
-        ];
+        let fields: Vec<(FieldSpec, usize)> =
+            self.fields.iter().map(|f| (f.spec.clone(), f.written)).collect();
         let (rank, n_nodes, dim) = (self.rank, self.n_nodes, self.dim);
         let (cells, steps) = (self.cell_kinds.clone(), self.field_times.clone());
         let xdmf_path = self.xdmf_path();
@@ -753,7 +751,7 @@ impl Output {
                     dim,
                     cells: &cells,
                     steps: &steps,
-                    rows,
+                    fields: &fields,
                 },
             );
         }

@@ -1,10 +1,11 @@
 //! XDMF 3 index of a run's HDF5 file, for ParaView: a temporal collection with one grid per
-//! written step (mesh, displacement, velocity, partition). Written by rank 0 beside the `.h5`
+//! written step (mesh, every written field of the plan, partition). Written by rank 0 beside the `.h5`
 //! at the end of a run (finished, failed or interrupted); it only points into the HDF5 file.
 
 use std::fmt::Write as _;
 use std::path::Path;
 
+use super::{FieldSpec, Location};
 use crate::error::{Error, Result};
 use crate::mesh::ElementKind;
 
@@ -16,10 +17,10 @@ pub struct XdmfLayout<'a> {
     pub dim: usize,
     /// Cell kinds with their counts, in the order of /mesh/cells.
     pub cells: &'a [(ElementKind, usize)],
-    /// Each written step: time, and the row of displacement / velocity written then.
-    pub steps: &'a [(f64, Option<usize>, Option<usize>)],
-    /// Rows of displacement and velocity in the file.
-    pub rows: [usize; 2],
+    /// Each written step: time, and the row of each field (plan order) written then.
+    pub steps: &'a [(f64, Vec<Option<usize>>)],
+    /// The fields with the number of rows each has in the file.
+    pub fields: &'a [(FieldSpec, usize)],
 }
 
 fn topology_name(kind: ElementKind) -> &'static str {
@@ -43,7 +44,8 @@ pub fn xdmf_text(l: &XdmfLayout) -> String {
     let _ = writeln!(x, " <Domain>");
     let _ =
         writeln!(x, "  <Grid Name=\"run\" GridType=\"Collection\" CollectionType=\"Temporal\">");
-    for (k, &(time, row_u, row_v)) in l.steps.iter().enumerate() {
+    for (k, (time, field_rows)) in l.steps.iter().enumerate() {
+        let time = *time;
         let single = l.cells.len() == 1;
         if !single {
             let _ = writeln!(
@@ -52,6 +54,7 @@ pub fn xdmf_text(l: &XdmfLayout) -> String {
             );
             let _ = writeln!(x, "    <Time Value=\"{time:e}\"/>");
         }
+        let mut first_cell = 0;
         for (kind, count) in l.cells {
             let _ = writeln!(x, "   <Grid Name=\"{} {k}\" GridType=\"Uniform\">", kind.name());
             if single {
@@ -70,15 +73,21 @@ pub fn xdmf_text(l: &XdmfLayout) -> String {
                 "    <Geometry GeometryType=\"XYZ\">\n     <DataItem Dimensions=\"{n} 3\" NumberType=\"Float\" Precision=\"8\" Format=\"HDF\">{}:/mesh/coordinates</DataItem>\n    </Geometry>",
                 l.h5_name
             );
-            for (row, total, name) in
-                [(row_u, l.rows[0], "displacement"), (row_v, l.rows[1], "velocity")]
-            {
+            for ((spec, total), row) in l.fields.iter().zip(field_rows) {
                 let Some(r) = row else { continue };
+                // Nodal fields: all nodes; cell fields: this kind's cells.
+                let (start, len, all) = match spec.location {
+                    Location::Nodal => (0, n, n),
+                    Location::Cell => (first_cell, *count, l.cells.iter().map(|c| c.1).sum()),
+                };
                 let _ = writeln!(
                     x,
-                    "    <Attribute Name=\"{name}\" AttributeType=\"Vector\" Center=\"Node\">\n     <DataItem ItemType=\"HyperSlab\" Dimensions=\"{n} {d}\" Type=\"HyperSlab\">\n      <DataItem Dimensions=\"3 3\" Format=\"XML\">{r} 0 0 1 1 1 1 {n} {d}</DataItem>\n      <DataItem Dimensions=\"{total} {n} {d}\" NumberType=\"Float\" Precision=\"8\" Format=\"HDF\">{}:/fields/{name}</DataItem>\n     </DataItem>\n    </Attribute>",
+                    "    <Attribute Name=\"{name}\" AttributeType=\"{ty}\" Center=\"{center}\">\n     <DataItem ItemType=\"HyperSlab\" Dimensions=\"{len} {c}\" Type=\"HyperSlab\">\n      <DataItem Dimensions=\"3 3\" Format=\"XML\">{r} {start} 0 1 1 1 1 {len} {c}</DataItem>\n      <DataItem Dimensions=\"{total} {all} {c}\" NumberType=\"Float\" Precision=\"8\" Format=\"HDF\">{}:/fields/{name}</DataItem>\n     </DataItem>\n    </Attribute>",
                     l.h5_name,
-                    d = l.dim
+                    name = spec.name,
+                    ty = spec.xdmf_type(l.dim),
+                    center = spec.xdmf_center(),
+                    c = spec.components
                 );
             }
             if single {
@@ -89,6 +98,7 @@ pub fn xdmf_text(l: &XdmfLayout) -> String {
                 );
             }
             let _ = writeln!(x, "   </Grid>");
+            first_cell += count;
         }
         if !single {
             let _ = writeln!(x, "   </Grid>");

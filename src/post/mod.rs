@@ -5,6 +5,7 @@ pub mod plot;
 use std::path::{Path, PathBuf};
 
 use crate::error::{Error, Result};
+use crate::io::layout::{self, RunReader};
 use plot::{line_plot, stacked_plots, Plot, Series};
 
 /// The histories a run's pictures are drawn from.
@@ -119,49 +120,21 @@ fn h5(path: &Path, what: &str, e: hdf5::Error) -> Error {
 
 /// Read the curves of a finished (or interrupted) run from its HDF5 file.
 pub fn read_curves(path: &Path) -> Result<RunCurves> {
-    let file = hdf5::File::open(path).map_err(|e| h5(path, "open", e))?;
-    let read = |name: &str| -> Result<Vec<f64>> {
-        file.dataset(name)
-            .and_then(|d| d.read_raw::<f64>())
-            .map_err(|e| h5(path, &format!("read {name}"), e))
-    };
-    let time = read("energy/time")?;
-    let kinetic = read("energy/kinetic")?;
-    let potential = read("energy/potential")?;
-    let settings: String = file
-        .attr("settings")
-        .and_then(|a| a.read_scalar::<hdf5::types::VarLenUnicode>())
-        .map(|s| s.to_string())
-        .unwrap_or_default();
-    let setting = |key: &str| {
-        settings
-            .lines()
-            .find_map(|l| l.strip_prefix(&format!("{key} = ")).map(str::to_string))
-            .unwrap_or_default()
-    };
-    let mut label = setting("mass");
-    let mesh = setting("cells");
+    let run = RunReader::open(path)?;
+    let time = run.series(&layout::energy("time"))?;
+    let kinetic = run.series(&layout::energy("kinetic"))?;
+    let potential = run.series(&layout::energy("potential"))?;
+    let mut label = run.setting("mass");
+    let mesh = run.setting("cells");
     if !mesh.is_empty() {
         label = format!("{label} ({mesh})");
     }
     let mut lowest_pressure = Vec::new();
-    if let Ok(ds) = file.dataset("contact/pressure") {
-        let p = ds.read_2d::<f64>().map_err(|e| h5(path, "read contact/pressure", e))?;
-        // The lowest node: the contact node with the smallest gap... recorded in the summary.
-        let summary: String = file
-            .attr("summary")
-            .and_then(|a| a.read_scalar::<hdf5::types::VarLenUnicode>())
-            .map(|s| s.to_string())
-            .unwrap_or_default();
-        let lowest = summary
-            .parse::<toml::Table>()
-            .ok()
-            .and_then(|t| t.get("contact")?.get("lowest_node")?.as_integer())
-            .map(|v| v as u64);
-        let nodes = file
-            .dataset("contact/nodes")
-            .and_then(|d| d.read_raw::<u64>())
-            .map_err(|e| h5(path, "read contact/nodes", e))?;
+    if run.file.dataset(&layout::contact("pressure")).is_ok() {
+        let p = run.table(&layout::contact("pressure"))?;
+        // The lowest node (closest to the obstacle at t = 0) is recorded in the summary.
+        let lowest = run.summary().and_then(|s| s.contact).map(|c| c.lowest_node as f64);
+        let nodes = run.series(layout::CONTACT_NODES)?;
         if let Some(k) = lowest.and_then(|l| nodes.iter().position(|&n| n == l)) {
             lowest_pressure = p.column(k).to_vec();
         }
@@ -208,18 +181,10 @@ fn write_csv(path: &Path, header: &[String], columns: &[Vec<f64>]) -> Result<()>
 /// Summarize a run's HDF5 file and write PNG plots and CSV files of its energies and of the
 /// chosen node and contact-node histories. Returns the lines to print.
 pub fn post(path: &Path, opts: &PostOptions) -> Result<Vec<String>> {
-    let file = hdf5::File::open(path).map_err(|e| h5(path, "open", e))?;
-    let read = |name: &str| -> Result<Vec<f64>> {
-        file.dataset(name)
-            .and_then(|d| d.read_raw::<f64>())
-            .map_err(|e| h5(path, &format!("read {name}"), e))
-    };
-    let attr = |name: &str| -> String {
-        file.attr(name)
-            .and_then(|a| a.read_scalar::<hdf5::types::VarLenUnicode>())
-            .map(|s| s.to_string())
-            .unwrap_or_default()
-    };
+    let run = RunReader::open(path)?;
+    let file = &run.file;
+    let read = |name: &str| run.series(name);
+    let attr = |name: &str| run.text(name);
     let prefix = opts.prefix.clone().unwrap_or_else(|| {
         let mut p = path.with_extension("").into_os_string();
         p.push("-post");
@@ -227,16 +192,16 @@ pub fn post(path: &Path, opts: &PostOptions) -> Result<Vec<String>> {
     });
     let with_suffix = |s: &str| suffixed(&prefix, s);
     let status = attr("status");
-    let Ok(time) = read("energy/time") else {
+    let Ok(time) = read(&layout::energy("time")) else {
         return Err(Error::Io(format!("{}: no steps written (status: {status})", path.display())));
     };
-    let step = read("energy/step")?;
-    let kinetic = read("energy/kinetic")?;
-    let potential = read("energy/potential")?;
-    let total = read("energy/total")?;
-    let ext = read("energy/external_work")?;
-    let cw = read("energy/contact_work").unwrap_or_else(|_| vec![0.0; total.len()]);
-    let dw = read("energy/dirichlet_work").unwrap_or_else(|_| vec![0.0; total.len()]);
+    let step = read(&layout::energy("step"))?;
+    let kinetic = read(&layout::energy("kinetic"))?;
+    let potential = read(&layout::energy("potential"))?;
+    let total = read(&layout::energy("total"))?;
+    let ext = read(&layout::energy("external_work"))?;
+    let cw = read(&layout::energy("contact_work")).unwrap_or_else(|_| vec![0.0; total.len()]);
+    let dw = read(&layout::energy("dirichlet_work")).unwrap_or_else(|_| vec![0.0; total.len()]);
     let mut lines = Vec::new();
     let n = total.len();
     if n == 0 {
@@ -297,30 +262,30 @@ pub fn post(path: &Path, opts: &PostOptions) -> Result<Vec<String>> {
         ],
     )?;
     written.push(energy_csv);
-    let coords = read("mesh/coordinates")?;
+    let coords = read(layout::COORDINATES)?;
     let tags = file
-        .dataset("mesh/node_tags")
+        .dataset(layout::NODE_TAGS)
         .and_then(|d| d.read_raw::<u64>())
         .map_err(|e| h5(path, "read mesh/node_tags", e))?;
     let mut curves = read_curves(path)?;
 
     // Contact: period, peak pressure, chosen contact nodes.
-    if let Ok(ds) = file.dataset("contact/pressure") {
+    if let Ok(ds) = file.dataset(&layout::contact("pressure")) {
         let p = ds.read_2d::<f64>().map_err(|e| h5(path, "read contact/pressure", e))?;
         let f = file
-            .dataset("contact/force")
+            .dataset(&layout::contact("force"))
             .and_then(|d| d.read_2d::<f64>())
             .map_err(|e| h5(path, "read contact/force", e))?;
         let g = file
-            .dataset("contact/gap")
+            .dataset(&layout::contact("gap"))
             .and_then(|d| d.read_2d::<f64>())
             .map_err(|e| h5(path, "read contact/gap", e))?;
         let a = file
-            .dataset("contact/active")
+            .dataset(&layout::contact("active"))
             .and_then(|d| d.read_2d::<u8>())
             .map_err(|e| h5(path, "read contact/active", e))?;
         let cn = file
-            .dataset("contact/nodes")
+            .dataset(layout::CONTACT_NODES)
             .and_then(|d| d.read_raw::<u64>())
             .map_err(|e| h5(path, "read contact/nodes", e))?;
         let rows = p.nrows().min(n);
@@ -385,11 +350,7 @@ pub fn post(path: &Path, opts: &PostOptions) -> Result<Vec<String>> {
 
     // Node histories of the nodal fields.
     if !opts.nodes.is_empty() {
-        let available: Vec<String> = ["displacement", "velocity"]
-            .iter()
-            .filter(|f| file.dataset(&format!("fields/{f}")).is_ok())
-            .map(|s| s.to_string())
-            .collect();
+        let available = run.fields();
         let fields: Vec<String> =
             if opts.fields.is_empty() { available.clone() } else { opts.fields.clone() };
         for f in &fields {
@@ -408,9 +369,8 @@ pub fn post(path: &Path, opts: &PostOptions) -> Result<Vec<String>> {
             let mut panels_series = Vec::new();
             for f in &fields {
                 // Each field has its own time axis (fields may be written at different periods).
-                let ftime = read(&format!("fields/{f}_time")).or_else(|_| read("time"))?;
-                let ds =
-                    file.dataset(&format!("fields/{f}")).map_err(|e| h5(path, "open field", e))?;
+                let ftime = read(&layout::field_time(f)).or_else(|_| read(layout::TIME))?;
+                let ds = file.dataset(&layout::field(f)).map_err(|e| h5(path, "open field", e))?;
                 let dim = ds.shape()[2];
                 let a: ndarray::Array3<f64> =
                     ds.read().map_err(|e| h5(path, &format!("read fields/{f}"), e))?;

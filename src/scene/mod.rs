@@ -219,6 +219,13 @@ impl Field {
             Field::Velocity => "velocity",
         }
     }
+
+    /// What the output writes for this field on a `dim`-dimensional mesh.
+    pub fn spec(self, dim: usize) -> crate::io::FieldSpec {
+        match self {
+            Field::Displacement | Field::Velocity => crate::io::FieldSpec::nodal(self.name(), dim),
+        }
+    }
 }
 
 #[derive(Debug, Clone, PartialEq)]

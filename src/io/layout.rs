@@ -1,0 +1,131 @@
+//! The run file's layout in one place: the dataset names the writer creates and the readers
+//! (post, study, restart, tests) open, and [`RunReader`], the serial reader of a run's file.
+//! README.md ("Output") documents the same layout for users.
+
+use std::path::{Path, PathBuf};
+
+use hdf5::types::VarLenUnicode;
+
+use crate::error::{Error, Result};
+use crate::simulation::RunSummary;
+
+pub const COORDINATES: &str = "mesh/coordinates";
+pub const NODE_TAGS: &str = "mesh/node_tags";
+pub const CELL_RANK: &str = "mesh/cell_rank";
+pub const CELLS: &str = "mesh/cells";
+pub const GROUPS: &str = "mesh/groups";
+/// Steps and times at which some field was written.
+pub const TIME: &str = "time";
+pub const STEP: &str = "step";
+pub const FIELDS: &str = "fields";
+/// The per-step energy series, `energy/<name>`, in the order the writer appends them.
+pub const ENERGY_SERIES: [&str; 8] = [
+    "step",
+    "time",
+    "kinetic",
+    "potential",
+    "total",
+    "external_work",
+    "contact_work",
+    "dirichlet_work",
+];
+pub const CONTACT: &str = "contact";
+pub const CONTACT_NODES: &str = "contact/nodes";
+pub const CONTACT_WEIGHTS: &str = "contact/weights";
+/// Per contact node and step.
+pub const CONTACT_PER_NODE: [&str; 4] = ["pressure", "force", "gap", "active"];
+/// Per step.
+pub const CONTACT_PER_STEP: [&str; 2] = ["active_set_size", "iterations"];
+pub const CHECKPOINT: &str = "checkpoint";
+pub const CHECKPOINT_STATE: [&str; 3] = ["u", "v", "du"];
+pub const CHECKPOINT_SCALARS: &str = "checkpoint/scalars";
+pub const CHECKPOINT_ACTIVE: &str = "checkpoint/active";
+pub const MASS: &str = "mass";
+
+/// `energy/<series>`
+pub fn energy(series: &str) -> String {
+    format!("energy/{series}")
+}
+/// `fields/<name>`, and its own step and time axes.
+pub fn field(name: &str) -> String {
+    format!("{FIELDS}/{name}")
+}
+pub fn field_time(name: &str) -> String {
+    format!("{FIELDS}/{name}_time")
+}
+pub fn field_step(name: &str) -> String {
+    format!("{FIELDS}/{name}_step")
+}
+/// `contact/<name>`
+pub fn contact(name: &str) -> String {
+    format!("{CONTACT}/{name}")
+}
+
+/// A run's file opened for reading (one process, no MPI).
+pub struct RunReader {
+    pub file: hdf5::File,
+    path: PathBuf,
+}
+
+impl RunReader {
+    pub fn open(path: &Path) -> Result<RunReader> {
+        let file = hdf5::File::open(path)
+            .map_err(|e| Error::Io(format!("{}: open: {e}", path.display())))?;
+        Ok(RunReader { file, path: path.to_path_buf() })
+    }
+
+    fn err(&self, what: &str, e: hdf5::Error) -> Error {
+        Error::Io(format!("{}: {what}: {e}", self.path.display()))
+    }
+
+    /// A text attribute of the root (empty when absent).
+    pub fn text(&self, name: &str) -> String {
+        self.file
+            .attr(name)
+            .and_then(|a| a.read_scalar::<VarLenUnicode>())
+            .map(|s| s.to_string())
+            .unwrap_or_default()
+    }
+
+    /// A dataset's values as numbers, flattened.
+    pub fn series(&self, name: &str) -> Result<Vec<f64>> {
+        self.file
+            .dataset(name)
+            .and_then(|d| d.read_raw::<f64>())
+            .map_err(|e| self.err(&format!("read {name}"), e))
+    }
+
+    /// A 2-D dataset (steps x entries).
+    pub fn table(&self, name: &str) -> Result<ndarray::Array2<f64>> {
+        self.file
+            .dataset(name)
+            .and_then(|d| d.read_2d::<f64>())
+            .map_err(|e| self.err(&format!("read {name}"), e))
+    }
+
+    /// The names of the fields written (`/fields/<name>`, without their axes).
+    pub fn fields(&self) -> Vec<String> {
+        let Ok(g) = self.file.group(FIELDS) else { return vec![] };
+        let mut names: Vec<String> = g
+            .member_names()
+            .unwrap_or_default()
+            .into_iter()
+            .filter(|n| !n.ends_with("_time") && !n.ends_with("_step"))
+            .collect();
+        names.sort();
+        names
+    }
+
+    /// The run's summary (absent for a run that did not finish).
+    pub fn summary(&self) -> Option<RunSummary> {
+        toml::from_str(&self.text("summary")).ok()
+    }
+
+    /// The value of one `settings` line (`key = value`).
+    pub fn setting(&self, key: &str) -> String {
+        self.text("settings")
+            .lines()
+            .find_map(|l| l.strip_prefix(&format!("{key} = ")).map(str::to_string))
+            .unwrap_or_default()
+    }
+}
