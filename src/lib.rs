@@ -1,7 +1,10 @@
 //! massfree: parallel finite elements for dynamic elasticity with contact, with the
 //! mass-free surface layer of Hager & Wohlmuth (SIAM J. Numer. Anal. 2009).
 //!
-//! One module per concept; see ARCHITECTURE in README.md.
+//! One module per concept; README.md ("How it works") lists them and maps each equation of
+//! the paper to the function that implements it. Module docs cite `METHOD.md`, the method
+//! restated for implementation: it is not in this repository but beside it, in
+//! `../shared/reference/METHOD.md` (with the paper, `hager-wohlmuth-2009.txt`).
 
 pub mod assembly;
 pub mod console;
