@@ -121,7 +121,7 @@ fn long_runs_finish_on_two_and_three_ranks() {
 
 /// The child half of the metadata test: runs under mpirun (see below).
 fn metadata_child(dir: &Path) {
-    use massfree::io::{Meta, Output, OutputPlan, RunFile};
+    use massfree::io::{FieldSpec, Meta, Output, OutputPlan, PlannedField, RunFile};
     use massfree::time::Energy;
     use mpi::traits::*;
     let universe = mpi::initialize().unwrap();
@@ -144,8 +144,7 @@ fn metadata_child(dir: &Path) {
         file.write_meta(&world, &[Meta::text("note", own("rewritten", k))]).unwrap();
     }
     let plan = OutputPlan {
-        displacement: Some(50),
-        velocity: None,
+        fields: vec![PlannedField { spec: FieldSpec::nodal("displacement", mesh.dim), every: 50 }],
         time_steps: vec![],
         compression: None,
     };
@@ -157,7 +156,7 @@ fn metadata_child(dir: &Path) {
         let e = Energy { kinetic: step as f64, ..Default::default() };
         out.write_energy(step, step as f64, &e).unwrap();
         if step % 50 == 0 {
-            out.write_fields(step, step as f64, Some(&block), None).unwrap();
+            out.write_fields(step, step as f64, &[Some(block.clone())]).unwrap();
         }
     }
     let summary = own("summary of rank", rank * 1000);

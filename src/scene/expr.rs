@@ -718,29 +718,21 @@ impl Parser {
     }
 
     fn expr(&mut self) -> PResult {
-        let mut lhs = self.term()?;
-        loop {
-            let op = match self.peek().tok {
-                Tok::Plus => Bin::Add,
-                Tok::Minus => Bin::Sub,
-                _ => return Ok(lhs),
-            };
-            self.next();
-            let rhs = self.term()?;
-            lhs = Node::Bin(op, Box::new(lhs), Box::new(rhs));
-        }
+        self.left_assoc(&[(Tok::Plus, Bin::Add), (Tok::Minus, Bin::Sub)], Self::term)
     }
 
     fn term(&mut self) -> PResult {
-        let mut lhs = self.unary()?;
+        self.left_assoc(&[(Tok::Star, Bin::Mul), (Tok::Slash, Bin::Div)], Self::unary)
+    }
+
+    /// One precedence level of left-associative operators: `next (op next)*`.
+    fn left_assoc(&mut self, ops: &[(Tok, Bin)], next: fn(&mut Self) -> PResult) -> PResult {
+        let mut lhs = next(self)?;
         loop {
-            let op = match self.peek().tok {
-                Tok::Star => Bin::Mul,
-                Tok::Slash => Bin::Div,
-                _ => return Ok(lhs),
-            };
+            let tok = self.peek().tok;
+            let Some(&(_, op)) = ops.iter().find(|(t, _)| *t == tok) else { return Ok(lhs) };
             self.next();
-            let rhs = self.unary()?;
+            let rhs = next(self)?;
             lhs = Node::Bin(op, Box::new(lhs), Box::new(rhs));
         }
     }
