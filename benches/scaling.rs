@@ -6,8 +6,10 @@
 //! Run with `./run bench` (it builds the release binary first). `--quick` runs the small sizes
 //! only. The Markdown tables go to stdout and to target/bench/scaling.md.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::Command;
+
+use massfree::simulation::RunSummary;
 
 struct Case {
     scene: &'static str,
@@ -23,7 +25,7 @@ fn repo() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
 }
 
-fn run(case: &Case) -> Result<toml::Table, String> {
+fn run(case: &Case) -> Result<RunSummary, String> {
     let out = repo().join("target/bench");
     std::fs::create_dir_all(&out).map_err(|e| e.to_string())?;
     let summary =
@@ -51,20 +53,13 @@ fn run(case: &Case) -> Result<toml::Table, String> {
             .unwrap_or("failed")
             .to_string());
     }
-    let text = std::fs::read_to_string(&summary).map_err(|e| e.to_string())?;
-    text.parse::<toml::Table>().map_err(|e| e.to_string())
+    read_summary(&summary)
 }
 
-fn num(t: &toml::Table, k: &str) -> f64 {
-    match t.get(k) {
-        Some(toml::Value::Float(x)) => *x,
-        Some(toml::Value::Integer(i)) => *i as f64,
-        _ => f64::NAN,
-    }
-}
-
-fn timing(t: &toml::Table, k: &str) -> f64 {
-    t.get("timings").and_then(|v| v.as_table()).map(|tt| num(tt, k)).unwrap_or(f64::NAN)
+/// The summary a run wrote (`--summary FILE`).
+fn read_summary(path: &Path) -> Result<RunSummary, String> {
+    let text = std::fs::read_to_string(path).map_err(|e| e.to_string())?;
+    toml::from_str(&text).map_err(|e: toml::de::Error| e.to_string())
 }
 
 struct Row {
@@ -79,19 +74,19 @@ struct Row {
     matmults: f64,
 }
 
-fn row(case: &Case, t: &toml::Table) -> Row {
-    let steps = num(t, "steps");
-    let per_step = timing(t, "stepping") / steps;
+fn row(case: &Case, t: &RunSummary) -> Row {
+    let steps = t.steps as f64;
+    let per_step = t.timings.stepping / steps;
     Row {
         label: case.label.to_string(),
         ranks: case.ranks,
-        dofs: num(t, "n_dofs"),
-        assembly: timing(t, "assembly"),
-        setup: timing(t, "setup"),
+        dofs: t.n_dofs as f64,
+        assembly: t.timings.assembly,
+        setup: t.timings.setup,
         per_step,
-        its: num(t, "ksp_iterations") / steps,
-        mem: num(t, "peak_memory_mib"),
-        matmults: per_step / num(t, "matmult_seconds"),
+        its: t.ksp_iterations as f64 / steps,
+        mem: t.peak_memory_mib,
+        matmults: per_step / t.matmult_seconds,
     }
 }
 
@@ -304,32 +299,30 @@ fn main() {
                     .env("OMPI_MCA_btl_vader_single_copy_mechanism", "none")
                     .output();
                 let t = match o {
-                    Ok(o) if o.status.success() => std::fs::read_to_string(&summary)
-                        .ok()
-                        .and_then(|s| s.parse::<toml::Table>().ok()),
+                    Ok(o) if o.status.success() => read_summary(&summary).ok(),
                     _ => None,
                 };
                 let Some(t) = t else {
                     md += &format!("| {mesh} | {mass} | failed |\n");
                     continue;
                 };
-                let c = t["contact"].as_table().unwrap();
-                let steps = num(&t, "steps");
-                let stepping = timing(&t, "stepping");
-                let csteps = num(c, "contact_steps");
-                let csec = num(c, "contact_steps_seconds");
+                let c = t.contact.as_ref().unwrap();
+                let steps = t.steps as f64;
+                let stepping = t.timings.stepping;
+                let csteps = c.contact_steps as f64;
+                let csec = c.contact_steps_seconds;
                 let ratio = (csec / csteps) / ((stepping - csec) / (steps - csteps));
                 md += &format!(
                     "| {mesh} | {mass} | {:.0} | {:.2} | {:.2} | {:.1} | {:.2} / {} | {:.2} | {:.0}% | {} |\n",
-                    num(&t, "n_dofs"),
+                    t.n_dofs as f64,
                     stepping,
                     1e3 * stepping / steps,
-                    num(&t, "ksp_iterations") / steps,
-                    num(c, "active_set_iterations_mean"),
-                    num(c, "active_set_iterations_max"),
+                    t.ksp_iterations as f64 / steps,
+                    c.active_set_iterations_mean,
+                    c.active_set_iterations_max,
                     ratio,
                     100.0 * csec / stepping,
-                    num(c, "column_solves"),
+                    c.column_solves,
                 );
                 print!("{}", md.lines().last().map(|l| format!("{l}\n")).unwrap_or_default());
             }
@@ -371,22 +364,16 @@ fn main() {
                     cmd.arg("--no-output");
                 }
                 let ok = cmd.output().map(|o| o.status.success()).unwrap_or(false);
-                t.push(if ok {
-                    std::fs::read_to_string(&summary)
-                        .ok()
-                        .and_then(|s| s.parse::<toml::Table>().ok())
-                } else {
-                    None
-                });
+                t.push(if ok { read_summary(&summary).ok() } else { None });
                 let _ = std::fs::remove_file(&h5);
             }
             match (&t[0], &t[1]) {
                 (Some(a), Some(b)) => {
-                    let steps = num(b, "steps");
-                    let dofs = num(b, "n_dofs");
-                    let step_ms = 1e3 * timing(a, "stepping") / steps;
-                    let step_w = 1e3 * timing(b, "stepping") / steps;
-                    let out_ms = 1e3 * timing(b, "output") / (steps + 1.0);
+                    let steps = b.steps as f64;
+                    let dofs = b.n_dofs as f64;
+                    let step_ms = 1e3 * a.timings.stepping / steps;
+                    let step_w = 1e3 * b.timings.stepping / steps;
+                    let out_ms = 1e3 * b.timings.output / (steps + 1.0);
                     let mb = 2.0 * dofs * 8.0 / 1e6;
                     md += &format!(
                         "| {ranks} | {dofs:.0} | {step_ms:.1} | {step_w:.1} | {out_ms:.1} | {mb:.1} | {:.0} | {:.0}% |\n",

@@ -5,8 +5,8 @@
 mod common;
 use common::*;
 
-fn contact(t: &toml::Table) -> &toml::Table {
-    t["contact"].as_table().expect("a [contact] summary")
+fn contact(s: &RunSummary) -> &massfree::contact::history::ContactSummary {
+    s.contact.as_ref().expect("a [contact] summary")
 }
 
 fn read2(h5: &std::path::Path, name: &str) -> (Vec<f64>, usize) {
@@ -93,14 +93,9 @@ fn check_drop(text: &str, name: &str, dim: usize) {
         }
         let last = &active[active.len() - nc..];
         assert!(last.iter().all(|&a| a == 0), "{name} {mass}: still in contact at the end");
-        let p0 = s["momentum_initial"].as_array().unwrap()[dim - 1].as_float().unwrap();
-        let p1 = s["momentum_final"].as_array().unwrap()[dim - 1].as_float().unwrap();
+        let (p0, p1) = (s.momentum_initial[dim - 1], s.momentum_final[dim - 1]);
         assert!(p0 < 0.0 && p1 > 0.0, "{name} {mass}: no bounce (momentum {p0} -> {p1})");
-        assert!(
-            f(&s, "energy_balance") < 1e-8,
-            "{name} {mass}: energy balance {}",
-            f(&s, "energy_balance")
-        );
+        assert!(s.energy_balance < 1e-8, "{name} {mass}: energy balance {}", s.energy_balance);
     }
 }
 
@@ -142,50 +137,42 @@ fn two_discs_mass_free_layer_removes_chatter() {
         )
     };
     let kinds = ["consistent", "lumped", "modified0", "modified1"];
-    let quads: Vec<toml::Table> = kinds.iter().map(|k| run("disc.toml", k)).collect();
+    let quads: Vec<RunSummary> = kinds.iter().map(|k| run("disc.toml", k)).collect();
     let (first_m, last_m) =
-        (f(contact(&quads[0]), "first_contact_step"), f(contact(&quads[0]), "last_contact_step"));
+        (contact(&quads[0]).first_contact_step, contact(&quads[0]).last_contact_step);
     for (k, s) in kinds.iter().zip(&quads) {
         let c = contact(s);
         // Contact starts and ends at nearly the same steps for all mass kinds.
-        assert!((f(c, "first_contact_step") - first_m).abs() <= 1.0, "{k}: start");
-        assert!((f(c, "last_contact_step") - last_m).abs() <= 5.0, "{k}: end");
+        assert!(c.first_contact_step.abs_diff(first_m) <= 1, "{k}: start");
+        assert!(c.last_contact_step.abs_diff(last_m) <= 5, "{k}: end");
         // Energy only changes by the accounted contact work; the loss is small.
-        assert!(f(s, "energy_balance") < 1e-8, "{k}: energy balance {}", f(s, "energy_balance"));
-        let loss = (f(s, "energy_initial") - f(s, "energy_final")) / f(s, "energy_initial");
+        assert!(s.energy_balance < 1e-8, "{k}: energy balance {}", s.energy_balance);
+        let loss = (s.energy_initial - s.energy_final) / s.energy_initial;
         assert!((0.0..1e-3).contains(&loss), "{k}: relative energy loss {loss}");
         // Impulse = momentum change (free body, no loads).
-        let imp = c["impulse"].as_array().unwrap()[1].as_float().unwrap();
-        let p0 = s["momentum_initial"].as_array().unwrap()[1].as_float().unwrap();
-        let p1 = s["momentum_final"].as_array().unwrap()[1].as_float().unwrap();
+        let (imp, p0, p1) = (c.impulse[1], s.momentum_initial[1], s.momentum_final[1]);
         assert!(rel_diff(imp, p1 - p0) < 1e-6, "{k}: impulse {imp} vs momentum change {}", p1 - p0);
-        assert!(f(c, "active_set_iterations_mean") <= 3.0, "{k}: active-set iterations");
+        assert!(c.active_set_iterations_mean <= 3.0, "{k}: active-set iterations");
     }
-    let osc_m = f(contact(&quads[0]), "lowest_osc2");
+    let osc_m = contact(&quads[0]).lowest_osc2;
     for (k, s) in kinds.iter().zip(&quads).skip(2) {
         let c = contact(s);
+        assert!(c.lowest_osc2 * 5.0 <= osc_m, "{k}: osc2 {} vs M {osc_m}", c.lowest_osc2);
         assert!(
-            f(c, "lowest_osc2") * 5.0 <= osc_m,
-            "{k}: osc2 {} vs M {osc_m}",
-            f(c, "lowest_osc2")
-        );
-        assert!(
-            f(c, "total_force_tv_index") < 1.5,
+            c.total_force_tv_index < 1.5,
             "{k}: total-force TV index {}",
-            f(c, "total_force_tv_index")
+            c.total_force_tv_index
         );
-        assert_eq!(f(c, "episodes_max"), 1.0, "{k}: a node with several contact episodes");
+        assert_eq!(c.episodes_max, 1, "{k}: a node with several contact episodes");
     }
     // Triangles: M_H^1 keeps a smooth total force and removes the lowest node's chatter. (Two
     // nodes at the edge of the spreading contact zone re-enter once, one step after leaving:
     // README reports it; on quads every node has a single episode, asserted above.)
     let tri = run("disc_tri.toml", "modified1");
     let c = contact(&tri);
-    assert!(f(c, "episodes_mean") < 1.2, "episodes mean {}", f(c, "episodes_mean"));
-    assert!(f(c, "total_force_tv_index") < 1.5);
-    assert!(
-        f(c, "lowest_osc2") * 5.0 <= f(contact(&run("disc_tri.toml", "consistent")), "lowest_osc2")
-    );
+    assert!(c.episodes_mean < 1.2, "episodes mean {}", c.episodes_mean);
+    assert!(c.total_force_tv_index < 1.5);
+    assert!(c.lowest_osc2 * 5.0 <= contact(&run("disc_tri.toml", "consistent")).lowest_osc2);
 }
 
 #[test]
@@ -219,11 +206,7 @@ every = 500
 "#;
     let scene = scene_text(&dir, "hertz.toml", text);
     let s = run_scene(2, &scene, &[]);
-    assert!(
-        f(&s, "energy_balance") < 1e-8,
-        "balance with boundary work {}",
-        f(&s, "energy_balance")
-    );
+    assert!(s.energy_balance < 1e-8, "balance with boundary work {}", s.energy_balance);
     let h5 = dir.join("hertz-2.h5");
     let file = hdf5::File::open(&h5).unwrap();
     let nodes = file.dataset("contact/nodes").unwrap().read_raw::<u64>().unwrap();
@@ -278,10 +261,13 @@ fn contact_results_do_not_depend_on_the_number_of_ranks() {
         let fmax = f1.iter().cloned().fold(0.0, f64::max);
         let dmax = f1.iter().zip(f2).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
         assert!(dmax <= 1e-8 * fmax, "{mass}: contact forces differ by {dmax}");
-        for key in ["energy_final", "energy_initial"] {
-            assert!(rel_diff(f(s1, key), f(s2, key)) < 1e-8, "{mass}: {key}");
+        for (key, a, b) in [
+            ("energy_final", s1.energy_final, s2.energy_final),
+            ("energy_initial", s1.energy_initial, s2.energy_initial),
+        ] {
+            assert!(rel_diff(a, b) < 1e-8, "{mass}: {key}");
         }
-        assert!(rel_diff(f(contact(s1), "contact_work"), f(contact(s2), "contact_work")) < 1e-6);
+        assert!(rel_diff(contact(s1).contact_work, contact(s2).contact_work) < 1e-6);
     }
 }
 

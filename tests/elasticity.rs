@@ -22,11 +22,11 @@ fn convergence(scene: &str, hs: &[&str], name: &str) -> (Vec<f64>, Vec<f64>) {
         );
         let s =
             run_scene(2, &path, &["--param", &format!("h={h}"), "--", "-step_ksp_rtol", "1e-13"]);
-        let e = errors(&s);
+        let e = &s.errors;
         assert_eq!(e.len(), 1);
-        assert_eq!(e[0].0, 30);
-        l2.push(e[0].1);
-        h1.push(e[0].2);
+        assert_eq!(e[0].step, 30);
+        l2.push(e[0].l2);
+        h1.push(e[0].h1_semi);
     }
     (l2, h1)
 }
@@ -103,9 +103,9 @@ fn midpoint_rule_conserves_energy_clamped_2d() {
     let scene = scene_text(&dir, "free_vibration.toml", FREE_VIBRATION);
     for ranks in [1, 2] {
         let s = run_scene(ranks, &scene, &DIRECT);
-        let drift = f(&s, "energy_drift");
-        assert!(f(&s, "energy_initial") > 0.0);
-        assert_eq!(f(&s, "external_work"), 0.0);
+        let drift = s.energy_drift;
+        assert!(s.energy_initial > 0.0);
+        assert_eq!(s.external_work, 0.0);
         assert!(drift < 1e-9, "{ranks} rank(s): |E^n - E^0|/E^0 = {drift} over 1000 steps");
     }
 }
@@ -115,7 +115,7 @@ fn midpoint_rule_conserves_energy_free_body_3d() {
     let dir = scratch("energy-3d");
     let scene = scene_text(&dir, "free_body.toml", FREE_BODY_3D);
     let s = run_scene(2, &scene, &DIRECT);
-    let drift = f(&s, "energy_drift");
+    let drift = s.energy_drift;
     assert!(drift < 1e-9, "|E^n - E^0|/E^0 = {drift} over 1000 steps");
 }
 
@@ -125,8 +125,8 @@ fn forced_run_closes_the_energy_balance() {
     let dir = scratch("balance");
     let scene = scene_variant("beam.toml", &dir, &[]);
     let s = run_scene(2, &scene, &["--param", "h=0.25", "--", "-step_ksp_rtol", "1e-14"]);
-    assert!(f(&s, "external_work").abs() > 0.0);
-    let b = f(&s, "energy_balance");
+    assert!(s.external_work.abs() > 0.0);
+    let b = s.energy_balance;
     assert!(b < 1e-8, "energy balance residual {b}");
 }
 
@@ -158,16 +158,19 @@ fn results_do_not_depend_on_the_number_of_ranks() {
     let norm = u1.iter().map(|x| x * x).sum::<f64>().sqrt();
     assert!(norm > 0.0);
     for (ranks, s, u) in &runs[1..] {
-        for key in ["energy_final", "external_work"] {
-            let d = rel_diff(f(s1, key), f(s, key));
+        for (key, a, b) in [
+            ("energy_final", s1.energy_final, s.energy_final),
+            ("external_work", s1.external_work, s.external_work),
+        ] {
+            let d = rel_diff(a, b);
             assert!(d < 1e-8, "{key}: 1 vs {ranks} ranks differ by {d}");
         }
         let diff = u1.iter().zip(u).map(|(a, b)| (a - b) * (a - b)).sum::<f64>().sqrt() / norm;
         assert!(diff < 1e-8, "final displacement: 1 vs {ranks} ranks differ by {diff}");
-        assert_eq!(errors(s1).len(), errors(s).len());
-        for (a, b) in errors(s1).iter().zip(errors(s)) {
+        assert_eq!(s1.errors.len(), s.errors.len());
+        for (a, b) in s1.errors.iter().zip(&s.errors) {
             assert!(
-                rel_diff(a.1, b.1) < 1e-6 && rel_diff(a.2, b.2) < 1e-6,
+                rel_diff(a.l2, b.l2) < 1e-6 && rel_diff(a.h1_semi, b.h1_semi) < 1e-6,
                 "errors {a:?} vs {b:?}"
             );
         }
@@ -185,8 +188,8 @@ fn extruded_hex_block_reproduces_the_plane_strain_beam() {
     let beam = scene_variant("beam.toml", &dir, &fix);
     let block = scene_variant("block_hex.toml", &dir, &fix);
     let rtol = ["--param", "h=0.25", "--", "-step_ksp_rtol", "1e-13"];
-    let e2 = errors(&run_scene(2, &beam, &rtol))[0];
-    let e3 = errors(&run_scene(2, &block, &rtol))[0];
-    assert!(rel_diff(e2.1, e3.1) < 1e-6, "L2: 2D {} vs 3D {}", e2.1, e3.1);
-    assert!(rel_diff(e2.2, e3.2) < 1e-6, "H1: 2D {} vs 3D {}", e2.2, e3.2);
+    let e2 = run_scene(2, &beam, &rtol).errors[0];
+    let e3 = run_scene(2, &block, &rtol).errors[0];
+    assert!(rel_diff(e2.l2, e3.l2) < 1e-6, "L2: 2D {} vs 3D {}", e2.l2, e3.l2);
+    assert!(rel_diff(e2.h1_semi, e3.h1_semi) < 1e-6, "H1: 2D {} vs 3D {}", e2.h1_semi, e3.h1_semi);
 }

@@ -6,15 +6,6 @@
 mod common;
 use common::*;
 
-fn list(t: &toml::Table, key: &str) -> Vec<f64> {
-    t["mass"].as_table().unwrap()[key]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|v| v.as_float().unwrap())
-        .collect()
-}
-
 fn probe(h5: &std::path::Path) -> Vec<f64> {
     let file = hdf5::File::open(h5).unwrap();
     file.dataset("mass/probe").unwrap().read_raw::<f64>().unwrap()
@@ -35,25 +26,24 @@ fn exact_properties(scene: &str, h: &str, name: &str) {
         (s, probe(&dir.join(format!("{stem}-{ranks}.h5"))))
     };
     let (m, _) = run("consistent", 2);
-    let total = list(&m, "total_mass");
+    let total = &m.mass.total_mass;
     let tol = 1e-12;
     for kind in ["modified0", "modified1"] {
         let (s1, p1) = run(kind, 1);
         let (s2, p2) = run(kind, 2);
-        assert!(f(&s2, "layer_contact_nodes") > 0.0 && f(&s2, "layer_cells") > 0.0);
+        assert!(s2.layer_contact_nodes > 0 && s2.layer_cells > 0);
         for s in [&s1, &s2] {
-            assert_eq!(
-                s["mass"].as_table().unwrap()["contact_row_max"].as_float().unwrap(),
-                0.0,
-                "{kind}: contact rows of M_H 1"
-            );
-            for (a, b) in list(s, "total_mass").iter().zip(&total) {
+            assert_eq!(s.mass.contact_row_max, 0.0, "{kind}: contact rows of M_H 1");
+            for (a, b) in s.mass.total_mass.iter().zip(total) {
                 assert!(rel_diff(*a, *b) < tol, "{kind} {scene}: total mass {a} vs {b}");
             }
             if kind == "modified1" {
-                for key in ["first_moment", "second_moment"] {
-                    for (a, b) in list(s, key).iter().zip(list(&m, key)) {
-                        assert!(rel_diff(*a, b) < tol, "{kind} {scene}: {key} {a} vs {b}");
+                for (key, ours, theirs) in [
+                    ("first_moment", &s.mass.first_moment, &m.mass.first_moment),
+                    ("second_moment", &s.mass.second_moment, &m.mass.second_moment),
+                ] {
+                    for (a, b) in ours.iter().zip(theirs) {
+                        assert!(rel_diff(*a, *b) < tol, "{kind} {scene}: {key} {a} vs {b}");
                     }
                 }
             }
@@ -69,8 +59,8 @@ fn exact_properties(scene: &str, h: &str, name: &str) {
     // Variant 0 does not keep the second moment in the normal direction (y in 2D, z in 3D):
     // a control that the comparison can fail.
     let (s0, _) = run("modified0", 2);
-    let normal = list(&m, "second_moment").len() - 1;
-    let (a, b) = (list(&s0, "second_moment")[normal], list(&m, "second_moment")[normal]);
+    let normal = m.mass.second_moment.len() - 1;
+    let (a, b) = (s0.mass.second_moment[normal], m.mass.second_moment[normal]);
     assert!(rel_diff(a, b) > 1e-6, "{scene}: variant 0 second moment {a} vs {b}");
 }
 
@@ -118,9 +108,9 @@ fn beam_errors(
                 "1e-14",
             ],
         );
-        let e = errors(&s)[0];
-        l2.push(e.1);
-        h1.push(e.2);
+        let e = s.errors[0];
+        l2.push(e.l2);
+        h1.push(e.h1_semi);
     }
     (l2, h1)
 }
@@ -196,7 +186,7 @@ fn energy_is_conserved_with_the_mass_free_layer() {
                     "mumps",
                 ],
             );
-            let drift = f(&s, "energy_drift");
+            let drift = s.energy_drift;
             assert!(drift < 1e-9, "{kind} on {ranks} rank(s): |E^n - E^0|/E^0 = {drift}");
         }
     }

@@ -5,8 +5,8 @@
 mod common;
 use common::*;
 
-fn solver_of(s: &toml::Table) -> (String, String) {
-    (s["ksp_type"].as_str().unwrap().to_string(), s["pc_type"].as_str().unwrap().to_string())
+fn solver_of(s: &RunSummary) -> (String, String) {
+    (s.ksp_type.clone(), s.pc_type.clone())
 }
 
 #[test]

@@ -63,6 +63,7 @@
 
 pub mod effects;
 pub mod expr;
+mod overrides;
 pub mod separate;
 
 pub use effects::{Effects, ObstacleKind, Variation};
@@ -238,6 +239,8 @@ pub struct OutputSpec {
     pub every: usize,
     /// Per-field periods overriding `every` (`output.field_every`).
     pub field_every: Vec<(Field, usize)>,
+    /// `output.times` as given.
+    pub times: Vec<f64>,
     /// Also write at these steps (from `output.times`, the nearest steps), sorted.
     pub time_steps: Vec<usize>,
     /// Fields to write, in the order given, without duplicates.
@@ -255,6 +258,8 @@ pub struct ExactSpec {
     /// Steps at which to report errors, sorted, no duplicates, each in 0..=steps
     /// (default: `[steps]`).
     pub error_steps: Vec<usize>,
+    /// Whether the scene lists `exact.error_steps` (else the default follows the last step).
+    pub error_steps_listed: bool,
 }
 
 #[derive(Debug, Clone, PartialEq)]
@@ -654,6 +659,92 @@ fn point(v: Vec<f64>, key: &str) -> VResult<Vec<f64>> {
     Ok(v)
 }
 
+fn check_tau(tau: f64) -> VResult<()> {
+    if !(tau > 0.0 && tau.is_finite()) {
+        return Err(format!("time.tau = {tau} is impossible: the time step must be > 0"));
+    }
+    Ok(())
+}
+
+/// Why an end time is not a whole number of time steps (the rule of `time.end`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum EndSteps {
+    /// The end time is not a finite number > 0.
+    NotPositive,
+    /// `end / tau` rounds to 0.
+    ShorterThanOneStep,
+    /// `end / tau` is more than 1e-9 (relative) away from a whole number.
+    NotWhole { ratio: f64 },
+    /// More than 1e15 steps.
+    TooMany { n: f64 },
+}
+
+impl EndSteps {
+    /// The scene's message for `time.end = end` with `time.tau = tau`.
+    pub fn message(self, end: f64, tau: f64) -> String {
+        match self {
+            EndSteps::NotPositive => {
+                format!("time.end = {end} is impossible: the end time must be > 0")
+            }
+            EndSteps::ShorterThanOneStep => format!(
+                "time.end = {end} is impossible: it is shorter than one step (time.tau = {tau})"
+            ),
+            EndSteps::NotWhole { ratio } => format!(
+                "time.end = {end} is impossible: it is not a whole number of steps of time.tau = {tau} (end/tau = {ratio})"
+            ),
+            EndSteps::TooMany { n } => format!("time.end = {end}: too many steps ({n})"),
+        }
+    }
+}
+
+/// The number of steps of `tau` (> 0) that end at `end`, the rule of `time.end`: `end / tau`
+/// rounded, when that is a whole number to 1e-9 (relative), at least 1 and at most 1e15.
+pub fn steps_to_end(end: f64, tau: f64) -> std::result::Result<usize, EndSteps> {
+    if !(end > 0.0 && end.is_finite()) {
+        return Err(EndSteps::NotPositive);
+    }
+    let ratio = end / tau;
+    let n = ratio.round();
+    if n < 1.0 {
+        return Err(EndSteps::ShorterThanOneStep);
+    }
+    if (ratio - n).abs() > 1e-9 * ratio {
+        return Err(EndSteps::NotWhole { ratio });
+    }
+    if n > 1e15 {
+        return Err(EndSteps::TooMany { n });
+    }
+    Ok(n as usize)
+}
+
+/// One entry of `exact.error_steps`: a step of the run.
+fn error_step(s: i64, steps: usize) -> VResult<usize> {
+    if s < 0 || s as u64 > steps as u64 {
+        return Err(format!(
+            "exact.error_steps contains {s}, which is impossible: steps run from 0 to time.steps = {steps}"
+        ));
+    }
+    Ok(s as usize)
+}
+
+/// The steps nearest to the extra output times (`output.times`), sorted, each within the run.
+fn steps_of_times(times: &[f64], tau: f64, steps: usize) -> VResult<Vec<usize>> {
+    let mut time_steps = Vec::new();
+    for (i, &time) in times.iter().enumerate() {
+        let n = (time / tau).round();
+        if !(time >= 0.0) || n > steps as f64 {
+            return Err(format!(
+                "output.times[{i}] = {time} is impossible: times must lie in [0, {}] (steps * tau)",
+                steps as f64 * tau
+            ));
+        }
+        time_steps.push(n as usize);
+    }
+    time_steps.sort_unstable();
+    time_steps.dedup();
+    Ok(time_steps)
+}
+
 fn build(raw: RawScene, stem: &str, base_dir: &Path) -> VResult<Scene> {
     let name = raw.name.unwrap_or_else(|| stem.to_string());
     if name.trim().is_empty() || name.contains('/') || name.contains('\\') {
@@ -787,9 +878,7 @@ fn build(raw: RawScene, stem: &str, base_dir: &Path) -> VResult<Scene> {
 
     // --- time
     let t = raw.time;
-    if !(t.tau > 0.0 && t.tau.is_finite()) {
-        return Err(format!("time.tau = {} is impossible: the time step must be > 0", t.tau));
-    }
+    check_tau(t.tau)?;
     let steps = match (t.steps, t.end) {
         (Some(_), Some(_)) => {
             return Err("time: give exactly one of steps and end, not both".into());
@@ -807,29 +896,7 @@ fn build(raw: RawScene, stem: &str, base_dir: &Path) -> VResult<Scene> {
             }
             s as usize
         }
-        (None, Some(end)) => {
-            if !(end > 0.0 && end.is_finite()) {
-                return Err(format!("time.end = {end} is impossible: the end time must be > 0"));
-            }
-            let ratio = end / t.tau;
-            let n = ratio.round();
-            if n < 1.0 {
-                return Err(format!(
-                    "time.end = {end} is impossible: it is shorter than one step (time.tau = {})",
-                    t.tau
-                ));
-            }
-            if (ratio - n).abs() > 1e-9 * ratio {
-                return Err(format!(
-                    "time.end = {end} is impossible: it is not a whole number of steps of time.tau = {} (end/tau = {ratio})",
-                    t.tau
-                ));
-            }
-            if n > 1e15 {
-                return Err(format!("time.end = {end}: too many steps ({n})"));
-            }
-            n as usize
-        }
+        (None, Some(end)) => steps_to_end(end, t.tau).map_err(|e| e.message(end, t.tau))?,
     };
 
     // --- solver
@@ -893,21 +960,8 @@ fn build(raw: RawScene, stem: &str, base_dir: &Path) -> VResult<Scene> {
             fields.push(f);
         }
     }
-    // Extra output times: the steps nearest to them (within the run).
-    let mut time_steps = Vec::new();
-    let tau = t.tau;
-    for (i, &time) in o.times.iter().flatten().enumerate() {
-        let n = (time / tau).round();
-        if !(time >= 0.0) || n > steps as f64 {
-            return Err(format!(
-                "output.times[{i}] = {time} is impossible: times must lie in [0, {}] (steps * tau)",
-                steps as f64 * tau
-            ));
-        }
-        time_steps.push(n as usize);
-    }
-    time_steps.sort_unstable();
-    time_steps.dedup();
+    let times = o.times.unwrap_or_default();
+    let time_steps = steps_of_times(&times, t.tau, steps)?;
     let mut field_every = Vec::new();
     if let Some(fe) = &o.field_every {
         for (f, k) in [(Field::Displacement, fe.displacement), (Field::Velocity, fe.velocity)] {
@@ -936,6 +990,7 @@ fn build(raw: RawScene, stem: &str, base_dir: &Path) -> VResult<Scene> {
         compression,
         every: every as usize,
         field_every,
+        times,
         time_steps,
         fields,
         progress: o.progress.unwrap_or(true),
@@ -963,18 +1018,14 @@ fn build(raw: RawScene, stem: &str, base_dir: &Path) -> VResult<Scene> {
                     Some(g)
                 }
             };
+            let error_steps_listed = ex.error_steps.is_some();
             let mut error_steps = Vec::new();
             for s in ex.error_steps.unwrap_or_else(|| vec![steps as i64]) {
-                if s < 0 || s as u64 > steps as u64 {
-                    return Err(format!(
-                        "exact.error_steps contains {s}, which is impossible: steps run from 0 to time.steps = {steps}"
-                    ));
-                }
-                error_steps.push(s as usize);
+                error_steps.push(error_step(s, steps)?);
             }
             error_steps.sort_unstable();
             error_steps.dedup();
-            Some(ExactSpec { displacement, velocity, gradient, error_steps })
+            Some(ExactSpec { displacement, velocity, gradient, error_steps, error_steps_listed })
         }
     };
 

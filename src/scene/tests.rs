@@ -189,6 +189,7 @@ fn full_scene_round_trips() {
             compression: None,
             every: 5,
             field_every: vec![],
+            times: vec![],
             time_steps: vec![],
             fields: vec![Field::Velocity],
             progress: true,
@@ -598,4 +599,72 @@ fn error_paths_in_multiline_arrays() {
     let text =
         format!("{MINIMAL}\n[[neumann]]\ngroup = \"top\"\ntraction = [\n  \"0\",\n  false,\n]\n");
     assert_err(&text, &["neumann[0].traction has the wrong type", "(line 16)"]);
+}
+
+#[test]
+fn overrides_of_time_and_error_steps_follow_the_scene_rules() {
+    let dir = workspace();
+    let mut s = parse_in(&dir, FULL).unwrap();
+    assert_eq!((s.steps, s.exact.as_ref().unwrap().error_steps.clone()), (250, vec![10, 30]));
+    // set_tau: steps = end / tau by the rule of time.end, listed error steps kept in the run.
+    s.set_tau(2e-5, 1e-3).unwrap();
+    assert_eq!((s.tau, s.steps), (2e-5, 50));
+    assert_eq!(steps_to_end(1e-3, 2e-5), Ok(50));
+    for (tau, end) in [(0.3, 1.0), (0.1, 0.01)] {
+        let m = s.clone().set_tau(tau, end).unwrap_err().to_string();
+        let from_text =
+            err_of(&minimal_with("tau = 0.1\nsteps = 10", &format!("tau = {tau}\nend = {end}")));
+        assert_eq!(m, from_text, "the same rule and message as time.end");
+    }
+    s.set_steps(20).unwrap();
+    assert_eq!(s.exact.as_ref().unwrap().error_steps, vec![10]);
+    s.add_error_step(20).unwrap();
+    assert_eq!(s.exact.as_ref().unwrap().error_steps, vec![10, 20]);
+    assert!(s
+        .add_error_step(21)
+        .unwrap_err()
+        .to_string()
+        .contains("exact.error_steps contains 21"));
+    assert!(s.set_steps(0).unwrap_err().to_string().contains("time.steps = 0 is impossible"));
+    // Without listed error steps the default (the last step) follows; an added step replaces it.
+    let text = format!("{MINIMAL}\n[exact]\ndisplacement = [\"x\", 0]\n[output]\ntimes = [0.5]\n");
+    let mut s = parse_in(&dir, &text).unwrap();
+    assert_eq!(s.output.time_steps, vec![5]);
+    s.set_tau(0.05, 1.0).unwrap();
+    assert_eq!((s.steps, s.exact.as_ref().unwrap().error_steps.clone()), (20, vec![20]));
+    assert_eq!(s.output.time_steps, vec![10]);
+    s.add_error_step(5).unwrap();
+    assert_eq!(s.exact.as_ref().unwrap().error_steps, vec![5]);
+    let m = s.set_steps(2).unwrap_err().to_string();
+    assert!(m.contains("output.times[0] = 0.5 is impossible"), "{m}");
+}
+
+#[test]
+fn variant_text_parses_back_to_the_overridden_scene() {
+    let dir = workspace();
+    let elsewhere = dir.join("elsewhere");
+    std::fs::create_dir_all(&elsewhere).unwrap();
+    let mut s = parse_in(&dir, FULL).unwrap();
+    s.set_mesh_param("h=0.125").unwrap();
+    s.set_mass_kind("modified0").unwrap();
+    s.set_tau(2e-5, 1e-3).unwrap();
+    s.add_error_step(50).unwrap();
+    s.output.every = 7;
+    s.output.fields = vec![Field::Displacement];
+    let v = parse(&s.variant_text().unwrap(), "copy.toml", &elsewhere).unwrap();
+    assert_eq!(v.name, "beam");
+    let MeshSource::Geo { path, params, binary } = &v.mesh else { panic!("{:?}", v.mesh) };
+    assert_eq!(*path, dir.join("meshes/beam.geo").canonicalize().unwrap());
+    assert_eq!((params.clone(), *binary), (vec![("h".into(), 0.125), ("n".into(), 4.0)], true));
+    assert_eq!((v.tau, v.steps), (2e-5, 50));
+    assert_eq!(v.mass, s.mass);
+    assert_eq!(v.exact.as_ref().unwrap().error_steps, vec![10, 30, 50]);
+    assert_eq!(v.output, s.output);
+    assert_eq!((v.material, v.solver, v.contact), (s.material, s.solver, s.contact));
+    // A .msh scene without [output] or [mass].
+    let s = parse_in(&dir, MINIMAL).unwrap();
+    let v = parse(&s.variant_text().unwrap(), "copy.toml", &elsewhere).unwrap();
+    let msh = dir.join("meshes/beam.msh").canonicalize().unwrap();
+    assert_eq!(v.mesh, MeshSource::Msh { path: msh });
+    assert_eq!((v.name, v.steps, v.output, v.mass), (s.name, s.steps, s.output, s.mass));
 }

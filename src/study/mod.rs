@@ -8,6 +8,9 @@
 //! The output folder gets `results.csv`, `results.md`, `error_h.png` (error against h with
 //! reference slopes), `error_tau.png` (error against tau) and `error_time.png` (error against
 //! run time with the Pareto front), plus `runs/` (scene copies, summaries, HDF5 files).
+//! Each point runs a variant of the scene: the study's overrides (mesh parameter, mass kind,
+//! time step and steps, error step, output) are applied to the loaded [`Scene`] by its typed
+//! methods and written by [`Scene::variant_text`].
 //! A failed point is a row marked failed with its one-line error; the sweep goes on.
 
 pub mod fieldnorm;
@@ -19,10 +22,10 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::time::Instant;
 
-use toml::{Table, Value};
-
 use crate::error::{Error, Result};
 use crate::post::plot::{loglog_plot, Plot, Series};
+use crate::scene::{Field, Scene};
+use crate::simulation::RunSummary;
 use spec::{Reference, Study};
 use table::{Columns, ContactColumns, Measured, Row};
 
@@ -55,7 +58,6 @@ struct Point {
     error_step: usize,
     solver: Option<usize>,
     group: usize,
-    scene: PathBuf,
     label: String,
     id: String,
 }
@@ -72,7 +74,15 @@ fn execute(study: &Study, binary: &Path) -> Result<Vec<Row>> {
     std::fs::create_dir_all(&runs)
         .map_err(|e| Error::Io(format!("cannot create {}: {e}", runs.display())))?;
     let _ = std::fs::copy(&study.file, out.join("study.toml"));
-    let points = grid(study, &runs)?;
+    let points = grid(study)?;
+    // The scene file of each point, or why the point cannot run (its one-line error).
+    let mut scenes = Vec::new();
+    for p in &points {
+        scenes.push(match variant(study, p).and_then(|s| s.variant_text()) {
+            Ok(text) => Ok(write_scene(&runs.join(format!("{}.scene.toml", p.id)), &text)?),
+            Err(e) => Err(e.to_string()),
+        });
+    }
     let total = points.len() * study.repeat;
     eprintln!(
         "study {}: {} points x {} repeat(s) = {} runs of {} on {} rank(s); output {}",
@@ -90,7 +100,7 @@ fn execute(study: &Study, binary: &Path) -> Result<Vec<Row>> {
         .iter()
         .map(|p| Row {
             label: p.label.clone(),
-            h: p.h.or(if study.h.is_empty() { study.scene.h_default } else { None }),
+            h: p.h.or(if study.h.is_empty() { study.h_default } else { None }),
             tau: p.tau,
             steps: p.steps,
             mass: p.mass.clone().unwrap_or_default(),
@@ -111,7 +121,7 @@ fn execute(study: &Study, binary: &Path) -> Result<Vec<Row>> {
             if rows[i].failure.is_some() {
                 continue;
             }
-            let res = run_point(study, binary, p, &runs);
+            let res = run_point(study, binary, p, &scenes[i], &runs);
             done += 1;
             let elapsed = started.elapsed().as_secs_f64();
             let eta = elapsed / done as f64 * (total - done) as f64;
@@ -156,7 +166,7 @@ fn execute(study: &Study, binary: &Path) -> Result<Vec<Row>> {
         rate_h: study.h.len() >= 2,
         rate_tau: study.tau.len() >= 2,
         h1: study.reference == Reference::Exact,
-        contact: study.scene.has_contact,
+        contact: study.has_contact(),
     };
     table::fill_rates(&mut rows, columns.rate_h, columns.rate_tau);
     table::fill_pareto(&mut rows);
@@ -207,13 +217,13 @@ fn write(path: &Path, text: &str) -> Result<()> {
 fn describe(study: &Study) -> String {
     let reference = match &study.reference {
         Reference::Exact => "errors against the exact solution (L2 and H1 seminorm, computed by the run)".to_string(),
-        Reference::Finest if study.scene.has_contact => "error = relative L2 difference over time of the lowest contact node's pressure to the finest run of the same mass kind and solver (reference row)".to_string(),
+        Reference::Finest if study.has_contact() => "error = relative L2 difference over time of the lowest contact node's pressure to the finest run of the same mass kind and solver (reference row)".to_string(),
         Reference::Finest => "error = relative nodal L2 difference of the displacement at the error time to the finest run of the same mass kind and solver (reference row)".to_string(),
-        Reference::File(f) if study.scene.has_contact => format!("error = relative L2 difference over time of the lowest contact node's pressure to {}", f.display()),
+        Reference::File(f) if study.has_contact() => format!("error = relative L2 difference over time of the lowest contact node's pressure to {}", f.display()),
         Reference::File(f) => format!("error = relative nodal L2 difference of the displacement at the error time to {}", f.display()),
     };
     let at = match study.end_time {
-        _ if study.scene.has_contact && study.reference != Reference::Exact => {
+        _ if study.has_contact() && study.reference != Reference::Exact => {
             format!("over all {} steps", study.steps.unwrap_or(study.scene.steps))
         }
         Some(t) => format!("at the end time t = {t}"),
@@ -231,8 +241,8 @@ fn describe(study: &Study) -> String {
     )
 }
 
-/// The grid (solver, mass, tau, h from the outside in) and the scene copies it runs on.
-fn grid(study: &Study, runs: &Path) -> Result<Vec<Point>> {
+/// The grid (solver, mass, tau, h from the outside in).
+fn grid(study: &Study) -> Result<Vec<Point>> {
     let opt = |v: &[f64]| -> Vec<Option<f64>> {
         if v.is_empty() {
             vec![None]
@@ -250,10 +260,10 @@ fn grid(study: &Study, runs: &Path) -> Result<Vec<Point>> {
     } else {
         (0..study.solver.len()).map(Some).collect()
     };
-    // One scene copy per time step.
-    let mut scenes = Vec::new();
-    for (i, tau) in opt(&study.tau).into_iter().enumerate() {
-        let (tau, steps, error_step) = match (tau, study.end_time) {
+    // (tau, steps, error step) of each time step.
+    let mut times = Vec::new();
+    for tau in opt(&study.tau) {
+        times.push(match (tau, study.end_time) {
             (Some(t), Some(end)) => {
                 let n = spec::steps_for(end, t).map_err(Error::Usage)?;
                 (t, n, n)
@@ -262,22 +272,13 @@ fn grid(study: &Study, runs: &Path) -> Result<Vec<Point>> {
                 let n = study.steps.unwrap_or(study.scene.steps);
                 (study.scene.tau, n, study.error_step.unwrap_or(n))
             }
-        };
-        let name =
-            if study.tau.is_empty() { "scene.toml".into() } else { format!("scene-tau{i}.toml") };
-        let path = runs.join(name);
-        let text = scene_copy(study, tau, steps, error_step)?;
-        write(&path, &text)?;
-        let path = path
-            .canonicalize()
-            .map_err(|e| Error::Io(format!("cannot resolve {}: {e}", path.display())))?;
-        scenes.push((tau, steps, error_step, path));
+        });
     }
     let mut points = Vec::new();
     for (si, s) in solvers.iter().enumerate() {
         for (mi, m) in masses.iter().enumerate() {
             let group = si * masses.len() + mi;
-            for (ti, (tau, steps, error_step, scene)) in scenes.iter().enumerate() {
+            for (ti, (tau, steps, error_step)) in times.iter().enumerate() {
                 for (hi, h) in opt(&study.h).into_iter().enumerate() {
                     let mut label = Vec::new();
                     if let Some(h) = h {
@@ -303,7 +304,6 @@ fn grid(study: &Study, runs: &Path) -> Result<Vec<Point>> {
                         error_step: *error_step,
                         solver: *s,
                         group,
-                        scene: scene.clone(),
                         label: label.join(" "),
                         id: format!("s{si}-m{mi}-t{ti}-h{hi}"),
                     });
@@ -314,47 +314,37 @@ fn grid(study: &Study, runs: &Path) -> Result<Vec<Point>> {
     Ok(points)
 }
 
-/// The scene with absolute mesh paths, the time step and number of steps of the point, the
-/// error step among the exact errors, and fields written at the error step.
-fn scene_copy(study: &Study, tau: f64, steps: usize, error_step: usize) -> Result<String> {
-    let mut t = study.scene.table.clone();
-    let bad = |m: &str| Error::Scene(format!("{}: {m}", study.scene_path.display()));
-    if let Some(Value::Table(mesh)) = t.get_mut("mesh") {
-        for key in ["geo", "msh"] {
-            if let Some(Value::String(p)) = mesh.get_mut(key) {
-                let abs = study.scene.dir.join(&*p);
-                *p = abs.to_string_lossy().into_owned();
-            }
-        }
+/// The point's scene: the study's scene with the point's mesh parameter, fixed parameters,
+/// mass kind, time step (steps to the end time) or steps, its error step among the exact
+/// errors, and, for errors against a reference run, the displacement written at the error step.
+fn variant(study: &Study, p: &Point) -> Result<Scene> {
+    let mut s = study.scene.clone();
+    if let Some(h) = p.h {
+        s.set_mesh_param(&format!("{}={h}", study.mesh_param))?;
     }
-    let time = t.get_mut("time").and_then(Value::as_table_mut).ok_or_else(|| bad("no [time]"))?;
-    time.remove("end");
-    time.insert("tau".into(), Value::Float(tau));
-    time.insert("steps".into(), Value::Integer(steps as i64));
-    if let Some(Value::Table(exact)) = t.get_mut("exact") {
-        let mut s: Vec<i64> = exact
-            .get("error_steps")
-            .and_then(Value::as_array)
-            .map(|a| {
-                a.iter().filter_map(Value::as_integer).filter(|&x| x as usize <= steps).collect()
-            })
-            .unwrap_or_default();
-        s.push(error_step as i64);
-        s.sort_unstable();
-        s.dedup();
-        exact.insert(
-            "error_steps".into(),
-            Value::Array(s.into_iter().map(Value::Integer).collect()),
-        );
+    for (k, v) in &study.params {
+        s.set_mesh_param(&format!("{k}={v}"))?;
     }
-    if needs_h5(study) && !study.scene.has_contact {
-        let output = t.entry("output").or_insert_with(|| Value::Table(Table::new()));
-        if let Value::Table(o) = output {
-            o.insert("every".into(), Value::Integer(error_step.max(1) as i64));
-            o.insert("fields".into(), Value::Array(vec![Value::String("displacement".into())]));
-        }
+    if let Some(m) = &p.mass {
+        s.set_mass_kind(m)?;
     }
-    toml::to_string(&t).map_err(|e| bad(&format!("cannot write a copy: {e}")))
+    match (study.end_time, study.steps) {
+        (Some(end), _) => s.set_tau(p.tau, end)?,
+        (None, Some(n)) => s.set_steps(n)?,
+        (None, None) => {}
+    }
+    s.add_error_step(p.error_step)?;
+    if needs_h5(study) && !study.has_contact() {
+        s.output.every = p.error_step.max(1);
+        s.output.fields = vec![Field::Displacement];
+    }
+    Ok(s)
+}
+
+/// Writes a point's scene file; returns its absolute path.
+fn write_scene(path: &Path, text: &str) -> Result<PathBuf> {
+    write(path, text)?;
+    path.canonicalize().map_err(|e| Error::Io(format!("cannot resolve {}: {e}", path.display())))
 }
 
 /// The launcher: `MASSFREE_MPIRUN` (e.g. "srun") or `mpirun --oversubscribe`, then `-n RANKS`.
@@ -399,21 +389,14 @@ fn run_point(
     study: &Study,
     binary: &Path,
     p: &Point,
+    scene: &std::result::Result<PathBuf, String>,
     runs: &Path,
 ) -> std::result::Result<Measured, String> {
+    let scene = scene.as_ref().map_err(String::clone)?;
     let summary = runs.join(format!("{}.summary.toml", p.id));
     let _ = std::fs::remove_file(&summary);
     let mut cmd = launcher(study.ranks);
-    cmd.arg(binary).arg("run").arg(&p.scene).arg("-q");
-    if let Some(h) = p.h {
-        cmd.arg("--param").arg(format!("{}={h}", study.mesh_param));
-    }
-    for (k, v) in &study.params {
-        cmd.arg("--param").arg(format!("{k}={v}"));
-    }
-    if let Some(m) = &p.mass {
-        cmd.arg("--mass").arg(m);
-    }
+    cmd.arg(binary).arg("run").arg(scene).arg("-q");
     cmd.arg("--summary").arg(&summary);
     if needs_h5(study) {
         cmd.arg("-o").arg(runs.join(format!("{}.h5", p.id))).arg("--overwrite");
@@ -437,8 +420,8 @@ fn run_point(
     }
     let text = std::fs::read_to_string(&summary)
         .map_err(|e| format!("the run wrote no summary {}: {e}", summary.display()))?;
-    let mut m = parse_summary(&text, p.error_step)
-        .map_err(|e| format!("summary {}: {e}", summary.display()))?;
+    let s = parse_summary(&text).map_err(|e| format!("summary {}: {e}", summary.display()))?;
+    let mut m = measured(&s, p.error_step);
     m.process_s = process_s;
     Ok(m)
 }
@@ -458,50 +441,38 @@ fn last_error_line(stderr: &str, code: Option<i32>) -> String {
     }
 }
 
-fn parse_summary(text: &str, error_step: usize) -> std::result::Result<Measured, String> {
-    let t: Table = text.parse().map_err(|e: toml::de::Error| e.message().to_string())?;
-    let f = |t: &Table, k: &str| -> std::result::Result<f64, String> {
-        match t.get(k) {
-            Some(Value::Float(x)) => Ok(*x),
-            Some(Value::Integer(i)) => Ok(*i as f64),
-            _ => Err(format!("no number {k}")),
-        }
-    };
-    let s = |k: &str| t.get(k).and_then(Value::as_str).unwrap_or_default().to_string();
-    let timings = t.get("timings").and_then(Value::as_table).ok_or("no [timings]")?;
-    let mut m = Measured {
-        dofs: f(&t, "n_dofs")? as usize,
-        ksp_iterations: f(&t, "ksp_iterations")? as usize,
-        ksp_type: s("ksp_type"),
-        pc_type: s("pc_type"),
-        mass_kind: s("mass_kind"),
-        mesh_s: f(timings, "mesh")?,
-        partition_s: f(timings, "partition")?,
-        assembly_s: f(timings, "assembly")?,
-        setup_s: f(timings, "setup")?,
-        stepping_s: f(timings, "stepping")?,
-        output_s: f(timings, "output")?,
-        peak_mib: f(&t, "peak_memory_mib").unwrap_or(f64::NAN),
-        energy_drift: f(&t, "energy_drift").unwrap_or(f64::NAN),
+/// A run's summary as `massfree run --summary` writes it.
+fn parse_summary(text: &str) -> std::result::Result<RunSummary, String> {
+    toml::from_str(text).map_err(|e: toml::de::Error| e.message().to_string())
+}
+
+/// The table's columns of a run; its errors against the exact solution at `error_step`.
+fn measured(s: &RunSummary, error_step: usize) -> Measured {
+    let t = &s.timings;
+    Measured {
+        dofs: s.n_dofs,
+        ksp_iterations: s.ksp_iterations,
+        ksp_type: s.ksp_type.clone(),
+        pc_type: s.pc_type.clone(),
+        mass_kind: s.mass_kind.clone(),
+        mesh_s: t.mesh,
+        partition_s: t.partition,
+        assembly_s: t.assembly,
+        setup_s: t.setup,
+        stepping_s: t.stepping,
+        output_s: t.output,
+        run_s: t.mesh + t.partition + t.assembly + t.setup + t.stepping + t.output,
+        peak_mib: s.peak_memory_mib,
+        energy_drift: s.energy_drift,
+        contact: s.contact.as_ref().map(|c| ContactColumns {
+            lowest_osc2: c.lowest_osc2,
+            total_force_tv_index: c.total_force_tv_index,
+            max_pressure: c.max_pressure,
+            episodes_max: c.episodes_max,
+        }),
+        exact: s.errors.iter().rev().find(|e| e.step == error_step).map(|e| (e.l2, e.h1_semi)),
         ..Default::default()
-    };
-    m.run_s = m.mesh_s + m.partition_s + m.assembly_s + m.setup_s + m.stepping_s + m.output_s;
-    if let Some(c) = t.get("contact").and_then(Value::as_table) {
-        m.contact = Some(ContactColumns {
-            lowest_osc2: f(c, "lowest_osc2").unwrap_or(f64::NAN),
-            total_force_tv_index: f(c, "total_force_tv_index").unwrap_or(f64::NAN),
-            max_pressure: f(c, "max_pressure").unwrap_or(f64::NAN),
-            episodes_max: f(c, "episodes_max").unwrap_or(0.0) as usize,
-        });
     }
-    if let Some(errors) = t.get("errors").and_then(Value::as_array) {
-        for e in errors.iter().filter_map(Value::as_table) {
-            if f(e, "step").ok() == Some(error_step as f64) {
-                m.exact = Some((f(e, "l2")?, f(e, "h1_semi")?));
-            }
-        }
-    }
-    Ok(m)
 }
 
 /// The repeat with the median run time (its phases stay consistent), with the median
@@ -526,7 +497,7 @@ fn compute_errors(study: &Study, points: &[Point], rows: &mut [Row], runs: &Path
     // Contact scenes: the lowest node's pressure history; others: relative L2 and H1-seminorm
     // differences of the displacement, integrated with quadrature over the reference's cells.
     let compare = |p: &Point, r: &Path| -> Result<(f64, Option<f64>)> {
-        if study.scene.has_contact {
+        if study.has_contact() {
             reference::pressure_error(&h5(p), r).map(|e| (e, None))
         } else {
             let t = p.error_step as f64 * p.tau;
@@ -672,7 +643,7 @@ fn plots(study: &Study, rows: &[Row], c: &Columns) -> Result<Vec<PathBuf>> {
     let mut files = Vec::new();
     let err_name = match study.reference {
         Reference::Exact => "error",
-        _ if study.scene.has_contact => "pressure error (relative)",
+        _ if study.has_contact() => "pressure error (relative)",
         _ => "error (relative, vs reference)",
     };
     let l2 = |r: &Row| r.err_l2;
@@ -776,32 +747,58 @@ mod tests {
 
     #[test]
     fn summary_columns() {
-        let text = r#"
-n_dofs = 1458
-ksp_iterations = 124
-ksp_type = "cg"
-pc_type = "jacobi"
-mass_kind = "consistent"
-peak_memory_mib = 85.5
-energy_drift = 1e-4
-[timings]
-mesh = 0.1
-partition = 0.01
-assembly = 0.02
-setup = 0.03
-stepping = 0.5
-output = 0.0
-[[errors]]
-step = 30
-time = 3e-4
-l2 = 6.1e-6
-h1_semi = 1.5e-4
-"#;
-        let m = parse_summary(text, 30).unwrap();
+        use crate::contact::history::ContactSummary;
+        use crate::simulation::{ErrorSample, MassCheck, Timings};
+        let run = RunSummary {
+            n_nodes: 729,
+            n_dofs: 1458,
+            steps: 30,
+            timings: Timings {
+                mesh: 0.1,
+                partition: 0.01,
+                assembly: 0.02,
+                setup: 0.03,
+                stepping: 0.5,
+                output: 0.0,
+            },
+            ksp_iterations: 124,
+            energy_initial: 1.0,
+            energy_final: 1.0,
+            external_work: 0.0,
+            energy_balance: 1e-12,
+            energy_drift: 1e-4,
+            errors: vec![ErrorSample { step: 30, time: 3e-4, l2: 6.1e-6, h1_semi: 1.5e-4 }],
+            output: None,
+            matmult_seconds: 1e-4,
+            peak_memory_mib: 85.5,
+            ranks: 2,
+            ksp_type: "cg".into(),
+            pc_type: "jacobi".into(),
+            mass_kind: "consistent".into(),
+            layer_contact_nodes: 0,
+            layer_cells: 0,
+            mass: MassCheck::default(),
+            momentum_initial: vec![0.0, 0.0],
+            momentum_final: vec![0.0, 0.0],
+            contact: Some(ContactSummary {
+                max_pressure: 2.5,
+                episodes_max: 1,
+                ..Default::default()
+            }),
+            pictures: vec![],
+            effects: String::new(),
+        };
+        // The text `massfree run --summary` writes, read back.
+        let s = parse_summary(&toml::to_string(&run).unwrap()).unwrap();
+        let m = measured(&s, 30);
         assert_eq!(m.dofs, 1458);
+        assert_eq!((m.ksp_type.as_str(), m.mass_kind.as_str()), ("cg", "consistent"));
+        assert_eq!((m.peak_mib, m.energy_drift), (85.5, 1e-4));
         assert!((m.run_s - 0.66).abs() < 1e-12);
         assert_eq!(m.exact, Some((6.1e-6, 1.5e-4)));
-        assert!(parse_summary(text, 31).unwrap().exact.is_none());
-        assert!(parse_summary("n_dofs = 1", 0).is_err());
+        let c = m.contact.unwrap();
+        assert_eq!((c.max_pressure, c.episodes_max), (2.5, 1));
+        assert!(measured(&s, 31).exact.is_none());
+        assert!(parse_summary("n_dofs = 1").is_err());
     }
 }

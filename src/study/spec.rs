@@ -30,8 +30,7 @@ use std::path::{Path, PathBuf};
 use toml::{Table, Value};
 
 use crate::error::{Error, Result};
-
-pub const MASS_KINDS: [&str; 4] = ["consistent", "lumped", "modified0", "modified1"];
+use crate::scene::{self, MassKind, MeshSource, Scene};
 
 /// What the errors of a run are measured against.
 #[derive(Debug, Clone, PartialEq)]
@@ -51,26 +50,15 @@ pub struct Solver {
     pub options: Vec<String>,
 }
 
-/// What the study reads from its scene.
-#[derive(Debug, Clone)]
-pub struct SceneInfo {
-    pub table: Table,
-    pub dir: PathBuf,
-    pub name: String,
-    pub has_exact: bool,
-    pub has_contact: bool,
-    pub tau: f64,
-    pub steps: usize,
-    /// The mesh parameter's value in the scene (when it sets it).
-    pub h_default: Option<f64>,
-}
-
 #[derive(Debug, Clone)]
 pub struct Study {
     pub file: PathBuf,
     pub title: String,
     pub scene_path: PathBuf,
-    pub scene: SceneInfo,
+    /// The scene as loaded; every point runs a variant of it (typed overrides).
+    pub scene: Scene,
+    /// The mesh parameter's value in the scene (when it sets it).
+    pub h_default: Option<f64>,
     pub output: PathBuf,
     pub ranks: usize,
     pub repeat: usize,
@@ -84,6 +72,12 @@ pub struct Study {
     pub mass: Vec<String>,
     pub tau: Vec<f64>,
     pub solver: Vec<Solver>,
+}
+
+impl Study {
+    pub fn has_contact(&self) -> bool {
+        self.scene.contact.is_some()
+    }
 }
 
 const TOP_KEYS: [&str; 13] = [
@@ -124,7 +118,14 @@ pub fn parse(path: &Path, text: &str) -> Result<Study> {
         .ok_or_else(|| bad("scene: missing (the scene file, relative to the study file)".into()))?;
     let base = path.parent().unwrap_or(Path::new("."));
     let scene_path = base.join(&scene_rel);
-    let scene = scene_info(&scene_path).map_err(|m| bad(format!("scene = {scene_rel:?}: {m}")))?;
+    let scene = scene::load(&scene_path).map_err(|e| {
+        let m = match e {
+            Error::Scene(m) => m,
+            e => e.to_string(),
+        };
+        let shown = format!("{}: ", scene_path.display());
+        bad(format!("scene = {scene_rel:?}: {}", m.strip_prefix(&shown).unwrap_or(&m)))
+    })?;
 
     let stem = path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
     let output = get_str(&table, "output")
@@ -136,8 +137,12 @@ pub fn parse(path: &Path, text: &str) -> Result<Study> {
     let ranks = get_count(&table, "ranks", 1, 1024).map_err(&bad)?.unwrap_or(2);
     let repeat = get_count(&table, "repeat", 1, 100).map_err(&bad)?.unwrap_or(1);
     let mesh_param = get_str(&table, "mesh_param").map_err(&bad)?.unwrap_or_else(|| "h".into());
-    let mut scene = scene;
-    scene.h_default = scene_param(&scene.table, &mesh_param);
+    let h_default = match &scene.mesh {
+        MeshSource::Geo { params, .. } => {
+            params.iter().find(|(n, _)| *n == mesh_param).map(|&(_, x)| x)
+        }
+        MeshSource::Msh { .. } => None,
+    };
     if mesh_param.is_empty() || mesh_param.contains(['=', ' ']) {
         return Err(bad(format!("mesh_param = {mesh_param:?} is not a parameter name")));
     }
@@ -191,13 +196,14 @@ pub fn parse(path: &Path, text: &str) -> Result<Study> {
             )));
         };
         for x in a {
-            match x.as_str() {
-                Some(s) if MASS_KINDS.contains(&s) => mass.push(s.to_string()),
-                _ => {
+            match x.as_str().and_then(MassKind::from_name) {
+                Some(k) => mass.push(k.name().to_string()),
+                None => {
+                    let names: Vec<&str> = MassKind::ALL.iter().map(|k| k.name()).collect();
                     return Err(bad(format!(
                         "sweep.mass contains {x}, which is unknown (allowed: {})",
-                        MASS_KINDS.join(", ")
-                    )))
+                        names.join(", ")
+                    )));
                 }
             }
         }
@@ -245,11 +251,12 @@ pub fn parse(path: &Path, text: &str) -> Result<Study> {
         }
     }
 
+    let has_exact = scene.exact.is_some();
     let reference = match table.get("reference") {
-        None if scene.has_exact => Reference::Exact,
+        None if has_exact => Reference::Exact,
         None => Reference::Finest,
         Some(Value::String(s)) if s == "exact" => {
-            if !scene.has_exact {
+            if !has_exact {
                 return Err(bad(
                     "reference = \"exact\" is impossible: the scene has no [exact] solution".into(),
                 ));
@@ -279,7 +286,7 @@ pub fn parse(path: &Path, text: &str) -> Result<Study> {
             "reference = \"finest\" needs at least two values of sweep.h or sweep.tau".into(),
         ));
     }
-    if !h.is_empty() && !is_geo(&scene.table) {
+    if !h.is_empty() && !matches!(scene.mesh, MeshSource::Geo { .. }) {
         return Err(bad(format!(
             "sweep.h: the scene reads a .msh file; {mesh_param} is a parameter of mesh.geo"
         )));
@@ -290,6 +297,7 @@ pub fn parse(path: &Path, text: &str) -> Result<Study> {
         title,
         scene_path,
         scene,
+        h_default,
         output,
         ranks,
         repeat,
@@ -306,61 +314,16 @@ pub fn parse(path: &Path, text: &str) -> Result<Study> {
     })
 }
 
-/// `end / tau` as a whole number of steps.
+/// `end / tau` as a whole number of steps, by the scene's rule for `time.end`.
 pub fn steps_for(end: f64, tau: f64) -> std::result::Result<usize, String> {
-    let r = end / tau;
-    let n = r.round();
-    if n < 1.0 || (r - n).abs() > 1e-6 * n.max(1.0) {
-        return Err(format!(
+    scene::steps_to_end(end, tau).map_err(|e| match e {
+        scene::EndSteps::TooMany { n } => format!(
+            "sweep.tau contains {tau}, which is impossible: end_time = {end} takes too many such steps ({n})"
+        ),
+        _ => format!(
             "sweep.tau contains {tau}, which is impossible: end_time = {end} is not a whole number of such steps"
-        ));
-    }
-    Ok(n as usize)
-}
-
-fn is_geo(scene: &Table) -> bool {
-    scene.get("mesh").and_then(|m| m.get("geo")).is_some()
-}
-
-fn scene_info(path: &Path) -> std::result::Result<SceneInfo, String> {
-    let text = std::fs::read_to_string(path).map_err(|e| format!("cannot read: {e}"))?;
-    let table: Table =
-        text.parse().map_err(|e: toml::de::Error| format!("not valid TOML: {}", e.message()))?;
-    let time = table.get("time").and_then(Value::as_table).ok_or("the scene has no [time]")?;
-    let tau = time.get("tau").and_then(number).ok_or("the scene has no time.tau")?;
-    let steps =
-        match (time.get("steps").and_then(Value::as_integer), time.get("end").and_then(number)) {
-            (Some(s), _) if s >= 1 => s as usize,
-            (None, Some(end)) => (end / tau).round().max(1.0) as usize,
-            _ => return Err("the scene has neither time.steps nor time.end".into()),
-        };
-    let name = table
-        .get("name")
-        .and_then(Value::as_str)
-        .map(str::to_string)
-        .or_else(|| path.file_stem().map(|s| s.to_string_lossy().into_owned()))
-        .unwrap_or_default();
-    let dir = path
-        .parent()
-        .map(Path::to_path_buf)
-        .unwrap_or_else(|| PathBuf::from("."))
-        .canonicalize()
-        .map_err(|e| format!("cannot resolve its folder: {e}"))?;
-    Ok(SceneInfo {
-        has_exact: table.contains_key("exact"),
-        has_contact: table.contains_key("contact"),
-        h_default: None,
-        name,
-        tau,
-        steps,
-        dir,
-        table,
+        ),
     })
-}
-
-/// The scene's own value of a mesh parameter (`mesh.params.NAME`).
-fn scene_param(scene: &Table, name: &str) -> Option<f64> {
-    scene.get("mesh")?.get("params")?.get(name).and_then(number)
 }
 
 fn check_keys(t: &Table, prefix: &str, allowed: &[&str]) -> std::result::Result<(), String> {

@@ -6,6 +6,8 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 use std::sync::atomic::{AtomicUsize, Ordering};
 
+pub use massfree::simulation::RunSummary;
+
 pub fn repo() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
 }
@@ -63,8 +65,8 @@ pub fn massfree(ranks: usize, args: &[&str]) -> Output {
     cmd.output().expect("failed to start massfree")
 }
 
-/// Run a scene and return the parsed summary; panics with the program's output on failure.
-pub fn run_scene(ranks: usize, scene: &Path, extra: &[&str]) -> toml::Table {
+/// Run a scene and return its summary; panics with the program's output on failure.
+pub fn run_scene(ranks: usize, scene: &Path, extra: &[&str]) -> RunSummary {
     let dir = scene.parent().unwrap();
     let stem = scene.file_stem().unwrap().to_string_lossy().to_string();
     let summary = dir.join(format!("{stem}-{ranks}.summary.toml"));
@@ -89,30 +91,7 @@ pub fn run_scene(ranks: usize, scene: &Path, extra: &[&str]) -> toml::Table {
         String::from_utf8_lossy(&o.stderr)
     );
     let text = std::fs::read_to_string(&summary).unwrap();
-    text.parse::<toml::Table>().unwrap()
-}
-
-pub fn f(t: &toml::Table, key: &str) -> f64 {
-    match &t[key] {
-        toml::Value::Float(x) => *x,
-        toml::Value::Integer(i) => *i as f64,
-        v => panic!("{key} is {v:?}"),
-    }
-}
-
-/// (step, l2, h1_semi) of the summary's error samples.
-pub fn errors(t: &toml::Table) -> Vec<(usize, f64, f64)> {
-    t.get("errors")
-        .and_then(|e| e.as_array())
-        .map(|a| {
-            a.iter()
-                .map(|e| {
-                    let e = e.as_table().unwrap();
-                    (f(e, "step") as usize, f(e, "l2"), f(e, "h1_semi"))
-                })
-                .collect()
-        })
-        .unwrap_or_default()
+    toml::from_str(&text).unwrap_or_else(|e| panic!("{}: {e}", summary.display()))
 }
 
 pub fn rel_diff(a: f64, b: f64) -> f64 {
