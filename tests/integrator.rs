@@ -5,6 +5,7 @@
 
 use massfree::error::Result;
 use massfree::petsc::{Matrix, Petsc, Vector};
+use massfree::time::midpoint::NoForces;
 use massfree::time::{Dirichlet, Forces, Midpoint, StepOperator, StepSolverDefaults};
 
 /// A dense symmetric n x n matrix as a PETSc matrix.
@@ -44,19 +45,6 @@ fn integrator(
     Midpoint::new(op, mm, aa, Dirichlet::none(), tau, vector(u0)?, vector(v0)?, 0.0, forces)
 }
 
-struct NoForce;
-impl Forces for NoForce {
-    fn present(&self) -> bool {
-        false
-    }
-    fn time_dependent(&self) -> bool {
-        false
-    }
-    fn assemble(&self, _t: f64, _out: &mut Vector) -> Result<()> {
-        Ok(())
-    }
-}
-
 /// f(t) = (sin 3t, cos t).
 struct Harmonic;
 impl Forces for Harmonic {
@@ -84,12 +72,12 @@ fn mode(u0: f64, v0: f64, omega: f64, tau: f64, n: usize) -> (f64, f64) {
 fn one_dof() -> Result<()> {
     let (m, k, tau) = (2.0, 50.0, 0.3); // omega tau = 1.5: far from the exact solution, on purpose
     let (u0, v0) = (0.7, -1.3);
-    let mut mp = integrator(1, &[m], &[k], tau, &[u0], &[v0], &NoForce)?;
+    let mut mp = integrator(1, &[m], &[k], tau, &[u0], &[v0], &NoForces)?;
     let e0 = mp.energy().total();
     assert!((e0 - (0.5 * m * v0 * v0 + 0.5 * k * u0 * u0)).abs() < 1e-14 * e0);
     let omega = (k / m).sqrt();
     for n in 0..200 {
-        mp.step(n, &NoForce, None)?;
+        mp.step(n, &NoForces, None)?;
         let (u, v) = mode(u0, v0, omega, tau, n + 1);
         let (uh, vh) = (values(mp.u())[0], values(mp.v())[0]);
         assert!((uh - u).abs() < 1e-11, "1 DOF, step {}: u {uh} vs {u}", n + 1);
@@ -103,12 +91,12 @@ fn two_dof() -> Result<()> {
     // A x = lambda M x has the modes (1, 1) with lambda = 2/3 and (1, -1) with lambda = 4.
     let (m, a, tau) = ([2.0, 1.0, 1.0, 2.0], [3.0, -1.0, -1.0, 3.0], 0.05);
     let (u0, v0) = ([0.3, -0.1], [0.2, 0.5]);
-    let mut mp = integrator(2, &m, &a, tau, &u0, &v0, &NoForce)?;
+    let mut mp = integrator(2, &m, &a, tau, &u0, &v0, &NoForces)?;
     let half = |x: [f64; 2]| ((x[0] + x[1]) / 2.0, (x[0] - x[1]) / 2.0);
     let ((p0, q0), (pv, qv)) = (half(u0), half(v0));
     let (w1, w2) = ((2.0f64 / 3.0).sqrt(), 2.0);
     for n in 0..400 {
-        mp.step(n, &NoForce, None)?;
+        mp.step(n, &NoForces, None)?;
         let (p, _) = mode(p0, pv, w1, tau, n + 1);
         let (q, _) = mode(q0, qv, w2, tau, n + 1);
         let u = values(mp.u());

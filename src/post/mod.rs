@@ -239,17 +239,8 @@ pub fn post(path: &Path, opts: &PostOptions) -> Result<Vec<String>> {
     let energy_csv = with_suffix("-energy.csv");
     write_csv(
         &energy_csv,
-        &[
-            "step",
-            "time",
-            "kinetic",
-            "potential",
-            "total",
-            "external_work",
-            "contact_work",
-            "dirichlet_work",
-        ]
-        .map(String::from),
+        // The file's energy series, in its order (the columns below follow it).
+        &layout::ENERGY_SERIES.map(String::from),
         &[
             step.clone(),
             time.clone(),
