@@ -25,9 +25,13 @@ fn repo() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
 }
 
+/// Where the benchmark's summaries, scratch files and tables go (created by `main`).
+fn bench_dir() -> PathBuf {
+    repo().join("target/bench")
+}
+
 fn run(case: &Case) -> Result<RunSummary, String> {
-    let out = repo().join("target/bench");
-    std::fs::create_dir_all(&out).map_err(|e| e.to_string())?;
+    let out = bench_dir();
     let summary =
         out.join(format!("summary-{}-{}-{}-{}.toml", case.label, case.h, case.ranks, case.mass));
     let _ = std::fs::remove_file(&summary);
@@ -92,6 +96,10 @@ fn row(case: &Case, t: &RunSummary) -> Row {
 
 fn main() {
     let args: Vec<String> = std::env::args().collect();
+    if let Err(e) = std::fs::create_dir_all(bench_dir()) {
+        eprintln!("bench: cannot create {}: {e}", bench_dir().display());
+        std::process::exit(1);
+    }
     let quick = args.iter().any(|a| a == "--quick");
     // --only scaling|solvers|mass runs one section.
     let only = args.iter().position(|a| a == "--only").and_then(|i| args.get(i + 1)).cloned();
@@ -277,7 +285,7 @@ fn main() {
         let (hc, h) = if quick { ("0.1", "1.0") } else { ("0.025", "0.5") };
         for (scene, mesh) in [("disc.toml", "quads"), ("disc_tri.toml", "triangles")] {
             for mass in ["consistent", "lumped", "modified0", "modified1"] {
-                let out = repo().join("target/bench");
+                let out = bench_dir();
                 let summary = out.join(format!("disc-{mesh}-{mass}.toml"));
                 let o = Command::new("mpirun")
                     .args(["--oversubscribe", "-n", "2"])
@@ -334,7 +342,7 @@ fn main() {
         let h = if quick { "0.03125" } else { "0.004464285714285714" };
         md += "\nOutput cost (beam, displacement + velocity every step, 10 steps):\n\n| ranks | DOFs | ms/step without output | ms/step with output | output ms per written step | MB per step | MB/s | output / step |\n|---|---|---|---|---|---|---|---|\n";
         for ranks in [1, 2] {
-            let out = repo().join("target/bench");
+            let out = bench_dir();
             let mut t = Vec::new();
             for write in [false, true] {
                 let summary = out.join(format!("output-{ranks}-{write}.toml"));
@@ -386,8 +394,7 @@ fn main() {
             print!("{}", md.lines().last().map(|l| format!("{l}\n")).unwrap_or_default());
         }
     }
-    let path = repo().join("target/bench/scaling.md");
-    let _ = std::fs::create_dir_all(path.parent().unwrap());
+    let path = bench_dir().join("scaling.md");
     std::fs::write(&path, &md).unwrap();
     println!("\n{md}\nwritten to {}", path.display());
 }

@@ -31,9 +31,7 @@ fn scene_errors_name_the_key() {
     let roof = beam_with(&dir, "group = \"top\"", "group = \"roof\"");
     for _ in 0..2 {
         expect_error(&["run", &roof, "-o", out.to_str().unwrap()], "roof");
-        let f = hdf5::File::open(&out).unwrap();
-        let status = f.attr("status").unwrap().read_scalar::<hdf5::types::VarLenUnicode>();
-        let status = status.unwrap().to_string();
+        let status = reader(&out).text("status");
         assert!(status.starts_with("failed: ") && status.contains("roof"), "{status}");
     }
 }

@@ -10,17 +10,14 @@ fn contact(s: &RunSummary) -> &massfree::contact::history::ContactSummary {
 }
 
 fn read2(h5: &std::path::Path, name: &str) -> (Vec<f64>, usize) {
-    let f = hdf5::File::open(h5).unwrap();
-    let ds = f.dataset(name).unwrap();
-    let shape = ds.shape();
-    (ds.read_raw::<f64>().unwrap(), shape[1])
+    let run = reader(h5);
+    let n = run.file.dataset(name).unwrap().shape()[1];
+    (run.series(name).unwrap(), n)
 }
 
 fn read_active(h5: &std::path::Path) -> (Vec<u8>, usize) {
-    let f = hdf5::File::open(h5).unwrap();
-    let ds = f.dataset("contact/active").unwrap();
-    let nc = ds.shape()[1];
-    (ds.read_raw::<u8>().unwrap(), nc)
+    let (active, nc) = read2(h5, &layout::contact("active"));
+    (active.iter().map(|&a| a as u8).collect(), nc)
 }
 
 const BLOCK_2D: &str = r#"
@@ -76,8 +73,8 @@ fn check_drop(text: &str, name: &str, dim: usize) {
     for mass in ["modified1", "consistent"] {
         let s = run_scene(2, &scene, &["--mass", mass, "--", "-ksp_rtol", "1e-12"]);
         let h5 = dir.join(format!("{name}-2.h5"));
-        let (gap, nc) = read2(&h5, "contact/gap");
-        let (force, _) = read2(&h5, "contact/force");
+        let (gap, nc) = read2(&h5, &layout::contact("gap"));
+        let (force, _) = read2(&h5, &layout::contact("force"));
         let (active, _) = read_active(&h5);
         let fmax = force.iter().fold(0.0f64, |a, &b| a.max(b));
         assert!(fmax > 0.0, "{name} {mass}: no contact happened");
@@ -208,18 +205,16 @@ every = 500
     let s = run_scene(2, &scene, &[]);
     assert!(s.energy_balance < 1e-8, "balance with boundary work {}", s.energy_balance);
     let h5 = dir.join("hertz-2.h5");
-    let file = hdf5::File::open(&h5).unwrap();
-    let nodes = file.dataset("contact/nodes").unwrap().read_raw::<u64>().unwrap();
-    let coords = file.dataset("mesh/coordinates").unwrap().read_raw::<f64>().unwrap();
-    let (force, nc) = read2(&h5, "contact/force");
-    let (pressure, _) = read2(&h5, "contact/pressure");
+    let nodes: Vec<usize> =
+        values(&h5, layout::CONTACT_NODES).iter().map(|&n| n as usize).collect();
+    let coords = values(&h5, layout::COORDINATES);
+    let (force, nc) = read2(&h5, &layout::contact("force"));
+    let (pressure, _) = read2(&h5, &layout::contact("pressure"));
     let (active, _) = read_active(&h5);
     let last = force.len() / nc - 1;
     let p_total: f64 = force[last * nc..].iter().sum();
-    let xs: Vec<f64> = (0..nc)
-        .filter(|&k| active[last * nc + k] == 1)
-        .map(|k| coords[nodes[k] as usize * 3])
-        .collect();
+    let xs: Vec<f64> =
+        (0..nc).filter(|&k| active[last * nc + k] == 1).map(|k| coords[nodes[k] * 3]).collect();
     let half = (xs.iter().cloned().fold(f64::MIN, f64::max)
         - xs.iter().cloned().fold(f64::MAX, f64::min))
         / 2.0;
@@ -249,12 +244,11 @@ fn contact_results_do_not_depend_on_the_number_of_ranks() {
                 &["--mass", mass, "--partition", "x-slabs", "--", "-ksp_rtol", "1e-13"],
             );
             let h5 = dir.join(format!("disc-{ranks}.h5"));
-            runs.push((s, read_active(&h5), read2(&h5, "contact/force").0));
+            runs.push((s, read_active(&h5), read2(&h5, &layout::contact("force")).0));
         }
         // The straddle: contact nodes active on both sides of x = 0 on 2 ranks.
-        let file = hdf5::File::open(dir.join("disc-2.h5")).unwrap();
-        let cell_rank = file.dataset("mesh/cell_rank").unwrap().read_raw::<i32>().unwrap();
-        assert!(cell_rank.contains(&0) && cell_rank.contains(&1));
+        let cell_rank = values(&dir.join("disc-2.h5"), layout::CELL_RANK);
+        assert!(cell_rank.contains(&0.0) && cell_rank.contains(&1.0));
         let ((s1, (a1, _), f1), (s2, (a2, _), f2)) = (&runs[0], &runs[1]);
         assert!(a1.iter().any(|&a| a == 1));
         assert_eq!(a1, a2, "{mass}: active sets differ between 1 and 2 ranks");

@@ -131,12 +131,10 @@ fn forced_run_closes_the_energy_balance() {
 }
 
 fn final_displacement(h5: &std::path::Path) -> Vec<f64> {
-    let file = hdf5::File::open(h5).unwrap();
-    let ds = file.dataset("fields/displacement").unwrap();
-    let a = ds.read_dyn::<f64>().unwrap();
-    let shape = a.shape().to_vec();
-    let per_step = shape[1] * shape[2];
-    let all = a.into_raw_vec_and_offset().0;
+    let run = reader(h5);
+    let name = layout::field("displacement");
+    let per_step = run.file.dataset(&name).unwrap().shape()[1..].iter().product::<usize>();
+    let all = run.series(&name).unwrap();
     all[all.len() - per_step..].to_vec()
 }
 

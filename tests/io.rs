@@ -6,6 +6,8 @@ mod common;
 use common::*;
 use std::path::Path;
 
+// This file reads the run file with the plain HDF5 API and literal names on purpose: it checks
+// the layout README.md documents for users, independently of `io::layout`'s constants.
 fn open(p: &Path) -> hdf5::File {
     hdf5::File::open(p).unwrap_or_else(|e| panic!("{}: {e}", p.display()))
 }

@@ -7,8 +7,7 @@ mod common;
 use common::*;
 
 fn probe(h5: &std::path::Path) -> Vec<f64> {
-    let file = hdf5::File::open(h5).unwrap();
-    file.dataset("mass/probe").unwrap().read_raw::<f64>().unwrap()
+    values(h5, layout::MASS_PROBE)
 }
 
 /// M_H on the real (distributed) assembly: contact rows zero, total mass (and, for variant 1,

@@ -68,8 +68,7 @@ fn status_by_h5dump(h5: &Path) -> String {
 }
 
 fn raw(h5: &Path, name: &str) -> Vec<f64> {
-    let f = hdf5::File::open(h5).unwrap_or_else(|e| panic!("{}: {e}", h5.display()));
-    f.dataset(name).unwrap_or_else(|e| panic!("{name}: {e}")).read_raw::<f64>().unwrap()
+    values(h5, name)
 }
 
 fn max_rel_diff(a: &[f64], b: &[f64]) -> f64 {
@@ -188,10 +187,8 @@ fn metadata_from_values_that_differ_between_ranks_cannot_hang() {
     let st = wait_for(&mut child, Duration::from_secs(180), "the metadata writers");
     assert!(st.success(), "the 3-rank metadata writers failed: {st}");
     let h5 = dir.join("meta.h5");
-    let f = hdf5::File::open(&h5).unwrap();
-    let text = |name: &str| {
-        f.attr(name).unwrap().read_scalar::<hdf5::types::VarLenUnicode>().unwrap().to_string()
-    };
+    let run = reader(&h5);
+    let text = |name: &str| run.text(name);
     assert_eq!(status_by_h5dump(&h5), "finished");
     // Only rank 0's values reach the file: rank 0's summary has 1 + 0 + 0 characters of r.
     assert_eq!(text("summary"), "summary of rank r");

@@ -18,6 +18,16 @@ pub enum ElementKind {
 }
 
 impl ElementKind {
+    /// Every kind, in gmsh type order (the order the run file stores cell kinds in).
+    pub const ALL: [ElementKind; 6] = [
+        ElementKind::Line2,
+        ElementKind::Tri3,
+        ElementKind::Quad4,
+        ElementKind::Tet4,
+        ElementKind::Hex8,
+        ElementKind::Point1,
+    ];
+
     pub fn from_gmsh(t: i32) -> Option<ElementKind> {
         Some(match t {
             15 => ElementKind::Point1,

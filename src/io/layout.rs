@@ -7,6 +7,7 @@ use std::path::{Path, PathBuf};
 use hdf5::types::VarLenUnicode;
 
 use crate::error::{Error, Result};
+use crate::fem::element::ElementKind;
 use crate::simulation::RunSummary;
 
 pub const COORDINATES: &str = "mesh/coordinates";
@@ -41,6 +42,8 @@ pub const CHECKPOINT_STATE: [&str; 3] = ["u", "v", "du"];
 pub const CHECKPOINT_SCALARS: &str = "checkpoint/scalars";
 pub const CHECKPOINT_ACTIVE: &str = "checkpoint/active";
 pub const MASS: &str = "mass";
+/// `M * probe` for the probe vectors of the mass check.
+pub const MASS_PROBE: &str = "mass/probe";
 
 /// `energy/<series>`
 pub fn energy(series: &str) -> String {
@@ -101,6 +104,42 @@ impl RunReader {
             .dataset(name)
             .and_then(|d| d.read_2d::<f64>())
             .map_err(|e| self.err(&format!("read {name}"), e))
+    }
+
+    /// The node coordinates (always three per node).
+    pub fn coordinates(&self) -> Result<Vec<[f64; 3]>> {
+        Ok(self.series(COORDINATES)?.chunks(3).map(|x| [x[0], x[1], x[2]]).collect())
+    }
+
+    /// The cells, kind by kind in the writer's order, as 0-based node indices.
+    pub fn cells(&self) -> Result<Vec<(ElementKind, Vec<usize>)>> {
+        let g = self.file.group(CELLS).map_err(|e| self.err(CELLS, e))?;
+        let mut cells = Vec::new();
+        for kind in ElementKind::ALL {
+            if let Ok(ds) = g.dataset(kind.name()) {
+                let conn = ds.read_raw::<u64>().map_err(|e| self.err(kind.name(), e))?;
+                for c in conn.chunks(kind.n_nodes()) {
+                    cells.push((kind, c.iter().map(|&v| v as usize).collect()));
+                }
+            }
+        }
+        Ok(cells)
+    }
+
+    /// The values of field `name` written at time `time` (within 1e-9 relative), flattened
+    /// (entries x components), and the number of components.
+    pub fn field_at(&self, name: &str, time: f64) -> Result<(Vec<f64>, usize)> {
+        let times = self.series(&field_time(name)).or_else(|_| self.series(TIME))?;
+        let tol = (1e-9 * time.abs()).max(1e-12);
+        let k = times.iter().position(|t| (t - time).abs() <= tol).ok_or_else(|| {
+            Error::Io(format!("{}: no {name} written at t = {time:e}", self.path.display()))
+        })?;
+        let path = field(name);
+        let d = self.file.dataset(&path).map_err(|e| self.err(&path, e))?;
+        let shape = d.shape();
+        let (n, comps) = (shape[1], shape[2]);
+        let all = d.read_raw::<f64>().map_err(|e| self.err(&format!("read {path}"), e))?;
+        Ok((all[k * n * comps..(k + 1) * n * comps].to_vec(), comps))
     }
 
     /// The names of the fields written (`/fields/<name>`, without their axes).

@@ -170,6 +170,16 @@ impl<'a> Cursor<'a> {
     }
 
     /// An entity dimension: 0..=3.
+    /// The header of `$Nodes` and `$Elements`: the number of blocks and of `item`s, then the
+    /// minimum and maximum tag (unused). Returns (blocks, items).
+    fn section_header(&mut self, item: &str) -> Result<(usize, usize)> {
+        let blocks = self.count(&format!("number of {item} blocks"), 1)?;
+        let items = self.count(&format!("number of {item}s"), 1)?;
+        self.size(&format!("minimum {item} tag"))?;
+        self.size(&format!("maximum {item} tag"))?;
+        Ok((blocks, items))
+    }
+
     fn dim(&mut self, what: &str) -> Result<usize> {
         let d = self.int(what)?;
         if !(0..=3).contains(&d) {
@@ -382,10 +392,7 @@ impl RawMsh {
 
     fn read_nodes(&mut self, c: &mut Cursor) -> Result<()> {
         self.seen_nodes = true;
-        let n_blocks = c.count("number of node blocks", 1)?;
-        let n_nodes = c.count("number of nodes", 1)?;
-        c.size("minimum node tag")?;
-        c.size("maximum node tag")?;
+        let (n_blocks, n_nodes) = c.section_header("node")?;
         self.nodes.reserve(n_nodes);
         for _ in 0..n_blocks {
             let dim = c.dim("entity dimension")?;
@@ -424,10 +431,7 @@ impl RawMsh {
 
     fn read_elements(&mut self, c: &mut Cursor) -> Result<()> {
         self.seen_elements = true;
-        let n_blocks = c.count("number of element blocks", 1)?;
-        let n_elements = c.count("number of elements", 1)?;
-        c.size("minimum element tag")?;
-        c.size("maximum element tag")?;
+        let (n_blocks, n_elements) = c.section_header("element")?;
         self.elements.reserve(n_elements);
         for _ in 0..n_blocks {
             let dim = c.dim("entity dimension")?;

@@ -137,34 +137,12 @@ impl Petsc {
 
     /// Integer option value, `None` if not given.
     pub fn options_get_int(name: &str) -> Result<Option<i32>> {
-        let n = cstring(name)?;
-        let mut val: ffi::PetscInt = 0;
-        let mut set = ffi::PetscBool_PETSC_FALSE;
-        // SAFETY: valid C string and out-pointers; global database, no prefix.
-        chk!(ffi::PetscOptionsGetInt(
-            ptr::null_mut(),
-            ptr::null(),
-            n.as_ptr(),
-            &mut val,
-            &mut set
-        ))?;
-        Ok((set == ffi::PetscBool_PETSC_TRUE).then_some(val))
+        options_get(name, ffi::PetscOptionsGetInt, "PetscOptionsGetInt")
     }
 
     /// Real option value, `None` if not given.
     pub fn options_get_real(name: &str) -> Result<Option<f64>> {
-        let n = cstring(name)?;
-        let mut val: ffi::PetscReal = 0.0;
-        let mut set = ffi::PetscBool_PETSC_FALSE;
-        // SAFETY: valid C string and out-pointers; global database, no prefix.
-        chk!(ffi::PetscOptionsGetReal(
-            ptr::null_mut(),
-            ptr::null(),
-            n.as_ptr(),
-            &mut val,
-            &mut set
-        ))?;
-        Ok((set == ffi::PetscBool_PETSC_TRUE).then_some(val))
+        options_get(name, ffi::PetscOptionsGetReal, "PetscOptionsGetReal")
     }
 
     /// String option value (at most 4095 bytes), `None` if not given.
@@ -210,4 +188,24 @@ impl Drop for Petsc {
             }
         }
     }
+}
+
+/// The signature shared by `PetscOptionsGetInt` and `PetscOptionsGetReal`.
+type OptionsGetter<T> = unsafe extern "C" fn(
+    ffi::PetscOptions,
+    *const c_char,
+    *const c_char,
+    *mut T,
+    *mut ffi::PetscBool,
+) -> ffi::PetscErrorCode;
+
+/// A scalar option value from the global database (no prefix), `None` if not given.
+fn options_get<T: Default>(name: &str, get: OptionsGetter<T>, call: &str) -> Result<Option<T>> {
+    let n = cstring(name)?;
+    let mut val = T::default();
+    let mut set = ffi::PetscBool_PETSC_FALSE;
+    // SAFETY: valid C string and out-pointers of the getter's value type; global database.
+    let code = unsafe { get(ptr::null_mut(), ptr::null(), n.as_ptr(), &mut val, &mut set) };
+    super::check(code, call, file!(), line!())?;
+    Ok((set == ffi::PetscBool_PETSC_TRUE).then_some(val))
 }

@@ -181,9 +181,7 @@ impl Matrix {
         x: Option<&Vector>,
         b: Option<&mut Vector>,
     ) -> Result<()> {
-        let n = to_int(rows.len(), "Matrix::zero_rows_columns rows")?;
-        let xr = x.map_or(ptr::null_mut(), Vector::raw);
-        let br = b.map_or(ptr::null_mut(), |b| b.raw());
+        let (n, xr, br) = zero_rows_args(rows, x, b, "Matrix::zero_rows_columns rows")?;
         // SAFETY: valid handles or null (allowed by PETSc); `rows` holds n entries.
         chk!(ffi::MatZeroRowsColumns(self.m, n, rows.as_ptr(), diag, xr, br))
     }
@@ -197,9 +195,7 @@ impl Matrix {
         x: Option<&Vector>,
         b: Option<&mut Vector>,
     ) -> Result<()> {
-        let n = to_int(rows.len(), "Matrix::zero_rows rows")?;
-        let xr = x.map_or(ptr::null_mut(), Vector::raw);
-        let br = b.map_or(ptr::null_mut(), |b| b.raw());
+        let (n, xr, br) = zero_rows_args(rows, x, b, "Matrix::zero_rows rows")?;
         // SAFETY: valid handles or null (allowed by PETSc); `rows` holds n entries.
         chk!(ffi::MatZeroRows(self.m, n, rows.as_ptr(), diag, xr, br))
     }
@@ -379,4 +375,15 @@ impl Drop for NullSpace {
             unsafe { ffi::MatNullSpaceDestroy(&mut self.sp) };
         }
     }
+}
+
+/// The row count and the optional vectors of `MatZeroRows*` as PETSc takes them (null = absent).
+fn zero_rows_args(
+    rows: &[i32],
+    x: Option<&Vector>,
+    b: Option<&mut Vector>,
+    what: &str,
+) -> Result<(ffi::PetscInt, ffi::Vec, ffi::Vec)> {
+    let n = to_int(rows.len(), what)?;
+    Ok((n, x.map_or(ptr::null_mut(), Vector::raw), b.map_or(ptr::null_mut(), |b| b.raw())))
 }

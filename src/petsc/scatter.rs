@@ -24,44 +24,20 @@ impl Scatter {
 
     /// `to[to_idx] = from[from_idx]` (INSERT_VALUES, forward).
     pub fn forward(&mut self, from: &Vector, to: &mut Vector) -> Result<()> {
-        // SAFETY: the vectors have the layouts the scatter was created with; `&mut` excludes aliasing.
-        chk!(ffi::VecScatterBegin(
-            self.sc,
-            from.raw(),
-            to.raw(),
-            ffi::InsertMode_INSERT_VALUES,
-            ffi::ScatterMode_SCATTER_FORWARD
-        ))?;
-        // SAFETY: as above; completes the scatter begun above.
-        chk!(ffi::VecScatterEnd(
-            self.sc,
-            from.raw(),
-            to.raw(),
-            ffi::InsertMode_INSERT_VALUES,
-            ffi::ScatterMode_SCATTER_FORWARD
-        ))
+        self.scatter(from, to, ffi::ScatterMode_SCATTER_FORWARD)
     }
-}
 
-impl Scatter {
     /// The reverse direction: `from[from_idx] = to[to_idx]` (INSERT_VALUES).
     pub fn reverse(&mut self, to: &Vector, from: &mut Vector) -> Result<()> {
-        // SAFETY: the vectors have the layouts the scatter was created with; `&mut` excludes aliasing.
-        chk!(ffi::VecScatterBegin(
-            self.sc,
-            to.raw(),
-            from.raw(),
-            ffi::InsertMode_INSERT_VALUES,
-            ffi::ScatterMode_SCATTER_REVERSE
-        ))?;
+        self.scatter(to, from, ffi::ScatterMode_SCATTER_REVERSE)
+    }
+
+    fn scatter(&mut self, x: &Vector, y: &mut Vector, mode: ffi::ScatterMode) -> Result<()> {
+        // SAFETY: the vectors have the layouts the scatter was created with (in the order
+        // `mode` expects); `&mut` excludes aliasing.
+        chk!(ffi::VecScatterBegin(self.sc, x.raw(), y.raw(), ffi::InsertMode_INSERT_VALUES, mode))?;
         // SAFETY: as above; completes the scatter begun above.
-        chk!(ffi::VecScatterEnd(
-            self.sc,
-            to.raw(),
-            from.raw(),
-            ffi::InsertMode_INSERT_VALUES,
-            ffi::ScatterMode_SCATTER_REVERSE
-        ))
+        chk!(ffi::VecScatterEnd(self.sc, x.raw(), y.raw(), ffi::InsertMode_INSERT_VALUES, mode))
     }
 }
 

@@ -247,30 +247,10 @@ impl fmt::Display for Node {
 enum Op {
     Const(f64),
     Var(u8),
-    // Unary on the top of the stack.
-    Neg,
-    Sin,
-    Cos,
-    Tan,
-    Exp,
-    Log,
-    Sqrt,
-    Abs,
-    Sinh,
-    Cosh,
-    Tanh,
-    Asin,
-    Acos,
-    Atan,
-    // Binary on the two topmost values.
-    Add,
-    Sub,
-    Mul,
-    Div,
-    Pow,
-    Atan2,
-    Min,
-    Max,
+    /// top = f(top)
+    Un(Un),
+    /// top = f(second, top); pops one value.
+    Bin(Bin),
     /// top = top ^ n
     PowI(i32),
     /// top = top + c
@@ -289,43 +269,8 @@ enum Op {
 }
 
 impl Op {
-    fn un(f: Un) -> Op {
-        match f {
-            Un::Neg => Op::Neg,
-            Un::Sin => Op::Sin,
-            Un::Cos => Op::Cos,
-            Un::Tan => Op::Tan,
-            Un::Exp => Op::Exp,
-            Un::Log => Op::Log,
-            Un::Sqrt => Op::Sqrt,
-            Un::Abs => Op::Abs,
-            Un::Sinh => Op::Sinh,
-            Un::Cosh => Op::Cosh,
-            Un::Tanh => Op::Tanh,
-            Un::Asin => Op::Asin,
-            Un::Acos => Op::Acos,
-            Un::Atan => Op::Atan,
-        }
-    }
-
-    fn bin(f: Bin) -> Op {
-        match f {
-            Bin::Add => Op::Add,
-            Bin::Sub => Op::Sub,
-            Bin::Mul => Op::Mul,
-            Bin::Div => Op::Div,
-            Bin::Pow => Op::Pow,
-            Bin::Atan2 => Op::Atan2,
-            Bin::Min => Op::Min,
-            Bin::Max => Op::Max,
-        }
-    }
-
     fn is_binary(self) -> bool {
-        matches!(
-            self,
-            Op::Add | Op::Sub | Op::Mul | Op::Div | Op::Pow | Op::Atan2 | Op::Min | Op::Max
-        )
+        matches!(self, Op::Bin(_))
     }
 }
 
@@ -405,51 +350,10 @@ impl Expr {
                     sp += 1;
                     top = v[i as usize & 3];
                 }
-                Op::Neg => top = -top,
-                Op::Sin => top = top.sin(),
-                Op::Cos => top = top.cos(),
-                Op::Tan => top = top.tan(),
-                Op::Exp => top = top.exp(),
-                Op::Log => top = top.ln(),
-                Op::Sqrt => top = top.sqrt(),
-                Op::Abs => top = top.abs(),
-                Op::Sinh => top = top.sinh(),
-                Op::Cosh => top = top.cosh(),
-                Op::Tanh => top = top.tanh(),
-                Op::Asin => top = top.asin(),
-                Op::Acos => top = top.acos(),
-                Op::Atan => top = top.atan(),
-                Op::Add => {
+                Op::Un(f) => top = f.apply(top),
+                Op::Bin(f) => {
                     sp -= 1;
-                    top += st[sp];
-                }
-                Op::Sub => {
-                    sp -= 1;
-                    top = st[sp] - top;
-                }
-                Op::Mul => {
-                    sp -= 1;
-                    top *= st[sp];
-                }
-                Op::Div => {
-                    sp -= 1;
-                    top = st[sp] / top;
-                }
-                Op::Pow => {
-                    sp -= 1;
-                    top = st[sp].powf(top);
-                }
-                Op::Atan2 => {
-                    sp -= 1;
-                    top = st[sp].atan2(top);
-                }
-                Op::Min => {
-                    sp -= 1;
-                    top = st[sp].min(top);
-                }
-                Op::Max => {
-                    sp -= 1;
-                    top = st[sp].max(top);
+                    top = f.apply(st[sp], top);
                 }
                 Op::PowI(n) => top = powi(top, n),
                 Op::AddC(c) => top += c,
@@ -882,7 +786,7 @@ fn emit(n: &Node, ops: &mut Vec<Op>) {
         Node::Var(i) => ops.push(Op::Var(*i)),
         Node::Un(f, a) => {
             emit(a, ops);
-            ops.push(Op::un(*f));
+            ops.push(Op::Un(*f));
         }
         Node::Bin(f, a, b) => {
             // Fused forms with a leaf operand: one instruction instead of two.
@@ -946,7 +850,7 @@ fn emit(n: &Node, ops: &mut Vec<Op>) {
                 _ => {
                     emit(a, ops);
                     emit(b, ops);
-                    ops.push(Op::bin(*f));
+                    ops.push(Op::Bin(*f));
                 }
             }
         }

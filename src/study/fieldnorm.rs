@@ -10,6 +10,7 @@ use std::path::Path;
 use crate::error::{Error, Result};
 use crate::fem::element::ElementKind;
 use crate::fem::{kernels, shape};
+use crate::io::layout::RunReader;
 
 /// A mesh and one displacement field read from a run's HDF5 file.
 pub struct FieldMesh {
@@ -19,40 +20,11 @@ pub struct FieldMesh {
     pub dim: usize,
 }
 
-fn h5err(path: &Path, what: &str, e: impl std::fmt::Display) -> Error {
-    Error::Io(format!("{}: {what}: {e}", path.display()))
-}
-
 /// Read the mesh and the displacement written at `time` (per-field axis, else /time).
 pub fn read(path: &Path, time: f64) -> Result<FieldMesh> {
-    let file = hdf5::File::open(path).map_err(|e| h5err(path, "open", e))?;
-    let raw = |name: &str| {
-        file.dataset(name).and_then(|d| d.read_raw::<f64>()).map_err(|e| h5err(path, name, e))
-    };
-    let times = raw("fields/displacement_time").or_else(|_| raw("time"))?;
-    let tol = 1e-9 * time.abs().max(1e-300);
-    let k = times.iter().position(|t| (t - time).abs() <= tol.max(1e-12)).ok_or_else(|| {
-        Error::Io(format!("{}: no displacement written at t = {time:e}", path.display()))
-    })?;
-    let d =
-        file.dataset("fields/displacement").map_err(|e| h5err(path, "fields/displacement", e))?;
-    let shape = d.shape();
-    let (n, dim) = (shape[1], shape[2]);
-    let all = d.read_raw::<f64>().map_err(|e| h5err(path, "fields/displacement", e))?;
-    let u = all[k * n * dim..(k + 1) * n * dim].to_vec();
-    let c = raw("mesh/coordinates")?;
-    let coords: Vec<[f64; 3]> = c.chunks(3).map(|x| [x[0], x[1], x[2]]).collect();
-    let g = file.group("mesh/cells").map_err(|e| h5err(path, "mesh/cells", e))?;
-    let mut cells = Vec::new();
-    for kind in [ElementKind::Tri3, ElementKind::Quad4, ElementKind::Tet4, ElementKind::Hex8] {
-        if let Ok(ds) = g.dataset(kind.name()) {
-            let conn = ds.read_raw::<u64>().map_err(|e| h5err(path, kind.name(), e))?;
-            for c in conn.chunks(kind.n_nodes()) {
-                cells.push((kind, c.iter().map(|&v| v as usize).collect()));
-            }
-        }
-    }
-    Ok(FieldMesh { coords, cells, u, dim })
+    let run = RunReader::open(path)?;
+    let (u, dim) = run.field_at("displacement", time)?;
+    Ok(FieldMesh { coords: run.coordinates()?, cells: run.cells()?, u, dim })
 }
 
 /// Reference coordinates of `x` in a cell, by Newton's method on the (bi/tri)linear map

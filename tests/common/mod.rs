@@ -6,7 +6,18 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 use std::sync::atomic::{AtomicUsize, Ordering};
 
+pub use massfree::io::layout::{self, RunReader};
 pub use massfree::simulation::RunSummary;
+
+/// A run's file through the reader post and study use (panics with the path if it fails).
+pub fn reader(h5: &Path) -> RunReader {
+    RunReader::open(h5).unwrap_or_else(|e| panic!("{e}"))
+}
+
+/// Dataset `name` of a run's file as numbers, flattened (panics with the name if absent).
+pub fn values(h5: &Path, name: &str) -> Vec<f64> {
+    reader(h5).series(name).unwrap_or_else(|e| panic!("{e}"))
+}
 
 pub fn repo() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
