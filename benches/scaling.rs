@@ -330,7 +330,7 @@ fn main() {
                     c.active_set_iterations_max,
                     ratio,
                     100.0 * csec / stepping,
-                    c.column_solves,
+                    c.extra_solves,
                 );
                 print!("{}", md.lines().last().map(|l| format!("{l}\n")).unwrap_or_default());
             }

@@ -16,7 +16,7 @@ use mpi::traits::*;
 use crate::assembly::{self, Loads};
 use crate::console::{Console, Progress};
 use crate::contact::history::{ContactSummary, History as ContactHistory};
-use crate::contact::{ActiveSet, ContactBoundary, ContactSolver, Obstacle};
+use crate::contact::{self, ContactBoundary, ContactSolver, Obstacle};
 use crate::error::{Error, Result};
 use crate::fem::{self, kernels};
 use crate::io::{
@@ -482,14 +482,14 @@ impl<'a> Simulation<'a> {
         let loads = Loads::new(mesh, part, self.scene.body_force.as_ref(), &neumann)?;
         let dirichlet = Dirichlet::new(mesh, part, &self.scene.dirichlet)?;
         let contact: Option<Box<dyn ContactSolver + 'a>> = match &self.scene.contact {
-            Some(spec) => Some(Box::new(ActiveSet::new(
+            Some(spec) => Some(contact::solver(
                 self.world,
                 &self.mesh,
                 &self.part,
                 ContactBoundary::build(&self.mesh, &spec.boundary)?,
                 Obstacle::from_scene(&spec.obstacle),
                 Midpoint::CONTACT_FORCE_FACTOR,
-            ))),
+            )?),
             None => None,
         };
         self.timings.assembly = max_over_ranks(self.world, t0.elapsed().as_secs_f64());
@@ -530,6 +530,9 @@ impl<'a> Simulation<'a> {
             Some(&null_space),
             &defaults,
         )?;
+        if let Some(c) = contact.as_mut() {
+            c.prepare(&op.k)?;
+        }
         self.timings.setup = max_over_ranks(self.world, t1.elapsed().as_secs_f64());
         // The initial state: nodal interpolants of the scene's initial fields.
         let u0 = match &self.scene.initial_displacement {

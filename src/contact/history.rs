@@ -42,8 +42,9 @@ pub struct ContactSummary {
     pub contact_work: f64,
     /// Impulse the contact gave the body, `-tau sum_n sum_q lambda_q n_q`, per component.
     pub impulse: Vec<f64>,
-    /// Column solves of the Schur complement (one per contact node and component, once).
-    pub column_solves: usize,
+    /// Solves with the step operator beyond one per step: active-set iterations after the
+    /// first (pdas), or the Schur complement's column solves (columns).
+    pub extra_solves: usize,
     /// Wall time of the steps with an active contact node (max over ranks), seconds.
     pub contact_steps_seconds: f64,
     /// KSP iterations of the steps with an active contact node (step solves only; the
@@ -143,7 +144,7 @@ impl History {
             },
             contact_work,
             impulse: (0..dim).map(|i| -self.impulse[i]).collect(),
-            column_solves: c.extra_solves(),
+            extra_solves: c.extra_solves(),
             contact_steps_seconds,
             ksp_iterations_contact_steps: 0,
         }

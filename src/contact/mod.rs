@@ -1,4 +1,4 @@
-//! Frictionless contact with a rigid obstacle, resolved by a primal-dual active set inside
+//! Frictionless contact with rigid obstacles, resolved by a primal-dual active set inside
 //! each time step (METHOD.md section 5; no SNES).
 //!
 //! Per contact node `q`: normal `n_q` (unit, from the body towards the obstacle), gap
@@ -6,15 +6,22 @@
 //! plane), contact force `lambda_q >= 0`, and complementarity `g_q lambda_q = 0` at `t_{n+1}`.
 //! The force enters the midpoint equation: `K du = rhs - 2 sum_q lambda_q n_q e_q`.
 //!
-//! Speed by design: `K` is constant, so the constrained solve is done with a Schur complement
-//! on the active contact DOFs, `S = B K^{-1} B^T`. The columns `K^{-1} e_{q,c}` are solved once
-//! per contact node, the first time the node is active, and kept with their values at all
-//! contact DOFs (their "trace"). A step is then one solve with `K` (as without contact), a few
-//! active-set iterations on small dense systems (identical on every rank), and one update
-//! `du = du0 - sum_q mu_q K^{-1} B^T e_q`. The preconditioner is never rebuilt.
+//! Two solvers implement [`ContactSolver`]:
+//! - [`pdas::ActiveSet`] (the default): every active-set iteration is one solve of the step
+//!   operator with the active nodes' normal displacements prescribed (the operator projected
+//!   onto their tangent planes, [`constraint::NormalConstraints`]); the forces come from the
+//!   residual rows. Memory O(N + contact nodes); the operator changes only near the contact
+//!   nodes and only when the active set (or a normal) changes.
+//! - [`columns::ColumnActiveSet`] (`-contact_solver columns`, kept for comparison): a Schur
+//!   complement on the active DOFs from one stored column `K^{-1} e_{q,c}` per node and
+//!   component; exact and fast for a few dozen nodes, O(active^2) memory and one extra solve
+//!   per column, which does not scale to 3D.
 
+pub mod columns;
+pub mod constraint;
 pub mod history;
 pub mod metrics;
+pub mod pdas;
 
 use mpi::collective::SystemOperation;
 use mpi::topology::SimpleCommunicator;
@@ -24,7 +31,7 @@ use crate::error::{Error, Result};
 use crate::fem::kernels;
 use crate::mesh::Mesh;
 use crate::partition::Partition;
-use crate::petsc::{Ksp, Vector};
+use crate::petsc::{Ksp, Matrix, Vector};
 use crate::scene;
 
 /// The rigid obstacle.
@@ -134,12 +141,17 @@ impl ContactRow {
 /// A contact solver inside the time step: it gets the step's right-hand side and the state at
 /// `t_n`, solves `K du = rhs - factor B^T lambda` with the contact conditions at `t_{n+1}`
 /// (`factor` comes from the integrator), and reports the contact forces and per-node data.
-/// The rigid-obstacle active set is the first implementation.
 pub trait ContactSolver {
+    /// Called once with the step operator before the first step (collective).
+    fn prepare(&mut self, k: &Matrix) -> Result<()>;
     /// `u` is `u^n`; `du` holds the previous increment (initial guess) and gets the result.
-    /// Returns the step's contact data and the KSP iterations of its solves.
+    /// `k` is the operator `ksp` solves with: the solver may change it near the contact nodes
+    /// (and restores it when the contact ends). Returns the step's contact data and the KSP
+    /// iterations of its solves.
+    #[allow(clippy::too_many_arguments)]
     fn solve(
         &mut self,
+        k: &mut Matrix,
         ksp: &mut Ksp,
         rhs: &Vector,
         u: &Vector,
@@ -147,20 +159,47 @@ pub trait ContactSolver {
         step: usize,
         time: f64,
     ) -> Result<(StepContact, usize)>;
-    /// The contact boundary (nodes, weights, group).
-    fn boundary(&self) -> &ContactBoundary;
+    /// The contact nodes (boundary, obstacle, per-node geometry).
+    fn nodes(&self) -> &ContactNodes<'_>;
     /// The active set after the last step.
     fn active(&self) -> &[bool];
     /// Continue from a checkpoint's active set.
     fn set_active(&mut self, active: Vec<bool>);
-    /// Contact nodes (mesh node indices) that penetrate the obstacle at displacement `u`.
-    fn penetrating(&self, u: &Vector) -> Result<Vec<usize>>;
-    /// Index (among the contact nodes) of the node closest to the obstacle at t = 0.
-    fn lowest(&self) -> usize;
-    /// Solves with the step operator beyond the one per step (e.g. Schur-complement columns).
+    /// Solves with the step operator beyond one per step, so far.
     fn extra_solves(&self) -> usize;
+    /// The contact boundary (nodes, weights, group).
+    fn boundary(&self) -> &ContactBoundary {
+        &self.nodes().boundary
+    }
+    /// Contact nodes (mesh node indices) that penetrate the obstacle at displacement `u`.
+    fn penetrating(&self, u: &Vector) -> Result<Vec<usize>> {
+        self.nodes().penetrating(u)
+    }
+    /// Index (among the contact nodes) of the node closest to the obstacle at t = 0.
+    fn lowest(&self) -> usize {
+        self.nodes().lowest()
+    }
     fn n_nodes(&self) -> usize {
         self.boundary().nodes.len()
+    }
+}
+
+/// The contact solver the options ask for (`-contact_solver pdas|columns`, default pdas).
+pub fn solver<'w>(
+    world: &'w SimpleCommunicator,
+    mesh: &Mesh,
+    part: &Partition,
+    boundary: ContactBoundary,
+    obstacle: Obstacle,
+    factor: f64,
+) -> Result<Box<dyn ContactSolver + 'w>> {
+    let nodes = ContactNodes::new(world, mesh, part, boundary, obstacle);
+    match crate::petsc::Petsc::options_get_string("-contact_solver")?.as_deref() {
+        None | Some("pdas") => Ok(Box::new(pdas::ActiveSet::new(nodes, factor))),
+        Some("columns") => Ok(Box::new(columns::ColumnActiveSet::new(nodes, factor))),
+        Some(other) => Err(Error::Usage(format!(
+            "-contact_solver {other}: unknown contact solver (pdas or columns)"
+        ))),
     }
 }
 
@@ -175,47 +214,31 @@ pub struct StepContact {
     pub resultant: [f64; 3],
 }
 
-struct Column {
-    /// `K^{-1} e_{q,c}` for each component c.
-    w: Vec<Vector>,
-    /// Values of the columns at all contact DOFs: `trace[(c * n_contact + p) * dim + d]`.
-    trace: Vec<f64>,
-}
-
-/// The primal-dual active-set solver for one body and one obstacle.
-pub struct ActiveSet<'w> {
-    world: &'w SimpleCommunicator,
+/// The contact nodes as every rank sees them: boundary, obstacle, reference positions, gmsh
+/// tags and global DOFs. O(contact nodes) on every rank; no loop over the mesh after `new`.
+pub struct ContactNodes<'w> {
+    pub world: &'w SimpleCommunicator,
     pub boundary: ContactBoundary,
     pub obstacle: Obstacle,
-    /// Reference position and gmsh tag of each contact node (the solver needs no more of the
-    /// mesh).
     coords: Vec<[f64; 3]>,
-    tags: Vec<u64>,
-    dim: usize,
+    pub tags: Vec<u64>,
+    pub dim: usize,
     /// Global DOF of (contact node k, component c), and whether this rank owns it.
-    dofs: Vec<(i32, bool)>,
-    first_dof: usize,
-    columns: Vec<Option<Column>>,
-    /// The active set of the last step (the next step's first guess).
-    pub active: Vec<bool>,
-    /// Factor of the force in the step equation (2 for the midpoint rule's du form).
-    factor: f64,
-    /// Gap tolerance: penetration below this counts as contact (a fraction of the mesh scale).
-    gap_tol: f64,
-    pub max_iterations: usize,
-    /// Column solves done so far (for the benchmark).
-    pub column_solves: usize,
+    pub dofs: Vec<(i32, bool)>,
+    pub first_dof: usize,
+    /// Gap tolerance: penetration below this counts as contact (1e-12 of the size of the
+    /// contact boundary).
+    pub gap_tol: f64,
 }
 
-impl<'w> ActiveSet<'w> {
+impl<'w> ContactNodes<'w> {
     pub fn new(
         world: &'w SimpleCommunicator,
         mesh: &Mesh,
         part: &Partition,
         boundary: ContactBoundary,
         obstacle: Obstacle,
-        factor: f64,
-    ) -> ActiveSet<'w> {
+    ) -> ContactNodes<'w> {
         let dim = part.dim;
         let mut dofs = Vec::with_capacity(boundary.nodes.len() * dim);
         for &v in &boundary.nodes {
@@ -223,32 +246,34 @@ impl<'w> ActiveSet<'w> {
                 dofs.push((part.dof(v, c) as i32, part.owns(v)));
             }
         }
-        // Mesh scale: the bounding box diagonal.
+        let coords: Vec<[f64; 3]> = boundary.nodes.iter().map(|&v| mesh.coords[v]).collect();
         let (mut lo, mut hi) = ([f64::MAX; 3], [f64::MIN; 3]);
-        for x in &mesh.coords {
+        for x in &coords {
             for i in 0..3 {
                 lo[i] = lo[i].min(x[i]);
                 hi[i] = hi[i].max(x[i]);
             }
         }
-        let diag = (0..3).map(|i| (hi[i] - lo[i]).powi(2)).sum::<f64>().sqrt();
-        let n = boundary.nodes.len();
-        ActiveSet {
+        let diag = (0..3).map(|i| (hi[i] - lo[i]).max(0.0).powi(2)).sum::<f64>().sqrt();
+        ContactNodes {
             world,
-            coords: boundary.nodes.iter().map(|&v| mesh.coords[v]).collect(),
             tags: boundary.nodes.iter().map(|&v| mesh.node_tags[v]).collect(),
+            coords,
             boundary,
             obstacle,
             dim,
             dofs,
             first_dof: part.first_dof(),
-            columns: (0..n).map(|_| None).collect(),
-            active: vec![false; n],
-            factor,
-            gap_tol: 1e-12 * diag,
-            max_iterations: 50,
-            column_solves: 0,
+            gap_tol: 1e-12 * diag.max(f64::MIN_POSITIVE),
         }
+    }
+
+    pub fn len(&self) -> usize {
+        self.coords.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.coords.is_empty()
     }
 
     /// Values of a distributed vector at all contact DOFs, on every rank (owners contribute,
@@ -284,8 +309,18 @@ impl<'w> ActiveSet<'w> {
             .collect()
     }
 
+    /// `n_q . x_q` for every contact node, from a trace.
+    pub fn normal_parts(&self, frames: &[(f64, [f64; 3])], trace: &[f64]) -> Vec<f64> {
+        let d = self.dim;
+        frames
+            .iter()
+            .enumerate()
+            .map(|(p, f)| (0..d).map(|c| f.1[c] * trace[p * d + c]).sum())
+            .collect()
+    }
+
     /// Contact nodes that penetrate the obstacle at displacement `u` (beyond the tolerance).
-    fn penetrating_nodes(&self, u: &Vector) -> Result<Vec<usize>> {
+    pub fn penetrating(&self, u: &Vector) -> Result<Vec<usize>> {
         let tr = self.trace(u)?;
         Ok(self
             .frames(&tr)
@@ -296,185 +331,8 @@ impl<'w> ActiveSet<'w> {
             .collect())
     }
 
-    fn ensure_column(&mut self, k: usize, ksp: &mut Ksp, template: &Vector) -> Result<()> {
-        if self.columns[k].is_some() {
-            return Ok(());
-        }
-        let d = self.dim;
-        let mut w = Vec::with_capacity(d);
-        let mut traces = Vec::with_capacity(d * self.dofs.len());
-        for c in 0..d {
-            let mut e = template.duplicate()?;
-            e.zero()?;
-            let (dof, owned) = self.dofs[k * d + c];
-            if owned {
-                e.set_values(&[dof], &[1.0], false)?;
-            }
-            e.assemble()?;
-            let mut x = template.duplicate()?;
-            x.zero()?;
-            ksp.solve(&e, &mut x)?;
-            self.column_solves += 1;
-            traces.extend(self.trace(&x)?);
-            w.push(x);
-        }
-        self.columns[k] = Some(Column { w, trace: traces });
-        Ok(())
-    }
-
-    /// One step: solve `K du = rhs - factor sum_q lambda_q n_q e_q` with the active-set loop.
-    /// `u` is `u^n`; `du` holds the previous increment (initial guess) and gets the result.
-    fn solve_step(
-        &mut self,
-        ksp: &mut Ksp,
-        rhs: &Vector,
-        u: &Vector,
-        du: &mut Vector,
-        step: usize,
-        time: f64,
-    ) -> Result<(StepContact, usize)> {
-        let d = self.dim;
-        let nc = self.n_nodes();
-        let frames = self.frames(&self.trace(u)?);
-        let info = ksp.solve(rhs, du)?;
-        let d0 = self.trace(du)?;
-        let mut active = self.active.clone();
-        let mut history: Vec<Vec<bool>> = vec![active.clone()];
-        let mut mu: Vec<f64>;
-        let mut tr: Vec<f64>;
-        let mut iterations = 0;
-        loop {
-            iterations += 1;
-            let idx: Vec<usize> = (0..nc).filter(|&k| active[k]).collect();
-            for &k in &idx {
-                self.ensure_column(k, ksp, rhs)?;
-            }
-            // Column of the active node q as seen at all contact DOFs: sum_c n_qc trace_q[c].
-            let col_at = |q: usize, p: usize, dd: usize| -> f64 {
-                let col = self.columns[q].as_ref().expect("column");
-                (0..d).map(|c| frames[q].1[c] * col.trace[(c * nc + p) * d + dd]).sum()
-            };
-            let m = idx.len();
-            let mut s = vec![0.0; m * m];
-            let mut b = vec![0.0; m];
-            for (i, &p) in idx.iter().enumerate() {
-                let np = frames[p].1;
-                b[i] = (0..d).map(|dd| np[dd] * d0[p * d + dd]).sum::<f64>() - frames[p].0;
-                for (j, &q) in idx.iter().enumerate() {
-                    s[i * m + j] = (0..d).map(|dd| np[dd] * col_at(q, p, dd)).sum();
-                }
-            }
-            let sol = solve_spd(&mut s, &mut b, m).ok_or_else(|| {
-                Error::Solver(format!(
-                    "contact at step {step} (t = {time:e}): the active-set system is singular ({m} active nodes)"
-                ))
-            })?;
-            mu = vec![0.0; nc];
-            for (i, &q) in idx.iter().enumerate() {
-                mu[q] = sol[i];
-            }
-            tr = d0.clone();
-            for &q in &idx {
-                for p in 0..nc {
-                    for dd in 0..d {
-                        tr[p * d + dd] -= mu[q] * col_at(q, p, dd);
-                    }
-                }
-            }
-            // Active-set update: lambda_q - c g_q > 0, with lambda = 0 off the set and g = 0 on it.
-            let lam_scale = mu.iter().fold(0.0f64, |a, &x| a.max(x.abs()));
-            let mut next = vec![false; nc];
-            for p in 0..nc {
-                let np = frames[p].1;
-                let gap = frames[p].0 - (0..d).map(|dd| np[dd] * tr[p * d + dd]).sum::<f64>();
-                next[p] = if active[p] { mu[p] > -1e-12 * lam_scale } else { gap < -self.gap_tol };
-            }
-            if next == active {
-                break;
-            }
-            if history.contains(&next) {
-                let flips: Vec<String> = (0..nc)
-                    .filter(|&k| next[k] != active[k])
-                    .map(|k| self.tags[k].to_string())
-                    .collect();
-                return Err(Error::Solver(format!(
-                    "contact at step {step} (t = {time:e}): the active set cycles; gmsh nodes {} flip",
-                    flips.join(", ")
-                )));
-            }
-            if iterations >= self.max_iterations {
-                return Err(Error::Solver(format!(
-                    "contact at step {step} (t = {time:e}): the active set did not settle in {} iterations",
-                    self.max_iterations
-                )));
-            }
-            history.push(next.clone());
-            active = next;
-        }
-        // du = du0 - sum_q mu_q sum_c n_qc K^{-1} e_{q,c}
-        for q in (0..nc).filter(|&k| active[k]) {
-            let col = self.columns[q].as_ref().expect("column");
-            for c in 0..d {
-                let a = mu[q] * frames[q].1[c];
-                if a != 0.0 {
-                    du.axpy(-a, &col.w[c])?;
-                }
-            }
-        }
-        let mut out = StepContact {
-            row: ContactRow {
-                force: vec![0.0; nc],
-                gap: vec![0.0; nc],
-                active: active.clone(),
-                iterations,
-            },
-            normals: frames.iter().map(|f| f.1).collect(),
-            work: 0.0,
-            resultant: [0.0; 3],
-        };
-        for p in 0..nc {
-            let np = frames[p].1;
-            let ndu: f64 = (0..d).map(|dd| np[dd] * tr[p * d + dd]).sum();
-            out.row.gap[p] = frames[p].0 - ndu;
-            if active[p] {
-                let lam = mu[p] / self.factor;
-                out.row.force[p] = lam;
-                out.work -= lam * ndu;
-                for c in 0..d {
-                    out.resultant[c] += lam * np[c];
-                }
-            }
-        }
-        self.active = active;
-        Ok((out, info.iterations))
-    }
-}
-
-impl ContactSolver for ActiveSet<'_> {
-    fn solve(
-        &mut self,
-        ksp: &mut Ksp,
-        rhs: &Vector,
-        u: &Vector,
-        du: &mut Vector,
-        step: usize,
-        time: f64,
-    ) -> Result<(StepContact, usize)> {
-        self.solve_step(ksp, rhs, u, du, step, time)
-    }
-    fn boundary(&self) -> &ContactBoundary {
-        &self.boundary
-    }
-    fn active(&self) -> &[bool] {
-        &self.active
-    }
-    fn set_active(&mut self, active: Vec<bool>) {
-        self.active = active;
-    }
-    fn penetrating(&self, u: &Vector) -> Result<Vec<usize>> {
-        self.penetrating_nodes(u)
-    }
-    fn lowest(&self) -> usize {
+    /// The contact node closest to the obstacle in the reference configuration.
+    pub fn lowest(&self) -> usize {
         let gap = |k: usize| self.obstacle.gap_normal(self.coords[k]).0;
         (0..self.coords.len())
             .min_by(|&a, &b| {
@@ -482,66 +340,105 @@ impl ContactSolver for ActiveSet<'_> {
             })
             .unwrap_or(0)
     }
-    fn extra_solves(&self) -> usize {
-        self.column_solves
+
+    /// The step's contact data from the converged iteration: forces `lambda` (of the
+    /// midpoint equation; zero off the active set), the increment's trace, the frames at `t_n`.
+    pub fn step_contact(
+        &self,
+        frames: &[(f64, [f64; 3])],
+        active: Vec<bool>,
+        lambda: &[f64],
+        du_trace: &[f64],
+        iterations: usize,
+    ) -> StepContact {
+        let nc = self.len();
+        let ndu = self.normal_parts(frames, du_trace);
+        let mut out = StepContact {
+            row: ContactRow {
+                force: vec![0.0; nc],
+                gap: (0..nc).map(|p| frames[p].0 - ndu[p]).collect(),
+                active,
+                iterations,
+            },
+            normals: frames.iter().map(|f| f.1).collect(),
+            work: 0.0,
+            resultant: [0.0; 3],
+        };
+        for p in 0..nc {
+            if out.row.active[p] {
+                let lam = lambda[p];
+                out.row.force[p] = lam;
+                out.work -= lam * ndu[p];
+                for c in 0..self.dim {
+                    out.resultant[c] += lam * frames[p].1[c];
+                }
+            }
+        }
+        out
     }
 }
 
-/// Solve the small dense SPD system `S x = b` (Cholesky, in place); None if not positive
-/// definite. Every rank solves the same system with the same data, so all agree.
-fn solve_spd(s: &mut [f64], b: &mut [f64], m: usize) -> Option<Vec<f64>> {
-    for j in 0..m {
-        let mut dsum = s[j * m + j];
-        for k in 0..j {
-            dsum -= s[j * m + k] * s[j * m + k];
-        }
-        if dsum <= 0.0 || !dsum.is_finite() {
-            return None;
-        }
-        let djj = dsum.sqrt();
-        s[j * m + j] = djj;
-        for i in j + 1..m {
-            let mut v = s[i * m + j];
-            for k in 0..j {
-                v -= s[i * m + k] * s[j * m + k];
-            }
-            s[i * m + j] = v / djj;
-        }
+/// The active-set loop's bookkeeping, shared by the solvers: the next set from the
+/// complementarity function, convergence, cycle detection and the iteration cap.
+pub struct ActiveSetLoop {
+    history: Vec<Vec<bool>>,
+    pub iterations: usize,
+    max_iterations: usize,
+    step: usize,
+    time: f64,
+}
+
+impl ActiveSetLoop {
+    pub fn new(first: &[bool], max_iterations: usize, step: usize, time: f64) -> ActiveSetLoop {
+        ActiveSetLoop { history: vec![first.to_vec()], iterations: 0, max_iterations, step, time }
     }
-    for i in 0..m {
-        let mut v = b[i];
-        for k in 0..i {
-            v -= s[i * m + k] * b[k];
-        }
-        b[i] = v / s[i * m + i];
+
+    /// The next active set: an active node stays while its force is not negative (relative
+    /// to the largest force), an inactive node enters when its gap is negative beyond `gap_tol`.
+    pub fn next_set(active: &[bool], force: &[f64], gap: &[f64], gap_tol: f64) -> Vec<bool> {
+        let scale = force.iter().fold(0.0f64, |a, &x| a.max(x.abs()));
+        (0..active.len())
+            .map(|p| if active[p] { force[p] > -1e-12 * scale } else { gap[p] < -gap_tol })
+            .collect()
     }
-    for i in (0..m).rev() {
-        let mut v = b[i];
-        for k in i + 1..m {
-            v -= s[k * m + i] * b[k];
+
+    /// Counts an iteration that gave `next` from `active`: `Ok(None)` when the set settled,
+    /// `Ok(Some(next))` to iterate again, an error when it cycles or hits the cap.
+    pub fn advance(
+        &mut self,
+        active: &[bool],
+        next: Vec<bool>,
+        tags: &[u64],
+    ) -> Result<Option<Vec<bool>>> {
+        self.iterations += 1;
+        if next == active {
+            return Ok(None);
         }
-        b[i] = v / s[i * m + i];
+        let (step, time) = (self.step, self.time);
+        if self.history.contains(&next) {
+            let flips: Vec<String> = (0..next.len())
+                .filter(|&k| next[k] != active[k])
+                .map(|k| tags[k].to_string())
+                .collect();
+            return Err(Error::Solver(format!(
+                "contact at step {step} (t = {time:e}): the active set cycles; gmsh nodes {} flip",
+                flips.join(", ")
+            )));
+        }
+        if self.iterations >= self.max_iterations {
+            return Err(Error::Solver(format!(
+                "contact at step {step} (t = {time:e}): the active set did not settle in {} iterations",
+                self.max_iterations
+            )));
+        }
+        self.history.push(next.clone());
+        Ok(Some(next))
     }
-    Some(b.to_vec())
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn cholesky_solves_spd_and_refuses_indefinite() {
-        let mut s = vec![4.0, 1.0, 0.5, 1.0, 3.0, 0.2, 0.5, 0.2, 2.0];
-        let a = s.clone();
-        let mut b = vec![1.0, 2.0, 3.0];
-        let x = solve_spd(&mut s, &mut b, 3).unwrap();
-        for i in 0..3 {
-            let r: f64 = (0..3).map(|j| a[i * 3 + j] * x[j]).sum();
-            assert!((r - [1.0, 2.0, 3.0][i]).abs() < 1e-14);
-        }
-        let mut s = vec![1.0, 2.0, 2.0, 1.0];
-        assert!(solve_spd(&mut s, &mut [1.0, 1.0], 2).is_none());
-    }
 
     #[test]
     fn plane_and_sphere_gaps() {

@@ -253,6 +253,11 @@ impl Matrix {
 
     /// Column indices and values of one owned global row (assembled matrix).
     pub fn get_row(&self, global_row: usize) -> Result<(Vec<i32>, Vec<f64>)> {
+        self.with_row(global_row, |c, v| (c.to_vec(), v.to_vec()))
+    }
+
+    /// Calls `f` with the column indices and values of one owned global row, without copying.
+    pub fn with_row<R>(&self, global_row: usize, f: impl FnOnce(&[i32], &[f64]) -> R) -> Result<R> {
         let (lo, hi) = self.range;
         if global_row < lo || global_row >= hi {
             return Err(Error::Solver(format!(
@@ -266,20 +271,15 @@ impl Matrix {
         // SAFETY: valid assembled handle, owned row; out-pointers are locals.
         chk!(ffi::MatGetRow(self.m, row, &mut ncols, &mut cols, &mut vals))?;
         let n = to_usize(ncols);
-        let (c, v) = if n == 0 || cols.is_null() || vals.is_null() {
-            (Vec::new(), Vec::new())
+        let out = if n == 0 || cols.is_null() || vals.is_null() {
+            f(&[], &[])
         } else {
             // SAFETY: PETSc returned `ncols` entries in each array, valid until MatRestoreRow.
-            unsafe {
-                (
-                    std::slice::from_raw_parts(cols, n).to_vec(),
-                    std::slice::from_raw_parts(vals, n).to_vec(),
-                )
-            }
+            unsafe { f(std::slice::from_raw_parts(cols, n), std::slice::from_raw_parts(vals, n)) }
         };
         // SAFETY: restores the row obtained above with the same arguments.
         chk!(ffi::MatRestoreRow(self.m, row, &mut ncols, &mut cols, &mut vals))?;
-        Ok((c, v))
+        Ok(out)
     }
 
     /// Global rows `[lo, hi)` owned by this rank.

@@ -213,7 +213,15 @@ impl Midpoint {
             }
             Some(solver) => {
                 let (c, its) = solver
-                    .solve(&mut self.op.ksp, &self.rhs, &self.u, &mut self.du, n + 1, t_next)
+                    .solve(
+                        &mut self.op.k,
+                        &mut self.op.ksp,
+                        &self.rhs,
+                        &self.u,
+                        &mut self.du,
+                        n + 1,
+                        t_next,
+                    )
                     .map_err(with_step)?;
                 self.energy.contact_work += c.work;
                 (its, Some(c))

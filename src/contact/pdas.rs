@@ -1,0 +1,114 @@
+//! The primal-dual active set whose every iteration is one solve of the step operator (the
+//! default contact solver).
+//!
+//! Per iteration with the active set `A`: the operator is constrained on `A`
+//! ([`NormalConstraints`]: the active nodes' normal displacement increments prescribed from
+//! their gaps), one KSP solve gives `du`, the residual rows give the forces `lambda_q` on `A`,
+//! and the gaps `g_q - n_q . du_q` off `A`. The next set keeps the nodes with `lambda_q >= 0`
+//! and adds those with a negative gap; the loop ends when the set repeats (it is the step's
+//! first guess next time, so a step with an unchanged contact zone costs one solve). The
+//! operator is rewritten, and the preconditioner rebuilt by PETSc, only when the set or an
+//! active node's normal changes.
+
+use super::constraint::NormalConstraints;
+use super::{ActiveSetLoop, ContactNodes, ContactSolver, StepContact};
+use crate::error::Result;
+use crate::petsc::{Ksp, Matrix, Vector};
+
+pub struct ActiveSet<'w> {
+    nodes: ContactNodes<'w>,
+    /// Built from the step operator by `prepare`.
+    constraints: Option<NormalConstraints>,
+    /// The constrained right-hand side.
+    b: Option<Vector>,
+    /// The active set of the last step (the next step's first guess).
+    active: Vec<bool>,
+    /// Factor of the force in the step equation (2 for the midpoint rule's du form).
+    factor: f64,
+    max_iterations: usize,
+    /// Solves beyond the first of each step.
+    extra_solves: usize,
+}
+
+impl<'w> ActiveSet<'w> {
+    pub fn new(nodes: ContactNodes<'w>, factor: f64) -> ActiveSet<'w> {
+        let n = nodes.len();
+        ActiveSet {
+            nodes,
+            constraints: None,
+            b: None,
+            active: vec![false; n],
+            factor,
+            max_iterations: 50,
+            extra_solves: 0,
+        }
+    }
+
+    /// Operator rewrites so far.
+    pub fn operator_updates(&self) -> usize {
+        self.constraints.as_ref().map_or(0, |c| c.updates)
+    }
+}
+
+impl ContactSolver for ActiveSet<'_> {
+    fn prepare(&mut self, k: &Matrix) -> Result<()> {
+        self.constraints = Some(NormalConstraints::new(k, &self.nodes)?);
+        self.b = Some(k.create_vecs()?.0);
+        Ok(())
+    }
+
+    fn solve(
+        &mut self,
+        k: &mut Matrix,
+        ksp: &mut Ksp,
+        rhs: &Vector,
+        u: &Vector,
+        du: &mut Vector,
+        step: usize,
+        time: f64,
+    ) -> Result<(StepContact, usize)> {
+        if self.constraints.is_none() {
+            self.prepare(k)?;
+        }
+        let nc = self.nodes.len();
+        let frames = self.nodes.frames(&self.nodes.trace(u)?);
+        let normals: Vec<[f64; 3]> = frames.iter().map(|f| f.1).collect();
+        let (Some(cons), Some(b)) = (self.constraints.as_mut(), self.b.as_mut()) else {
+            unreachable!("prepared above")
+        };
+        let mut active = self.active.clone();
+        let mut lp = ActiveSetLoop::new(&active, self.max_iterations, step, time);
+        let mut its = 0;
+        let (lambda, trace) = loop {
+            cons.impose(k, &active, &normals)?;
+            cons.rhs(rhs, &active, &frames, b)?;
+            its += ksp.solve(b, du)?.iterations;
+            let trace = self.nodes.trace(du)?;
+            let lambda = cons.forces(&self.nodes, rhs, du, &active, &normals, self.factor)?;
+            let ndu = self.nodes.normal_parts(&frames, &trace);
+            let gap: Vec<f64> = (0..nc).map(|p| frames[p].0 - ndu[p]).collect();
+            let next = ActiveSetLoop::next_set(&active, &lambda, &gap, self.nodes.gap_tol);
+            match lp.advance(&active, next, &self.nodes.tags)? {
+                None => break (lambda, trace),
+                Some(next) => active = next,
+            }
+        };
+        self.extra_solves += lp.iterations - 1;
+        let out = self.nodes.step_contact(&frames, active.clone(), &lambda, &trace, lp.iterations);
+        self.active = active;
+        Ok((out, its))
+    }
+
+    fn nodes(&self) -> &ContactNodes<'_> {
+        &self.nodes
+    }
+    fn active(&self) -> &[bool] {
+        &self.active
+    }
+    fn set_active(&mut self, active: Vec<bool>) {
+        self.active = active;
+    }
+    fn extra_solves(&self) -> usize {
+        self.extra_solves
+    }
+}
