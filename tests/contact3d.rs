@@ -1,0 +1,141 @@
+//! Contact that scales (issue 11): an elastic ball dropped onto a rigid plane against Hertz's
+//! impact theory, the sparse primal-dual active set against the Schur-complement solver
+//! (two independent algorithms for the same discrete problem), and rank independence with
+//! the contact zone cut by the partition.
+
+mod common;
+use common::*;
+
+fn contact(s: &RunSummary) -> &massfree::contact::history::ContactSummary {
+    s.contact.as_ref().expect("a [contact] summary")
+}
+
+/// Per step: the total contact force and whether any node is active.
+fn force_history(h5: &std::path::Path) -> (Vec<f64>, Vec<bool>) {
+    let run = reader(h5);
+    let nc = run.file.dataset(&layout::contact("force")).unwrap().shape()[1];
+    let force = run.series(&layout::contact("force")).unwrap();
+    let active = run.series(&layout::contact("active")).unwrap();
+    let total = force.chunks(nc).map(|r| r.iter().sum()).collect();
+    let any = active.chunks(nc).map(|r| r.iter().any(|&a| a != 0.0)).collect();
+    (total, any)
+}
+
+/// Hertz's impact of a ball (radius R, mass m, speed v) on a rigid plane, quasi-static:
+/// `E* = E / (1 - nu^2)`, `delta_max = (15 m v^2 / (16 E* sqrt(R)))^(2/5)`,
+/// `F_max = 4/3 E* sqrt(R) delta_max^(3/2)`, `t_c = 2.87 (m^2 / (R E*^2 v))^(1/5)`.
+fn hertz(e: f64, nu: f64, r: f64, m: f64, v: f64) -> (f64, f64, f64) {
+    let es = e / (1.0 - nu * nu);
+    let delta = (15.0 * m * v * v / (16.0 * es * r.sqrt())).powf(0.4);
+    let f_max = 4.0 / 3.0 * es * r.sqrt() * delta.powf(1.5);
+    let t_c = 2.87 * (m * m / (r * es * es * v)).powf(0.2);
+    (delta, f_max, t_c)
+}
+
+#[test]
+fn ball_dropped_on_a_plane_follows_hertz() {
+    let dir = scratch("contact3d-hertz");
+    let scene = scene_variant("sphere.toml", &dir, &[]);
+    let s = run_scene(2, &scene, &[]);
+    let c = contact(&s);
+    // The scene's data: E = 100, nu = 0.3, R = 1, v = 0.0167, tau = 0.01.
+    let m = s.mass.total_mass[2];
+    let (delta, f_max, t_c) = hertz(100.0, 0.3, 1.0, m, 0.0167);
+    assert!((delta - 0.01).abs() < 0.001, "the scene is meant for delta_max/R = 1% ({delta})");
+    let (force, any) = force_history(&dir.join("sphere-2.h5"));
+    let steps = any.iter().filter(|&&a| a).count();
+    let duration = steps as f64 * 0.01;
+    let peak = force.iter().cloned().fold(0.0, f64::max);
+    eprintln!("t_c {duration} vs Hertz {t_c}; F_max {peak} vs Hertz {f_max}");
+    assert!((duration / t_c - 1.0).abs() < 0.10, "contact time {duration} vs Hertz {t_c}");
+    assert!((peak / f_max - 1.0).abs() < 0.10, "peak force {peak} vs Hertz {f_max}");
+    // One contact period, one episode per node, and the ball leaves the plane.
+    assert_eq!(c.contact_steps, c.last_contact_step - c.first_contact_step + 1);
+    assert_eq!(c.episodes_max, 1, "a node touched more than once (chatter)");
+    assert!(c.last_contact_step < s.steps, "the ball must have left the plane");
+    // The midpoint rule with contact loses no energy beyond the contact work, which vanishes
+    // for persistent contact (g lambda = 0 at every midpoint): after release E ~ E^0.
+    let loss = (s.energy_initial - s.energy_final) / s.energy_initial;
+    assert!(loss.abs() < 1e-3, "energy after release differs by {loss} of the initial energy");
+    assert!(s.energy_balance < 1e-8, "energy balance {}", s.energy_balance);
+    // Impulse = momentum change (z): the contact is the only force.
+    let dp = s.momentum_final[2] - s.momentum_initial[2];
+    assert!(rel_diff(c.impulse[2], dp) < 1e-8, "impulse {} vs momentum change {dp}", c.impulse[2]);
+    assert!(
+        c.active_set_iterations_mean <= 3.0,
+        "{} PDAS iterations",
+        c.active_set_iterations_mean
+    );
+}
+
+/// The sparse primal-dual active set (one constrained solve per iteration) and the Schur
+/// complement on stored columns solve the same discrete problem by different algebra: same
+/// active sets, forces equal to the solver tolerance.
+#[test]
+fn sparse_active_set_agrees_with_the_schur_complement() {
+    let dir = scratch("contact3d-solvers");
+    for (base, steps) in [
+        ("disc.toml", ("steps = 1000", "steps = 300")),
+        ("sphere.toml", ("steps = 220", "steps = 120")),
+    ] {
+        let scene = scene_variant(base, &dir, &[steps]);
+        let stem = scene.file_stem().unwrap().to_string_lossy().to_string();
+        let mut runs = vec![];
+        for solver in ["pdas", "columns"] {
+            let s = run_scene(2, &scene, &["--", "-ksp_rtol", "1e-13", "-contact_solver", solver]);
+            let h5 = dir.join(format!("{stem}-2.h5"));
+            let r = reader(&h5);
+            let f = r.series(&layout::contact("force")).unwrap();
+            let a = r.series(&layout::contact("active")).unwrap();
+            runs.push((s, f, a));
+        }
+        let ((s1, f1, a1), (s2, f2, a2)) = (&runs[0], &runs[1]);
+        assert!(a1.iter().any(|&x| x != 0.0), "{base}: no contact");
+        assert_eq!(a1, a2, "{base}: active sets differ between the solvers");
+        let fmax = f1.iter().cloned().fold(0.0, f64::max);
+        let dmax = f1.iter().zip(f2).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
+        assert!(dmax <= 1e-7 * fmax, "{base}: forces differ by {dmax} (max {fmax})");
+        assert!(rel_diff(s1.energy_final, s2.energy_final) < 1e-9, "{base}: final energy");
+        // The sparse solver's extra solves: only active-set iterations after the first.
+        let c1 = contact(s1);
+        let extra = ((c1.active_set_iterations_mean - 1.0) * c1.contact_steps as f64).round();
+        assert!(c1.extra_solves as f64 <= extra + 1.0, "{base}: {} extra solves", c1.extra_solves);
+    }
+}
+
+/// 1, 2 and 3 ranks give the same contact history; on 2 ranks the x-slab partition cuts the
+/// contact zone at x = 0.
+#[test]
+fn ball_contact_does_not_depend_on_the_number_of_ranks() {
+    let dir = scratch("contact3d-ranks");
+    let scene = scene_variant("sphere.toml", &dir, &[("steps = 220", "steps = 100")]);
+    let mut runs = vec![];
+    for ranks in [1, 2, 3] {
+        let s = run_scene(ranks, &scene, &["--partition", "x-slabs", "--", "-ksp_rtol", "1e-13"]);
+        let h5 = dir.join(format!("sphere-{ranks}.h5"));
+        let r = reader(&h5);
+        let f = r.series(&layout::contact("force")).unwrap();
+        let a = r.series(&layout::contact("active")).unwrap();
+        runs.push((s, f, a, r.series(layout::CELL_RANK).unwrap()));
+    }
+    // The straddle on 2 ranks: active contact nodes on both sides of x = 0.
+    let cells = &runs[1].3;
+    assert!(cells.contains(&0.0) && cells.contains(&1.0));
+    let coords = reader(&dir.join("sphere-2.h5")).coordinates().unwrap();
+    let nodes = values(&dir.join("sphere-2.h5"), layout::CONTACT_NODES);
+    let nc = nodes.len();
+    let a2 = &runs[1].2;
+    let xs: Vec<f64> = (0..a2.len())
+        .filter(|&i| a2[i] != 0.0)
+        .map(|i| coords[nodes[i % nc] as usize][0])
+        .collect();
+    assert!(xs.iter().any(|&x| x < -1e-9) && xs.iter().any(|&x| x > 1e-9), "no straddle");
+    let (s1, f1, a1, _) = &runs[0];
+    let fmax = f1.iter().cloned().fold(0.0, f64::max);
+    for (s, f, a, _) in &runs[1..] {
+        assert_eq!(a1, a, "{} ranks: active sets differ", s.ranks);
+        let dmax = f1.iter().zip(f).map(|(x, y)| (x - y).abs()).fold(0.0, f64::max);
+        assert!(dmax <= 1e-8 * fmax, "{} ranks: forces differ by {dmax}", s.ranks);
+        assert!(rel_diff(s1.energy_final, s.energy_final) < 1e-8, "{} ranks: energy", s.ranks);
+    }
+}
