@@ -30,7 +30,7 @@ use crate::petsc::{Matrix, NullSpace, Scatter, Vector};
 use crate::phase::{self, HangTimeout, Phase, Watchdog};
 use crate::post::{picture_paths, write_pictures, RunCurves};
 use crate::scene::{Field, MeshSource, Scene};
-use crate::time::{Dirichlet, Energy, Forces, Midpoint, StepOperator, StepSolverDefaults};
+use crate::time::{Dirichlet, Energy, Forces, Midpoint, Regime, StepOperator, StepSolverDefaults};
 
 /// What the command line adds to a scene.
 #[derive(Debug, Clone, Default)]
@@ -510,7 +510,15 @@ impl<'a> Simulation<'a> {
         let t1 = Instant::now();
         let Physics { a, m, dirichlet, layer, mass_check, mut contact } = physics;
         let null_space = self.near_null_space()?;
-        let mut defaults = StepSolverDefaults::default();
+        // The step solver's defaults follow the regime (scene and command line still win).
+        let regime = Regime::new(
+            self.scene.material.e,
+            self.scene.material.nu,
+            self.scene.material.rho,
+            self.scene.tau,
+            self.min_edge(),
+        );
+        let (mut defaults, why) = StepSolverDefaults::for_regime(&regime, contact.is_some());
         if let Some(k) = &self.scene.solver.ksp_type {
             defaults.ksp_type = k.clone();
         }
@@ -530,6 +538,13 @@ impl<'a> Simulation<'a> {
             Some(&null_space),
             &defaults,
         )?;
+        let (ksp_type, pc_type) = (op.ksp.ksp_type()?, op.ksp.pc_type()?);
+        let chosen = if pc_type == defaults.pc_type && self.scene.solver.pc_type.is_none() {
+            why
+        } else {
+            "set by the scene or the command line".to_string()
+        };
+        self.console.say(format!("step solver: {ksp_type} + {pc_type} ({chosen})"));
         if let Some(c) = contact.as_mut() {
             c.prepare(&op.k)?;
         }
@@ -936,6 +951,25 @@ impl<'a> Simulation<'a> {
         m.mult(&x, &mut y)?;
         check.probe = self.to_natural(&y)?;
         Ok(check)
+    }
+
+    /// The shortest cell edge (any two nodes of a cell: for simplices the edges, for quads and
+    /// hexes their diagonals too, which are longer), over the cells of all ranks.
+    fn min_edge(&self) -> f64 {
+        let mut h = f64::MAX;
+        for &c in &self.part.local_cells {
+            let nodes = self.mesh.cells[c].nodes();
+            for (i, &a) in nodes.iter().enumerate() {
+                for &b in &nodes[i + 1..] {
+                    let (x, y) = (self.mesh.coords[a], self.mesh.coords[b]);
+                    let d2: f64 = (0..3).map(|k| (x[k] - y[k]).powi(2)).sum();
+                    h = h.min(d2.sqrt());
+                }
+            }
+        }
+        let mut global = 0.0;
+        self.world.all_reduce_into(&h, &mut global, SystemOperation::min());
+        global
     }
 
     /// Rigid-body modes from the owned nodes' coordinates (for algebraic multigrid).

@@ -76,7 +76,12 @@ impl ContactSolver for ActiveSet<'_> {
         let (Some(cons), Some(b)) = (self.constraints.as_mut(), self.b.as_mut()) else {
             unreachable!("prepared above")
         };
-        let mut active = self.active.clone();
+        // First guess: the last step's set, plus the nodes the last increment would push
+        // through the obstacle (a growing contact zone then needs no extra iteration).
+        let ndu_last = self.nodes.normal_parts(&frames, &self.nodes.trace(du)?);
+        let mut active: Vec<bool> = (0..nc)
+            .map(|p| self.active[p] || frames[p].0 - ndu_last[p] < -self.nodes.gap_tol)
+            .collect();
         let mut lp = ActiveSetLoop::new(&active, self.max_iterations, step, time);
         let mut its = 0;
         let (lambda, trace) = loop {

@@ -19,4 +19,4 @@ pub mod operator;
 
 pub use dirichlet::Dirichlet;
 pub use midpoint::{Energy, Forces, Midpoint, StepReport};
-pub use operator::{StepOperator, StepSolverDefaults};
+pub use operator::{Regime, StepOperator, StepSolverDefaults};

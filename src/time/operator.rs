@@ -3,7 +3,7 @@
 //! `KSPSetFromOptions`, then the `step_` prefix).
 
 use crate::error::Result;
-use crate::petsc::{Ksp, Matrix, NullSpace, Pattern};
+use crate::petsc::{Ksp, Matrix, NullSpace, Pattern, Petsc};
 
 /// Solver defaults for the step operator, applied before `KSPSetFromOptions` so that the
 /// command line wins: plain `-ksp_*`/`-pc_*` options, and `-step_ksp_*`/`-step_pc_*` over them.
@@ -13,6 +13,51 @@ pub struct StepSolverDefaults {
     pub pc_type: String,
     pub rtol: f64,
     pub factor_solver: Option<String>,
+}
+
+/// How stiff a step is: the CFL number `c_p tau / h_min` of the pressure wave,
+/// `c_p = sqrt((lambda + 2 mu) / rho)`, over the smallest edge. `K = 4/tau^2 M + A` is
+/// dominated by its mass term while the number is small (Jacobi-preconditioned CG needs a few
+/// iterations); above, the stiffness dominates and CG + Jacobi needs iterations in proportion
+/// to the number, while multigrid does not.
+#[derive(Debug, Clone, Copy)]
+pub struct Regime {
+    pub cfl: f64,
+    pub wave_speed: f64,
+    pub h_min: f64,
+}
+
+impl Regime {
+    pub fn new(e: f64, nu: f64, rho: f64, tau: f64, h_min: f64) -> Regime {
+        let lambda = e * nu / ((1.0 + nu) * (1.0 - 2.0 * nu));
+        let mu = e / (2.0 * (1.0 + nu));
+        let wave_speed = ((lambda + 2.0 * mu) / rho).sqrt();
+        Regime { cfl: wave_speed * tau / h_min, wave_speed, h_min }
+    }
+}
+
+/// Above these CFL numbers the step solver defaults to CG + GAMG (README "Step solver by
+/// regime": measured crossovers on 2 ranks). With contact the operator changes with the
+/// active set and GAMG recomputes its coarse operators each time, so Jacobi wins longer.
+pub const GAMG_ABOVE_CFL: f64 = 10.0;
+pub const GAMG_ABOVE_CFL_CONTACT: f64 = 30.0;
+
+impl StepSolverDefaults {
+    /// The defaults for a regime, and the reason, for the run's report.
+    pub fn for_regime(r: &Regime, contact: bool) -> (StepSolverDefaults, String) {
+        let mut d = StepSolverDefaults::default();
+        let limit = if contact { GAMG_ABOVE_CFL_CONTACT } else { GAMG_ABOVE_CFL };
+        let why = if r.cfl > limit {
+            d.pc_type = "gamg".into();
+            format!(
+                "CFL c_p tau/h_min = {:.2} > {limit}: stiffness-dominated steps, multigrid",
+                r.cfl
+            )
+        } else {
+            format!("CFL c_p tau/h_min = {:.2} <= {limit}: Jacobi is cheapest", r.cfl)
+        };
+        (d, why)
+    }
 }
 
 impl Default for StepSolverDefaults {
@@ -74,6 +119,16 @@ impl StepOperator {
         if let Some(s) = &defaults.factor_solver {
             ksp.set_pc_factor_solver_type(s)?;
         }
+        // A contact solver rewrites the operator near the contact when the active set changes:
+        // GAMG then keeps its hierarchy's interpolation and recomputes only the coarse
+        // operators. A default in the options database, so that it also holds for a GAMG
+        // chosen on the command line, and the command line can still turn it off.
+        let reuse = "pc_gamg_reuse_interpolation";
+        if !Petsc::options_has(&format!("-{reuse}"))?
+            && !Petsc::options_has(&format!("-step_{reuse}"))?
+        {
+            Petsc::options_set(&format!("-step_{reuse}"), Some("true"))?;
+        }
         ksp.set_tolerances(Some(defaults.rtol), Some(1e-50), None, Some(10_000))?;
         ksp.set_from_options()?;
         ksp.set_options_prefix("step_")?;
@@ -84,5 +139,31 @@ impl StepOperator {
         ksp.set_initial_guess_nonzero(iterative)?;
         ksp.set_up()?;
         Ok(StepOperator { k, k_free, dirichlet_dofs, dirichlet_diag, ksp })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn regime_uses_the_pressure_wave_speed() {
+        // c_p^2 = (lambda + 2 mu) / rho = E (1 - nu) / (rho (1 + nu) (1 - 2 nu)).
+        let r = Regime::new(100.0, 0.3, 1.0, 0.01, 0.02);
+        let c = (100.0f64 * 0.7 / (1.3 * 0.4)).sqrt();
+        assert!((r.wave_speed - c).abs() < 1e-12 * c);
+        assert!((r.cfl - c * 0.01 / 0.02).abs() < 1e-12);
+    }
+
+    #[test]
+    fn regime_picks_jacobi_until_the_crossover() {
+        let at = |cfl: f64, contact| {
+            let r = Regime { cfl, wave_speed: 1.0, h_min: 1.0 };
+            StepSolverDefaults::for_regime(&r, contact).0.pc_type
+        };
+        assert_eq!(at(0.5, false), "jacobi");
+        assert_eq!(at(GAMG_ABOVE_CFL * 1.01, false), "gamg");
+        assert_eq!(at(GAMG_ABOVE_CFL * 1.01, true), "jacobi");
+        assert_eq!(at(GAMG_ABOVE_CFL_CONTACT * 1.01, true), "gamg");
     }
 }
