@@ -50,6 +50,8 @@ pub struct ContactSummary {
     /// KSP iterations of the steps with an active contact node (step solves only; the
     /// Schur-complement column solves are not counted).
     pub ksp_iterations_contact_steps: usize,
+    /// The contact steps against one plain solve each (`-contact_reference_solve` only).
+    pub reference: Option<super::pdas::ReferenceCost>,
 }
 
 impl History {
@@ -147,6 +149,7 @@ impl History {
             extra_solves: c.extra_solves(),
             contact_steps_seconds,
             ksp_iterations_contact_steps: 0,
+            reference: c.reference_cost(),
         }
     }
 }

@@ -167,6 +167,10 @@ pub trait ContactSolver {
     fn set_active(&mut self, active: Vec<bool>);
     /// Solves with the step operator beyond one per step, so far.
     fn extra_solves(&self) -> usize;
+    /// The contact steps' cost against plain solves, when measured.
+    fn reference_cost(&self) -> Option<pdas::ReferenceCost> {
+        None
+    }
     /// The contact boundary (nodes, weights, group).
     fn boundary(&self) -> &ContactBoundary {
         &self.nodes().boundary
@@ -195,7 +199,11 @@ pub fn solver<'w>(
 ) -> Result<Box<dyn ContactSolver + 'w>> {
     let nodes = ContactNodes::new(world, mesh, part, boundary, obstacle);
     match crate::petsc::Petsc::options_get_string("-contact_solver")?.as_deref() {
-        None | Some("pdas") => Ok(Box::new(pdas::ActiveSet::new(nodes, factor))),
+        None | Some("pdas") => {
+            let s = pdas::ActiveSet::new(nodes, factor);
+            let measure = crate::petsc::Petsc::options_has("-contact_reference_solve")?;
+            Ok(Box::new(if measure { s.with_reference_solve() } else { s }))
+        }
         Some("columns") => Ok(Box::new(columns::ColumnActiveSet::new(nodes, factor))),
         Some(other) => Err(Error::Usage(format!(
             "-contact_solver {other}: unknown contact solver (pdas or columns)"

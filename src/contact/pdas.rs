@@ -12,6 +12,8 @@
 
 use super::constraint::NormalConstraints;
 use super::{ActiveSetLoop, ContactNodes, ContactSolver, StepContact};
+use std::time::Instant;
+
 use crate::error::Result;
 use crate::petsc::{Ksp, Matrix, Vector};
 
@@ -28,9 +30,32 @@ pub struct ActiveSet<'w> {
     max_iterations: usize,
     /// Solves beyond the first of each step.
     extra_solves: usize,
+    /// With `-contact_reference_solve` (benchmark): each step's plain solve, for the cost ratio.
+    reference: Option<ReferenceCost>,
+}
+
+/// The cost of the contact steps against one plain solve of the same step (the unconstrained
+/// operator, the same right-hand side and first guess), summed over the steps that end with
+/// an active node. Measured only with `-contact_reference_solve`; the plain solve's result is
+/// discarded.
+#[derive(Debug, Clone, Copy, Default, serde::Serialize, serde::Deserialize)]
+pub struct ReferenceCost {
+    pub steps: usize,
+    pub plain_ksp_iterations: usize,
+    pub plain_seconds: f64,
+    /// Every solve of the active-set loop, and the operator rewrites between them.
+    pub contact_ksp_iterations: usize,
+    pub contact_seconds: f64,
 }
 
 impl<'w> ActiveSet<'w> {
+    /// Measure each step against a plain solve (benchmark only: it costs that solve and two
+    /// operator rewrites per step).
+    pub fn with_reference_solve(mut self) -> ActiveSet<'w> {
+        self.reference = Some(ReferenceCost::default());
+        self
+    }
+
     pub fn new(nodes: ContactNodes<'w>, factor: f64) -> ActiveSet<'w> {
         let n = nodes.len();
         ActiveSet {
@@ -41,6 +66,7 @@ impl<'w> ActiveSet<'w> {
             factor,
             max_iterations: 50,
             extra_solves: 0,
+            reference: None,
         }
     }
 
@@ -82,6 +108,18 @@ impl ContactSolver for ActiveSet<'_> {
         let mut active: Vec<bool> = (0..nc)
             .map(|p| self.active[p] || frames[p].0 - ndu_last[p] < -self.nodes.gap_tol)
             .collect();
+        let plain = match self.reference {
+            Some(_) => {
+                cons.impose(k, &vec![false; nc], &normals)?;
+                let mut x = du.duplicate()?;
+                x.copy_from(du)?;
+                let t0 = Instant::now();
+                let info = ksp.solve(rhs, &mut x)?;
+                Some((info.iterations, t0.elapsed().as_secs_f64()))
+            }
+            None => None,
+        };
+        let t0 = Instant::now();
         let mut lp = ActiveSetLoop::new(&active, self.max_iterations, step, time);
         let mut its = 0;
         let (lambda, trace) = loop {
@@ -99,6 +137,15 @@ impl ContactSolver for ActiveSet<'_> {
             }
         };
         self.extra_solves += lp.iterations - 1;
+        if let (Some(r), Some((plain_its, plain_s))) = (self.reference.as_mut(), plain) {
+            if active.iter().any(|&a| a) {
+                r.steps += 1;
+                r.plain_ksp_iterations += plain_its;
+                r.plain_seconds += plain_s;
+                r.contact_ksp_iterations += its;
+                r.contact_seconds += t0.elapsed().as_secs_f64();
+            }
+        }
         let out = self.nodes.step_contact(&frames, active.clone(), &lambda, &trace, lp.iterations);
         self.active = active;
         Ok((out, its))
@@ -115,5 +162,8 @@ impl ContactSolver for ActiveSet<'_> {
     }
     fn extra_solves(&self) -> usize {
         self.extra_solves
+    }
+    fn reference_cost(&self) -> Option<ReferenceCost> {
+        self.reference
     }
 }
