@@ -16,7 +16,7 @@ use mpi::traits::*;
 use crate::assembly::{self, Loads};
 use crate::console::{Console, Progress};
 use crate::contact::history::{ContactSummary, History as ContactHistory};
-use crate::contact::{self, ContactBoundary, ContactSolver, Obstacle};
+use crate::contact::{self, ContactBoundary, ContactSolver, Obstacles};
 use crate::error::{Error, Result};
 use crate::fem::{self, kernels};
 use crate::io::{
@@ -487,7 +487,7 @@ impl<'a> Simulation<'a> {
                 &self.mesh,
                 &self.part,
                 ContactBoundary::build(&self.mesh, &spec.boundary)?,
-                Obstacle::from_scene(&spec.obstacle),
+                Obstacles::from_scene(&spec.obstacles),
                 Midpoint::CONTACT_FORCE_FACTOR,
             )?),
             None => None,
@@ -557,13 +557,19 @@ impl<'a> Simulation<'a> {
                 self.n_steps()
             )));
         }
-        if let (Some(c), None) = (contact.as_ref(), restart.as_ref()) {
-            let bad = c.penetrating(midpoint.u())?;
-            if !bad.is_empty() {
+        if let (Some(c), Some(spec), None) =
+            (contact.as_ref(), self.scene.contact.as_ref(), restart.as_ref())
+        {
+            let hits = c.penetrating(midpoint.u(), 0.0)?;
+            // The first obstacle that intersects the body, and its nodes.
+            if let Some(first) = hits.iter().map(|&(_, o)| o).min() {
+                let bad: Vec<usize> =
+                    hits.iter().filter(|&&(_, o)| o == first).map(|&(v, _)| v).collect();
                 let tags: Vec<String> =
                     bad.iter().take(10).map(|&v| self.mesh.node_tags[v].to_string()).collect();
                 return Err(Error::Scene(format!(
-                    "contact.obstacle already intersects the body at t = 0: {} contact node(s) penetrate it (gmsh nodes {}{})",
+                    "{} already intersects the body at t = 0: {} contact node(s) penetrate it (gmsh nodes {}{})",
+                    spec.obstacle_key(first),
                     bad.len(),
                     tags.join(", "),
                     if bad.len() > 10 { ", ..." } else { "" }
