@@ -1338,7 +1338,9 @@ pub fn summary_lines(sim: &Simulation, s: &RunSummary) -> Vec<String> {
             c.max_pressure,
             c.active_set_iterations_mean,
             c.active_set_iterations_max,
-            (s.energy_initial - s.energy_final) / s.energy_initial.abs().max(f64::MIN_POSITIVE),
+            // Relative to the larger energy: a body at rest pushed by a moving obstacle starts at 0.
+            (s.energy_initial - s.energy_final)
+                / s.energy_initial.abs().max(s.energy_final.abs()).max(f64::MIN_POSITIVE),
             c.contact_work
         ));
         lines.push(format!(
