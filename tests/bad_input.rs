@@ -75,12 +75,11 @@ fn bad_petsc_option_value_is_an_error_not_a_panic() {
     assert!(stderr.contains("massfree: PETSc error"), "{stderr}");
 }
 
-/// A square above the floor y = -0.01 (one step), with `[contact]`'s obstacle line replaced.
+/// The unit square (one step) with `obstacle` as `[contact]`'s obstacle line(s).
 fn square_with_obstacle(dir: &std::path::Path, obstacle: &str) -> String {
-    let text = format!(
-        "[mesh]\ngeo = \"../meshes/square_quad.geo\"\nparams = {{ h = 0.25 }}\n[material]\nE = 100.0\nnu = 0.3\nrho = 1.0\n[time]\ntau = 1e-3\nsteps = 1\n[contact]\nboundary = \"bottom\"\n{obstacle}\n"
-    );
-    scene_text(dir, "square.toml", &text).display().to_string()
+    let rest =
+        format!("[time]\ntau = 1e-3\nsteps = 1\n[contact]\nboundary = \"bottom\"\n{obstacle}\n");
+    small_scene(dir, "square", "square_quad.geo", 0.25, &rest).display().to_string()
 }
 
 #[test]

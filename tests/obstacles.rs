@@ -6,7 +6,7 @@ mod common;
 use common::*;
 use massfree::contact::history::ContactSummary;
 use ndarray::Array2;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 fn contact(s: &RunSummary) -> &ContactSummary {
     s.contact.as_ref().expect("a [contact] summary")
@@ -24,18 +24,10 @@ fn contact_coords(h5: &Path) -> Vec<[f64; 3]> {
     run.series(layout::CONTACT_NODES).unwrap().iter().map(|&v| coords[v as usize]).collect()
 }
 
-/// Plane strain, E = 100, nu = 0.3, rho = 1: a square (0,1)^2 on rollers (the bottom slides
-/// along x, the left side along y) and a frictionless wall on its top that moves down at
-/// V = 1e-3 from t = 0, for 10 time units.
+/// The rest of the scene "wall": the square (0,1)^2 of `small_scene` (plane strain, h = 1/8)
+/// on rollers (the bottom slides along x, the left side along y) and a frictionless wall on
+/// its top that moves down at V = 1e-3 from t = 0, for 10 time units.
 const WALL: &str = r#"
-name = "wall"
-[mesh]
-geo = "../meshes/square_quad.geo"
-params = { h = 0.125 }
-[material]
-E = 100.0
-nu = 0.3
-rho = 1.0
 [[dirichlet]]
 group = "bottom"
 components = ["y"]
@@ -74,7 +66,7 @@ fn a_wall_pushed_slowly_into_a_block_gives_the_static_reaction() {
     let (e, nu, v, tau) = (100.0f64, 0.3f64, 1e-3f64, 1e-2f64);
     let (w, h) = (1.0, 1.0);
     let dir = scratch("wall");
-    let scene = scene_text(&dir, "wall.toml", WALL);
+    let scene = small_scene(&dir, "wall", "square_quad.geo", 0.125, WALL);
     for mass in ["modified1", "consistent"] {
         let s = run_scene(2, &scene, &["--mass", mass, "--", "-ksp_rtol", "1e-12"]);
         // The wall's work is the contact work on the body: all the energy there is.
@@ -111,41 +103,39 @@ fn a_wall_pushed_slowly_into_a_block_gives_the_static_reaction() {
     }
 }
 
-/// A square (0,1)^2 falls at speed 1 onto two discs of radius 0.2 under x = 1/4 and x = 3/4
-/// (gap 0.01): a scene that is its own mirror image about x = 1/2.
-const TWO_DISCS: &str = r#"
-name = "twodiscs"
-[mesh]
-geo = "../meshes/square_quad.geo"
-params = { h = 0.125 }
-[material]
-E = 100.0
-nu = 0.3
-rho = 1.0
-[initial]
-velocity = ["0", "-1"]
-[time]
-tau = 1e-3
-steps = 300
-[mass]
-kind = "modified1"
-[contact]
-boundary = "bottom"
-obstacles = [
+/// Runs the scene `name` on 2 ranks (CG rtol 1e-12): the body of mesh `geo` (size `h`, `dim`
+/// dimensions) falls at speed 1 (along -y in 2D, -z in 3D) for `steps` steps of 1e-3 with
+/// `M_H^1`, its "bottom" onto `obstacles` (the `[contact]` line); `output` is `[output]`'s
+/// body. The summary and the file.
+fn fall(
+    name: &str,
+    (geo, h, dim): (&str, f64, usize),
+    steps: usize,
+    obstacles: &str,
+    output: &str,
+) -> (RunSummary, PathBuf) {
+    let velocity = if dim == 2 { r#"["0", "-1"]"# } else { r#"["0", "0", "-1"]"# };
+    let rest = format!(
+        "[initial]\nvelocity = {velocity}\n[time]\ntau = 1e-3\nsteps = {steps}\n[mass]\nkind = \"modified1\"\n[contact]\nboundary = \"bottom\"\n{obstacles}\n[output]\n{output}\n"
+    );
+    let dir = scratch(name);
+    let scene = small_scene(&dir, name, geo, h, &rest);
+    let s = run_scene(2, &scene, &["--", "-ksp_rtol", "1e-12"]);
+    (s, dir.join(format!("{name}-2.h5")))
+}
+
+/// The square (0,1)^2 (h = 1/8) falls onto two discs of radius 0.2 under x = 1/4 and
+/// x = 3/4 (gap 0.01): a scene that is its own mirror image about x = 1/2.
+const TWO_DISCS: &str = r#"obstacles = [
   { type = "sphere", center = [0.25, -0.21], radius = 0.2 },
   { type = "sphere", center = [0.75, -0.21], radius = 0.2 },
-]
-[output]
-every = 1
-fields = ["displacement"]
-"#;
+]"#;
 
 #[test]
 fn two_discs_at_once_act_as_mirror_images() {
-    let dir = scratch("twodiscs");
-    let scene = scene_text(&dir, "twodiscs.toml", TWO_DISCS);
-    let s = run_scene(2, &scene, &["--", "-ksp_rtol", "1e-12"]);
-    let h5 = dir.join("twodiscs-2.h5");
+    // The displacement at every step: the normals of the resultants below.
+    let output = "every = 1\nfields = [\"displacement\"]";
+    let (s, h5) = fall("twodiscs", ("square_quad.geo", 0.125, 2), 300, TWO_DISCS, output);
     let force = contact_table(&h5, "force");
     let nodes = contact_coords(&h5);
     let run = reader(&h5);
@@ -202,38 +192,14 @@ fn two_discs_at_once_act_as_mirror_images() {
     assert!(s.energy_balance < 1e-8, "energy balance {}", s.energy_balance);
 }
 
-/// A unit cube of hexahedra falls at speed 1 onto a horizontal cylinder of radius 0.5 whose
+/// A unit cube of hexahedra (h = 1/4) falls onto a horizontal cylinder of radius 0.5 whose
 /// axis runs along the diagonal x = y of the cube's bottom, 0.01 below it. The line contact
 /// is soft (the cube rebounds on it like a mass on a spring): it lasts until step 329.
-const ON_CYLINDER: &str = r#"
-name = "oncylinder"
-[mesh]
-geo = "../meshes/cube_hex.geo"
-params = { h = 0.25 }
-[material]
-E = 100.0
-nu = 0.3
-rho = 1.0
-[initial]
-velocity = ["0", "0", "-1"]
-[time]
-tau = 1e-3
-steps = 400
-[mass]
-kind = "modified1"
-[contact]
-boundary = "bottom"
-obstacle = { type = "cylinder", point = [0.5, 0.5, -0.51], axis = [1.0, 1.0, 0.0], radius = 0.5 }
-[output]
-every = 50
-"#;
+const ON_CYLINDER: &str = r#"obstacle = { type = "cylinder", point = [0.5, 0.5, -0.51], axis = [1.0, 1.0, 0.0], radius = 0.5 }"#;
 
 #[test]
 fn a_block_dropped_on_a_cylinder_touches_along_its_top_line() {
-    let dir = scratch("oncylinder");
-    let scene = scene_text(&dir, "oncylinder.toml", ON_CYLINDER);
-    let s = run_scene(2, &scene, &["--", "-ksp_rtol", "1e-12"]);
-    let h5 = dir.join("oncylinder-2.h5");
+    let (s, h5) = fall("oncylinder", ("cube_hex.geo", 0.25, 3), 400, ON_CYLINDER, "every = 50");
     let active = contact_table(&h5, "active");
     let gap = contact_table(&h5, "gap");
     let nodes = contact_coords(&h5);

@@ -122,6 +122,11 @@ fn minimal_with(from: &str, to: &str) -> String {
     MINIMAL.replacen(from, to, 1)
 }
 
+/// MINIMAL with a `[contact]` table on the boundary "c" and `obstacle` (the obstacle line(s)).
+fn with_contact(obstacle: &str) -> String {
+    format!("{MINIMAL}\n[contact]\nboundary = \"c\"\n{obstacle}\n")
+}
+
 fn full_with(from: &str, to: &str) -> String {
     assert!(FULL.contains(from), "{from}");
     FULL.replacen(from, to, 1)
@@ -269,9 +274,7 @@ fn defaults_for_exact_and_mass() {
 #[test]
 fn sphere_obstacle() {
     let dir = workspace();
-    let text = format!(
-        "{MINIMAL}\n[contact]\nboundary = \"c\"\nobstacle = {{ type = \"sphere\", center = [0, 2, 0], radius = 1.5 }}\n"
-    );
+    let text = with_contact("obstacle = { type = \"sphere\", center = [0, 2, 0], radius = 1.5 }");
     let s = parse_in(&dir, &text).unwrap();
     assert_eq!(
         s.contact.as_ref().unwrap().obstacles[0].shape,
@@ -285,17 +288,15 @@ fn sphere_obstacle() {
     let m = s.check_dim(2).unwrap_err().to_string();
     assert!(m.contains("contact.obstacle.center has 3 components but the mesh is 2D"), "{m}");
     // As a sub-table instead of an inline table.
-    let text = format!(
-        "{MINIMAL}\n[contact]\nboundary = \"c\"\n[contact.obstacle]\ntype = \"sphere\"\ncenter = [0, 2]\nradius = 1\n"
-    );
+    let text = with_contact("[contact.obstacle]\ntype = \"sphere\"\ncenter = [0, 2]\nradius = 1");
     parse_in(&dir, &text).unwrap();
 }
 
 #[test]
 fn moving_cylinder_among_several_obstacles() {
     let dir = workspace();
-    let text = format!(
-        "{MINIMAL}\n[contact]\nboundary = \"c\"\nobstacles = [\n  {{ type = \"plane\", point = [0, 0, 0], normal = [0, 0, 2], motion = [0, \"0*t\", \"t^2\"] }},\n  {{ type = \"cylinder\", point = [0, 0, 3], axis = [0, 3, 4], radius = 0.5 }},\n  {{ type = \"sphere\", center = [0, 0, 9], radius = 1, motion = [1, 2, 3] }},\n]\n"
+    let text = with_contact(
+        "obstacles = [\n  { type = \"plane\", point = [0, 0, 0], normal = [0, 0, 2], motion = [0, \"0*t\", \"t^2\"] },\n  { type = \"cylinder\", point = [0, 0, 3], axis = [0, 3, 4], radius = 0.5 },\n  { type = \"sphere\", center = [0, 0, 9], radius = 1, motion = [1, 2, 3] },\n]",
     );
     let s = parse_in(&dir, &text).unwrap();
     let c = s.contact.as_ref().unwrap();
@@ -319,14 +320,14 @@ fn moving_cylinder_among_several_obstacles() {
     let m = s.check_dim(2).unwrap_err().to_string();
     assert!(m.contains("contact.obstacles[1] is a cylinder but the mesh is 2D"), "{m}");
     // One moving obstacle.
-    let text = format!(
-        "{MINIMAL}\n[contact]\nboundary = \"c\"\nobstacle = {{ type = \"plane\", point = [0, 1], normal = [0, -1], motion = [\"0\", \"-1e-3*t\"] }}\n"
+    let text = with_contact(
+        "obstacle = { type = \"plane\", point = [0, 1], normal = [0, -1], motion = [\"0\", \"-1e-3*t\"] }",
     );
     let line = parse_in(&dir, &text).unwrap().effects().summary();
     assert!(line.contains(", contact (moving plane obstacle); not built:"), "{line}");
     // As an array of tables.
-    let text = format!(
-        "{MINIMAL}\n[contact]\nboundary = \"c\"\n[[contact.obstacles]]\ntype = \"sphere\"\ncenter = [0, 2]\nradius = 1\n[[contact.obstacles]]\ntype = \"plane\"\npoint = [0, 0]\nnormal = [0, 1]\nmotion = [\"t\", 0]\n"
+    let text = with_contact(
+        "[[contact.obstacles]]\ntype = \"sphere\"\ncenter = [0, 2]\nradius = 1\n[[contact.obstacles]]\ntype = \"plane\"\npoint = [0, 0]\nnormal = [0, 1]\nmotion = [\"t\", 0]",
     );
     let s = parse_in(&dir, &text).unwrap();
     assert_eq!(s.contact.as_ref().unwrap().obstacles.len(), 2);
@@ -335,7 +336,6 @@ fn moving_cylinder_among_several_obstacles() {
 
 #[test]
 fn obstacle_errors_name_the_key() {
-    let contact = |o: &str| format!("{MINIMAL}\n[contact]\nboundary = \"c\"\n{o}\n");
     let plane = "{ type = \"plane\", point = [0, 0], normal = [0, 1] }";
     let cases: &[(&str, &[&str])] = &[
         (
@@ -372,14 +372,14 @@ fn obstacle_errors_name_the_key() {
         ),
     ];
     for (o, needles) in cases {
-        assert_err(&contact(o), needles);
+        assert_err(&with_contact(o), needles);
     }
     assert_err(
-        &contact(&format!("obstacle = {plane}\nobstacles = [{plane}]")),
+        &with_contact(&format!("obstacle = {plane}\nobstacles = [{plane}]")),
         &["contact: give exactly one of contact.obstacle and contact.obstacles, not both"],
     );
     assert_err(
-        &format!("{MINIMAL}\n[contact]\nboundary = \"c\"\n"),
+        &with_contact(""),
         &[
             "contact: give the obstacle (contact.obstacle = ",
             "or a list of them (contact.obstacles",
@@ -388,7 +388,7 @@ fn obstacle_errors_name_the_key() {
     // Found against the mesh's dimension.
     let dir = workspace();
     let dim_error = |o: &str, dim: usize| {
-        let s = parse_in(&dir, &contact(o)).unwrap();
+        let s = parse_in(&dir, &with_contact(o)).unwrap();
         let m = s.check_dim(dim).unwrap_err().to_string();
         assert!(!m.contains('\n'), "{m}");
         m
