@@ -158,8 +158,8 @@ fn two_discs_at_once_act_as_mirror_images() {
             if lam == 0.0 {
                 continue;
             }
-            let k = if x[0] < 0.5 { 0 } else { 1 };
             assert!(x[0] != 0.5, "the node on the symmetry line touched");
+            let k = if x[0] < 0.5 { 0 } else { 1 };
             let d = (n - 1) * per_step + rows[q] * 2;
             let y = [x[0] + u[d], x[1] + u[d + 1]];
             let off = [y[0] - centers[k][0], y[1] - centers[k][1]];
