@@ -16,7 +16,7 @@ use mpi::traits::*;
 use crate::assembly::{self, Loads};
 use crate::console::{Console, Progress};
 use crate::contact::history::{ContactSummary, History as ContactHistory};
-use crate::contact::{self, ContactBoundary, ContactSolver, Obstacle};
+use crate::contact::{self, ContactBoundary, ContactSolver, Obstacles};
 use crate::error::{Error, Result};
 use crate::fem::{self, kernels};
 use crate::io::{
@@ -487,7 +487,7 @@ impl<'a> Simulation<'a> {
                 &self.mesh,
                 &self.part,
                 ContactBoundary::build(&self.mesh, &spec.boundary)?,
-                Obstacle::from_scene(&spec.obstacle),
+                Obstacles::from_scene(&spec.obstacles),
                 Midpoint::CONTACT_FORCE_FACTOR,
             )?),
             None => None,
@@ -572,13 +572,19 @@ impl<'a> Simulation<'a> {
                 self.n_steps()
             )));
         }
-        if let (Some(c), None) = (contact.as_ref(), restart.as_ref()) {
-            let bad = c.penetrating(midpoint.u())?;
-            if !bad.is_empty() {
+        if let (Some(c), Some(spec), None) =
+            (contact.as_ref(), self.scene.contact.as_ref(), restart.as_ref())
+        {
+            let hits = c.penetrating(midpoint.u(), 0.0)?;
+            // The first obstacle that intersects the body, and its nodes.
+            if let Some(first) = hits.iter().map(|&(_, o)| o).min() {
+                let bad: Vec<usize> =
+                    hits.iter().filter(|&&(_, o)| o == first).map(|&(v, _)| v).collect();
                 let tags: Vec<String> =
                     bad.iter().take(10).map(|&v| self.mesh.node_tags[v].to_string()).collect();
                 return Err(Error::Scene(format!(
-                    "contact.obstacle already intersects the body at t = 0: {} contact node(s) penetrate it (gmsh nodes {}{})",
+                    "{} already intersects the body at t = 0: {} contact node(s) penetrate it (gmsh nodes {}{})",
+                    spec.obstacle_key(first),
                     bad.len(),
                     tags.join(", "),
                     if bad.len() > 10 { ", ..." } else { "" }
@@ -1366,7 +1372,9 @@ pub fn summary_lines(sim: &Simulation, s: &RunSummary) -> Vec<String> {
             c.max_pressure,
             c.active_set_iterations_mean,
             c.active_set_iterations_max,
-            (s.energy_initial - s.energy_final) / s.energy_initial.abs().max(f64::MIN_POSITIVE),
+            // Relative to the larger energy: a body at rest pushed by a moving obstacle starts at 0.
+            (s.energy_initial - s.energy_final)
+                / s.energy_initial.abs().max(s.energy_final.abs()).max(f64::MIN_POSITIVE),
             c.contact_work
         ));
         lines.push(format!(

@@ -74,3 +74,59 @@ fn bad_petsc_option_value_is_an_error_not_a_panic() {
     assert!(!stderr.contains("panicked"), "{stderr}");
     assert!(stderr.contains("massfree: PETSc error"), "{stderr}");
 }
+
+/// The unit square (one step) with `obstacle` as `[contact]`'s obstacle line(s).
+fn square_with_obstacle(dir: &std::path::Path, obstacle: &str) -> String {
+    let rest =
+        format!("[time]\ntau = 1e-3\nsteps = 1\n[contact]\nboundary = \"bottom\"\n{obstacle}\n");
+    small_scene(dir, "square", "square_quad.geo", 0.25, &rest).display().to_string()
+}
+
+#[test]
+fn obstacle_errors_name_the_key() {
+    let dir = scratch("bad-obstacle");
+    let floor = "{ type = \"plane\", point = [0, -0.01], normal = [0, 1] }";
+    let cases = [
+        (
+            "obstacle = { type = \"plane\", point = [0, -0.01], normal = [0, 0] }".to_string(),
+            "contact.obstacle.normal",
+        ),
+        (
+            format!("obstacles = [{floor}, {{ type = \"cylinder\", point = [0, 0, -1], axis = [0, 0, 0], radius = 1 }}]"),
+            "contact.obstacles[1].axis",
+        ),
+        (
+            "obstacle = { type = \"sphere\", center = [0.5, -1.01], radius = 0 }".to_string(),
+            "contact.obstacle.radius",
+        ),
+        (
+            "obstacle = { type = \"plane\", point = [0, -0.01], normal = [0, 1], motion = [\"0\", \"0\", \"t\"] }"
+                .to_string(),
+            "contact.obstacle.motion has 3 components but the mesh is 2D",
+        ),
+        (
+            "obstacle = { type = \"plane\", point = [0, -0.01], normal = [0, 1], motion = [\"x*t\", \"0\"] }"
+                .to_string(),
+            "contact.obstacle.motion[0]",
+        ),
+        (
+            format!("obstacle = {floor}\nobstacles = [{floor}]"),
+            "contact.obstacle and contact.obstacles",
+        ),
+        (String::new(), "contact.obstacle"),
+        (
+            "obstacle = { type = \"cylinder\", point = [0, 0, -1], axis = [1, 0, 0], radius = 0.99 }"
+                .to_string(),
+            "contact.obstacle is a cylinder but the mesh is 2D",
+        ),
+        // At t = 0 the second obstacle, moved by d(0) = (0, 0.5), cuts into the body.
+        (
+            format!("obstacles = [{floor}, {{ type = \"plane\", point = [0, -0.01], normal = [0, 1], motion = [\"0\", \"0.5 - t\"] }}]"),
+            "contact.obstacles[1] already intersects the body at t = 0",
+        ),
+    ];
+    for (obstacle, culprit) in &cases {
+        let scene = square_with_obstacle(&dir, obstacle);
+        expect_error(&["run", &scene, "--no-output"], culprit);
+    }
+}

@@ -149,6 +149,28 @@ fn block_tet() {
     check_block(&load("block_tet", &[], 3), ElementKind::Tet4, 6, 2);
 }
 
+#[test]
+fn cube_hex() {
+    let m = load("cube_hex", &[], 3);
+    assert_eq!((m.dim, m.n_nodes(), count(&m, ElementKind::Hex8)), (3, 125, 64));
+    assert_eq!(m.cells.len(), 64);
+    assert_eq!(m.boundary.len(), 6 * 16);
+    assert!((total_measure(&m) - 1.0).abs() < 1e-12);
+    let sides = [
+        ("left", 0, 0.0),
+        ("right", 0, 1.0),
+        ("front", 1, 0.0),
+        ("back", 1, 1.0),
+        ("bottom", 2, 0.0),
+        ("top", 2, 1.0),
+    ];
+    for (name, k, v) in sides {
+        assert_plane(&m, name, 2, k, v);
+        assert_eq!(m.group_nodes(name).unwrap().len(), 25, "{name}");
+    }
+    assert_eq!(m.group("body").unwrap().dim, 3);
+}
+
 fn check_disc(m: &Mesh, kind: ElementKind, r: f64, gap: f64) {
     assert_eq!(m.dim, 2);
     assert_eq!(count(m, kind), m.cells.len(), "all cells are {}", kind.name());

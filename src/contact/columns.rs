@@ -84,7 +84,7 @@ impl<'w> ColumnActiveSet<'w> {
     ) -> Result<(StepContact, usize)> {
         let d = self.nodes.dim;
         let nc = self.nodes.len();
-        let frames = self.nodes.frames(&self.nodes.trace(u)?);
+        let frames = self.nodes.frames(&self.nodes.trace(u)?, time);
         let info = ksp.solve(rhs, du)?;
         let d0 = self.nodes.trace(du)?;
         let mut active = self.active.clone();

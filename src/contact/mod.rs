@@ -4,6 +4,8 @@
 //! Per contact node `q`: normal `n_q` (unit, from the body towards the obstacle), gap
 //! `g_q(u) = g^n_q - n_q . (u_q - u^n_q)` linearized at the start of the step (exact for a
 //! plane), contact force `lambda_q >= 0`, and complementarity `g_q lambda_q = 0` at `t_{n+1}`.
+//! `g^n_q` and `n_q` are those of the node at `u^n` against the obstacles placed at `t_{n+1}`
+//! (moving obstacles, [`obstacle`]): of the obstacle with the smallest gap there.
 //! The force enters the midpoint equation: `K du = rhs - 2 sum_q lambda_q n_q e_q`.
 //!
 //! Two solvers implement [`ContactSolver`]:
@@ -21,6 +23,7 @@ pub mod columns;
 pub mod constraint;
 pub mod history;
 pub mod metrics;
+pub mod obstacle;
 pub mod pdas;
 
 use mpi::collective::SystemOperation;
@@ -32,57 +35,8 @@ use crate::fem::kernels;
 use crate::mesh::Mesh;
 use crate::partition::Partition;
 use crate::petsc::{Ksp, Matrix, Vector};
-use crate::scene;
 
-/// The rigid obstacle.
-#[derive(Debug, Clone)]
-pub enum Obstacle {
-    /// The half-space `(y - point) . normal >= 0` is free; `normal` points into it (towards the body).
-    Plane { point: [f64; 3], normal: [f64; 3] },
-    /// A rigid ball (disc in 2D); the body stays outside it.
-    Sphere { center: [f64; 3], radius: f64 },
-}
-
-fn pad(v: &[f64]) -> [f64; 3] {
-    let mut a = [0.0; 3];
-    a[..v.len().min(3)].copy_from_slice(&v[..v.len().min(3)]);
-    a
-}
-
-fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-}
-
-impl Obstacle {
-    pub fn from_scene(o: &scene::Obstacle) -> Obstacle {
-        match o {
-            scene::Obstacle::Plane { point, normal } => {
-                Obstacle::Plane { point: pad(point), normal: pad(normal) }
-            }
-            scene::Obstacle::Sphere { center, radius } => {
-                Obstacle::Sphere { center: pad(center), radius: *radius }
-            }
-        }
-    }
-
-    /// Gap and unit normal (pointing from the body towards the obstacle) at position `y`.
-    pub fn gap_normal(&self, y: [f64; 3]) -> (f64, [f64; 3]) {
-        match self {
-            Obstacle::Plane { point, normal } => {
-                let d = [y[0] - point[0], y[1] - point[1], y[2] - point[2]];
-                (dot(d, *normal), [-normal[0], -normal[1], -normal[2]])
-            }
-            Obstacle::Sphere { center, radius } => {
-                let d = [y[0] - center[0], y[1] - center[1], y[2] - center[2]];
-                let r = dot(d, d).sqrt();
-                if r == 0.0 {
-                    return (-radius, [0.0, -1.0, 0.0]);
-                }
-                (r - radius, [-d[0] / r, -d[1] / r, -d[2] / r])
-            }
-        }
-    }
-}
+pub use obstacle::{Obstacle, Obstacles, Shape};
 
 /// The contact boundary as every rank sees it: nodes (original indices, sorted), their
 /// boundary weights `D_qq = int_{Gamma_C} phi_q ds`, and coordinates.
@@ -159,7 +113,7 @@ pub trait ContactSolver {
         step: usize,
         time: f64,
     ) -> Result<(StepContact, usize)>;
-    /// The contact nodes (boundary, obstacle, per-node geometry).
+    /// The contact nodes (boundary, obstacles, per-node geometry).
     fn nodes(&self) -> &ContactNodes<'_>;
     /// The active set after the last step.
     fn active(&self) -> &[bool];
@@ -175,11 +129,12 @@ pub trait ContactSolver {
     fn boundary(&self) -> &ContactBoundary {
         &self.nodes().boundary
     }
-    /// Contact nodes (mesh node indices) that penetrate the obstacle at displacement `u`.
-    fn penetrating(&self, u: &Vector) -> Result<Vec<usize>> {
-        self.nodes().penetrating(u)
+    /// Contact nodes that penetrate an obstacle at displacement `u` and time `time`: (mesh
+    /// node index, index of the obstacle).
+    fn penetrating(&self, u: &Vector, time: f64) -> Result<Vec<(usize, usize)>> {
+        self.nodes().penetrating(u, time)
     }
-    /// Index (among the contact nodes) of the node closest to the obstacle at t = 0.
+    /// Index (among the contact nodes) of the node closest to an obstacle at t = 0.
     fn lowest(&self) -> usize {
         self.nodes().lowest()
     }
@@ -194,10 +149,10 @@ pub fn solver<'w>(
     mesh: &Mesh,
     part: &Partition,
     boundary: ContactBoundary,
-    obstacle: Obstacle,
+    obstacles: Obstacles,
     factor: f64,
 ) -> Result<Box<dyn ContactSolver + 'w>> {
-    let nodes = ContactNodes::new(world, mesh, part, boundary, obstacle);
+    let nodes = ContactNodes::new(world, mesh, part, boundary, obstacles);
     match crate::petsc::Petsc::options_get_string("-contact_solver")?.as_deref() {
         None | Some("pdas") => {
             let s = pdas::ActiveSet::new(nodes, factor);
@@ -222,12 +177,12 @@ pub struct StepContact {
     pub resultant: [f64; 3],
 }
 
-/// The contact nodes as every rank sees them: boundary, obstacle, reference positions, gmsh
+/// The contact nodes as every rank sees them: boundary, obstacles, reference positions, gmsh
 /// tags and global DOFs. O(contact nodes) on every rank; no loop over the mesh after `new`.
 pub struct ContactNodes<'w> {
     pub world: &'w SimpleCommunicator,
     pub boundary: ContactBoundary,
-    pub obstacle: Obstacle,
+    pub obstacles: Obstacles,
     coords: Vec<[f64; 3]>,
     pub tags: Vec<u64>,
     pub dim: usize,
@@ -245,7 +200,7 @@ impl<'w> ContactNodes<'w> {
         mesh: &Mesh,
         part: &Partition,
         boundary: ContactBoundary,
-        obstacle: Obstacle,
+        obstacles: Obstacles,
     ) -> ContactNodes<'w> {
         let dim = part.dim;
         let mut dofs = Vec::with_capacity(boundary.nodes.len() * dim);
@@ -268,7 +223,7 @@ impl<'w> ContactNodes<'w> {
             tags: boundary.nodes.iter().map(|&v| mesh.node_tags[v]).collect(),
             coords,
             boundary,
-            obstacle,
+            obstacles,
             dim,
             dofs,
             first_dof: part.first_dof(),
@@ -301,9 +256,11 @@ impl<'w> ContactNodes<'w> {
         Ok(global)
     }
 
-    /// Gaps and normals of all contact nodes at displacement `u` (trace given).
-    pub fn frames(&self, u_trace: &[f64]) -> Vec<(f64, [f64; 3])> {
+    /// For every contact node at displacement `u` (trace given), with the obstacles placed at
+    /// `time`: the obstacle with the smallest gap (its index), that gap and its normal.
+    fn closest(&self, u_trace: &[f64], time: f64) -> Vec<(usize, f64, [f64; 3])> {
         let d = self.dim;
+        let placed = self.obstacles.at(time);
         self.coords
             .iter()
             .enumerate()
@@ -312,9 +269,15 @@ impl<'w> ContactNodes<'w> {
                 for c in 0..d {
                     y[c] += u_trace[k * d + c];
                 }
-                self.obstacle.gap_normal(y)
+                obstacle::closest(&placed, y)
             })
             .collect()
+    }
+
+    /// Gaps and normals of all contact nodes at displacement `u` (trace given) against the
+    /// obstacles at `time` (the end of the step: `t_{n+1}`): each node's closest obstacle.
+    pub fn frames(&self, u_trace: &[f64], time: f64) -> Vec<(f64, [f64; 3])> {
+        self.closest(u_trace, time).into_iter().map(|(_, g, n)| (g, n)).collect()
     }
 
     /// `n_q . x_q` for every contact node, from a trace.
@@ -327,24 +290,29 @@ impl<'w> ContactNodes<'w> {
             .collect()
     }
 
-    /// Contact nodes that penetrate the obstacle at displacement `u` (beyond the tolerance).
-    pub fn penetrating(&self, u: &Vector) -> Result<Vec<usize>> {
+    /// Contact nodes that penetrate an obstacle at displacement `u` and `time` (beyond the
+    /// tolerance): (mesh node index, obstacle index).
+    pub fn penetrating(&self, u: &Vector, time: f64) -> Result<Vec<(usize, usize)>> {
         let tr = self.trace(u)?;
         Ok(self
-            .frames(&tr)
+            .closest(&tr, time)
             .iter()
             .enumerate()
-            .filter(|(_, (g, _))| *g < -self.gap_tol)
-            .map(|(k, _)| self.boundary.nodes[k])
+            .filter(|(_, (_, g, _))| *g < -self.gap_tol)
+            .map(|(k, &(o, _, _))| (self.boundary.nodes[k], o))
             .collect())
     }
 
-    /// The contact node closest to the obstacle in the reference configuration.
+    /// The contact node closest to an obstacle in the reference configuration at t = 0.
     pub fn lowest(&self) -> usize {
-        let gap = |k: usize| self.obstacle.gap_normal(self.coords[k]).0;
-        (0..self.coords.len())
+        let gaps = self.closest(&vec![0.0; self.len() * self.dim], 0.0);
+        (0..gaps.len())
             .min_by(|&a, &b| {
-                gap(a).partial_cmp(&gap(b)).unwrap_or(std::cmp::Ordering::Equal).then(a.cmp(&b))
+                gaps[a]
+                    .1
+                    .partial_cmp(&gaps[b].1)
+                    .unwrap_or(std::cmp::Ordering::Equal)
+                    .then(a.cmp(&b))
             })
             .unwrap_or(0)
     }
@@ -441,20 +409,5 @@ impl ActiveSetLoop {
         }
         self.history.push(next.clone());
         Ok(Some(next))
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn plane_and_sphere_gaps() {
-        let plane = Obstacle::Plane { point: [0.0, 1.0, 0.0], normal: [0.0, 1.0, 0.0] };
-        let (g, n) = plane.gap_normal([3.0, 1.5, 0.0]);
-        assert!((g - 0.5).abs() < 1e-15 && n == [0.0, -1.0, 0.0]);
-        let ball = Obstacle::Sphere { center: [0.0, 0.0, 0.0], radius: 1.0 };
-        let (g, n) = ball.gap_normal([0.0, 3.0, 0.0]);
-        assert!((g - 2.0).abs() < 1e-15 && (n[1] + 1.0).abs() < 1e-15);
     }
 }

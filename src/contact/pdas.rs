@@ -97,7 +97,7 @@ impl ContactSolver for ActiveSet<'_> {
             self.prepare(k)?;
         }
         let nc = self.nodes.len();
-        let frames = self.nodes.frames(&self.nodes.trace(u)?);
+        let frames = self.nodes.frames(&self.nodes.trace(u)?, time);
         let normals: Vec<[f64; 3]> = frames.iter().map(|f| f.1).collect();
         let (Some(cons), Some(b)) = (self.constraints.as_mut(), self.b.as_mut()) else {
             unreachable!("prepared above")

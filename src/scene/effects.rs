@@ -8,7 +8,7 @@
 //! effects: elasticity, mass-free layer (modified1 along "contact"), Dirichlet (zero values), contact (plane obstacle); not built: initial displacement, initial velocity, body force, tractions, Dirichlet lifting, exact errors
 //! ```
 
-use super::{MassKind, Obstacle, Scene};
+use super::{MassKind, Obstacle, Scene, Shape};
 use crate::scene::expr::VecExpr;
 
 /// How a load or prescribed value varies in time.
@@ -40,11 +40,12 @@ impl Variation {
     }
 }
 
-/// The shape of the contact obstacle.
+/// The shape of a contact obstacle.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum ObstacleKind {
     Plane,
     Sphere,
+    Cylinder,
 }
 
 impl ObstacleKind {
@@ -52,7 +53,33 @@ impl ObstacleKind {
         match self {
             ObstacleKind::Plane => "plane",
             ObstacleKind::Sphere => "sphere",
+            ObstacleKind::Cylinder => "cylinder",
         }
+    }
+}
+
+/// One contact obstacle as a run reports it: its shape, and whether it moves (a motion that
+/// depends on `t`; a constant one only shifts it).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct ObstacleEffect {
+    pub kind: ObstacleKind,
+    pub moving: bool,
+}
+
+impl ObstacleEffect {
+    pub fn of(o: &Obstacle) -> ObstacleEffect {
+        let kind = match o.shape {
+            Shape::Plane { .. } => ObstacleKind::Plane,
+            Shape::Sphere { .. } => ObstacleKind::Sphere,
+            Shape::Cylinder { .. } => ObstacleKind::Cylinder,
+        };
+        ObstacleEffect { kind, moving: o.is_moving() }
+    }
+
+    /// `plane`, `moving plane`, ...
+    pub fn name(self) -> String {
+        let moving = if self.moving { "moving " } else { "" };
+        format!("{moving}{}", self.kind.name())
     }
 }
 
@@ -77,8 +104,8 @@ pub struct Effects {
     /// Some Dirichlet value is not identically zero: the step needs the Dirichlet lifting, i.e.
     /// the extra unconstrained operator that moves the prescribed values to the right-hand side.
     pub dirichlet_lifting: Option<Variation>,
-    /// Contact with an obstacle (the active-set solver).
-    pub contact: Option<ObstacleKind>,
+    /// Contact with these obstacles (the active-set solver); empty: no contact.
+    pub contact: Vec<ObstacleEffect>,
     /// Errors against the exact solution are computed (at `exact.error_steps`).
     pub exact_errors: bool,
 }
@@ -98,10 +125,12 @@ impl Scene {
             tractions: Variation::of(self.neumann.iter().map(|n| &n.traction)),
             dirichlet: !self.dirichlet.is_empty(),
             dirichlet_lifting: Variation::of(self.dirichlet.iter().map(|d| &d.value)),
-            contact: self.contact.as_ref().map(|c| match c.obstacle {
-                Obstacle::Plane { .. } => ObstacleKind::Plane,
-                Obstacle::Sphere { .. } => ObstacleKind::Sphere,
-            }),
+            contact: self
+                .contact
+                .iter()
+                .flat_map(|c| &c.obstacles)
+                .map(ObstacleEffect::of)
+                .collect(),
             exact_errors: self.exact.is_some(),
         }
     }
@@ -118,7 +147,9 @@ impl Effects {
     /// 5. `body force (steady | time-dependent)`, 6. `tractions (steady | time-dependent)`;
     /// 7. `Dirichlet (zero values | non-zero values)`,
     ///    8. `Dirichlet lifting (steady | time-dependent)`;
-    /// 9. `contact (plane | sphere obstacle)`; 10. `exact errors`.
+    /// 9. `contact (OBSTACLE obstacle)` with one obstacle, `contact (N obstacles: OBSTACLE,
+    ///    OBSTACLE, ...)` with several, each `[moving ](plane | sphere | cylinder)`;
+    /// 10. `exact errors`.
     ///
     /// `not built:` lists, in the same order and by the names before the parentheses, the
     /// optional items 3 to 10 the scene does not ask for, preceded by `mass-free layer` when
@@ -128,7 +159,12 @@ impl Effects {
         let flag = |name: &str, on: bool| on.then(|| name.to_string());
         let dirichlet_values =
             if self.dirichlet_lifting.is_some() { "non-zero values" } else { "zero values" };
-        let obstacle = self.contact.map(|k| format!("{} obstacle", k.name()));
+        let names: Vec<String> = self.contact.iter().map(|o| o.name()).collect();
+        let obstacle = match names.len() {
+            0 => None,
+            1 => Some(format!("{} obstacle", names[0])),
+            n => Some(format!("{n} obstacles: {}", names.join(", "))),
+        };
         let layer =
             self.layer_boundary.as_ref().map(|g| format!("{} along {g:?}", self.mass.name()));
         let optional: [(&str, Option<String>); 9] = [

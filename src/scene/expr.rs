@@ -274,8 +274,9 @@ impl Op {
     }
 }
 
-/// A compiled scalar expression in `x, y, z, t`.
-#[derive(Clone)]
+/// A compiled scalar expression in `x, y, z, t`. Two are equal when written and compiled the
+/// same.
+#[derive(Clone, PartialEq)]
 pub struct Expr {
     src: String,
     ops: Box<[Op]>,
@@ -410,7 +411,7 @@ fn powi(a: f64, n: i32) -> f64 {
 }
 
 /// A vector field: one expression per component; missing components evaluate to 0.
-#[derive(Clone, Debug, Default)]
+#[derive(Clone, Debug, Default, PartialEq)]
 pub struct VecExpr(pub Vec<Expr>);
 
 impl VecExpr {

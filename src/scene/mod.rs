@@ -56,7 +56,9 @@
 //! [contact]
 //! boundary = "contact"
 //! obstacle = { type = "plane", point = [0.0, 0.0], normal = [0.0, 1.0] }
-//! # obstacle = { type = "sphere", center = [0.0, 2.0], radius = 1.0 }
+//! # obstacle = { type = "sphere", center = [0.0, 2.0], radius = 1.0, motion = ["0", "-t"] }
+//! # obstacles = [{ type = "plane", ... }, { type = "cylinder", point = [0, 0, -1],
+//! #               axis = [0, 1, 0], radius = 1 }]   # instead of obstacle; cylinders: 3D only
 //! ```
 //!
 //! Numbers are accepted wherever an expression is (`value = [0, -1.5]`).
@@ -66,7 +68,7 @@ pub mod expr;
 mod overrides;
 pub mod separate;
 
-pub use effects::{Effects, ObstacleKind, Variation};
+pub use effects::{Effects, ObstacleEffect, ObstacleKind, Variation};
 
 use crate::error::{Error, Result};
 use expr::{Expr, VecExpr};
@@ -262,19 +264,56 @@ pub struct ExactSpec {
     pub error_steps_listed: bool,
 }
 
+/// The shape of a rigid obstacle in its reference position.
 #[derive(Debug, Clone, PartialEq)]
-pub enum Obstacle {
+pub enum Shape {
     /// Half-space bounded by the plane (line in 2D) through `point`; `normal` is unit length.
     Plane { point: Vec<f64>, normal: Vec<f64> },
     /// Ball (disk in 2D) with `radius` > 0.
     Sphere { center: Vec<f64>, radius: f64 },
+    /// Infinite cylinder (3D only: `point` and `axis` have 3 components) around the line
+    /// through `point` along `axis` (unit length), `radius` > 0.
+    Cylinder { point: Vec<f64>, axis: Vec<f64>, radius: f64 },
+}
+
+/// A rigid obstacle: its shape, and its rigid translation `d(t)` (the obstacle is at
+/// reference + `d(t)`; expressions in `t` only) when it moves.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Obstacle {
+    pub shape: Shape,
+    pub motion: Option<VecExpr>,
+}
+
+impl Obstacle {
+    /// A translation that depends on `t` is given (as written: `0*t` counts).
+    pub fn is_moving(&self) -> bool {
+        self.motion.as_ref().is_some_and(VecExpr::depends_on_t)
+    }
 }
 
 #[derive(Debug, Clone, PartialEq)]
 pub struct ContactSpec {
     /// Physical group of the potential contact boundary.
     pub boundary: String,
-    pub obstacle: Obstacle,
+    /// At least one; each contact node meets the one with the smallest gap.
+    pub obstacles: Vec<Obstacle>,
+    /// Given as the list `contact.obstacles` (else as `contact.obstacle`).
+    pub listed: bool,
+}
+
+impl ContactSpec {
+    /// The scene key of obstacle `i`: `contact.obstacle` or `contact.obstacles[i]`.
+    pub fn obstacle_key(&self, i: usize) -> String {
+        obstacle_key(self.listed, i)
+    }
+}
+
+fn obstacle_key(listed: bool, i: usize) -> String {
+    if listed {
+        format!("contact.obstacles[{i}]")
+    } else {
+        "contact.obstacle".to_string()
+    }
 }
 
 impl Scene {
@@ -372,13 +411,28 @@ impl Scene {
             }
         }
         if let Some(c) = &self.contact {
-            match &c.obstacle {
-                Obstacle::Plane { point, normal } => {
-                    keys.push(("contact.obstacle.point".into(), point.len()));
-                    keys.push(("contact.obstacle.normal".into(), normal.len()));
+            for (i, o) in c.obstacles.iter().enumerate() {
+                let key = c.obstacle_key(i);
+                let mut vector =
+                    |name: &str, v: &[f64]| keys.push((format!("{key}.{name}"), v.len()));
+                match &o.shape {
+                    Shape::Plane { point, normal } => {
+                        vector("point", point);
+                        vector("normal", normal);
+                    }
+                    Shape::Sphere { center, .. } => vector("center", center),
+                    Shape::Cylinder { .. } if dim == 2 => {
+                        return fail(format!(
+                            "{key} is a cylinder but the mesh is 2D: cylinders exist in 3D only"
+                        ));
+                    }
+                    Shape::Cylinder { point, axis, .. } => {
+                        vector("point", point);
+                        vector("axis", axis);
+                    }
                 }
-                Obstacle::Sphere { center, .. } => {
-                    keys.push(("contact.obstacle.center".into(), center.len()));
+                if let Some(m) = &o.motion {
+                    keys.push((format!("{key}.motion"), m.len()));
                 }
             }
         }
@@ -604,14 +658,16 @@ struct RawExact {
 #[serde(deny_unknown_fields)]
 struct RawContact {
     boundary: String,
-    obstacle: RawObstacle,
+    obstacle: Option<RawObstacle>,
+    obstacles: Option<Vec<RawObstacle>>,
 }
 
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields, tag = "type", rename_all = "lowercase")]
 enum RawObstacle {
-    Plane { point: Vec<f64>, normal: Vec<f64> },
-    Sphere { center: Vec<f64>, radius: f64 },
+    Plane { point: Vec<f64>, normal: Vec<f64>, motion: Option<Vec<ExprSrc>> },
+    Sphere { center: Vec<f64>, radius: f64, motion: Option<Vec<ExprSrc>> },
+    Cylinder { point: Vec<f64>, axis: Vec<f64>, radius: f64, motion: Option<Vec<ExprSrc>> },
 }
 
 // =============================================================================================
@@ -657,6 +713,69 @@ fn point(v: Vec<f64>, key: &str) -> VResult<Vec<f64>> {
         return Err(format!("{key} = {v:?} is impossible: values must be finite"));
     }
     Ok(v)
+}
+
+/// A direction: `v / |v|` for `v` != 0 (`what` names it in the message).
+fn direction(v: Vec<f64>, key: &str, what: &str) -> VResult<Vec<f64>> {
+    let v = point(v, key)?;
+    let norm = v.iter().map(|c| c * c).sum::<f64>().sqrt();
+    if norm <= 0.0 {
+        return Err(format!("{key} = {v:?} is impossible: the {what} must be nonzero"));
+    }
+    Ok(v.iter().map(|c| c / norm).collect())
+}
+
+fn radius(r: f64, key: &str) -> VResult<f64> {
+    if !(r > 0.0 && r.is_finite()) {
+        return Err(format!("{key} = {r} is impossible: the radius must be > 0"));
+    }
+    Ok(r)
+}
+
+/// One obstacle (`key` names it: `contact.obstacle` or `contact.obstacles[i]`).
+fn obstacle(raw: RawObstacle, key: &str) -> VResult<Obstacle> {
+    let at = |name: &str| format!("{key}.{name}");
+    let (shape, motion) = match raw {
+        RawObstacle::Plane { point: p, normal, motion } => {
+            let point = point(p, &at("point"))?;
+            (Shape::Plane { point, normal: direction(normal, &at("normal"), "normal")? }, motion)
+        }
+        RawObstacle::Sphere { center, radius: r, motion } => (
+            Shape::Sphere {
+                center: point(center, &at("center"))?,
+                radius: radius(r, &at("radius"))?,
+            },
+            motion,
+        ),
+        RawObstacle::Cylinder { point: p, axis, radius: r, motion } => {
+            for (name, v) in [("point", &p), ("axis", &axis)] {
+                if v.len() != 3 {
+                    return Err(format!(
+                        "{} has {} components: a cylinder exists in 3D only (give 3)",
+                        at(name),
+                        v.len()
+                    ));
+                }
+            }
+            let point = point(p, &at("point"))?;
+            let axis = direction(axis, &at("axis"), "axis")?;
+            (Shape::Cylinder { point, axis, radius: radius(r, &at("radius"))? }, motion)
+        }
+    };
+    let motion = match motion {
+        None => None,
+        Some(m) => {
+            let d = compile_vec(&m, &at("motion"))?;
+            if let Some((i, e)) = d.0.iter().enumerate().find(|(_, e)| e.depends_on_x()) {
+                return Err(format!(
+                    "{}[{i}] = \"{e}\" is impossible: a motion is a function of t only (no x, y, z)",
+                    at("motion")
+                ));
+            }
+            Some(d)
+        }
+    };
+    Ok(Obstacle { shape, motion })
 }
 
 fn check_tau(tau: f64) -> VResult<()> {
@@ -1034,29 +1153,25 @@ fn build(raw: RawScene, stem: &str, base_dir: &Path) -> VResult<Scene> {
         None => None,
         Some(c) => {
             let boundary = group_name(c.boundary, "contact.boundary")?;
-            let obstacle = match c.obstacle {
-                RawObstacle::Plane { point: p, normal } => {
-                    let p = point(p, "contact.obstacle.point")?;
-                    let n = point(normal, "contact.obstacle.normal")?;
-                    let norm = n.iter().map(|c| c * c).sum::<f64>().sqrt();
-                    if norm <= 0.0 {
-                        return Err(format!(
-                            "contact.obstacle.normal = {n:?} is impossible: the normal must be nonzero"
-                        ));
-                    }
-                    Obstacle::Plane { point: p, normal: n.iter().map(|c| c / norm).collect() }
+            let (raws, listed) = match (c.obstacle, c.obstacles) {
+                (Some(_), Some(_)) => {
+                    return Err("contact: give exactly one of contact.obstacle and contact.obstacles, not both".into());
                 }
-                RawObstacle::Sphere { center, radius } => {
-                    let center = point(center, "contact.obstacle.center")?;
-                    if !(radius > 0.0 && radius.is_finite()) {
-                        return Err(format!(
-                            "contact.obstacle.radius = {radius} is impossible: the radius must be > 0"
-                        ));
-                    }
-                    Obstacle::Sphere { center, radius }
+                (None, None) => {
+                    return Err("contact: give the obstacle (contact.obstacle = { type = ... }) or a list of them (contact.obstacles = [{ ... }, ...])".into());
                 }
+                (Some(o), None) => (vec![o], false),
+                (None, Some(list)) if list.is_empty() => {
+                    return Err("contact.obstacles is empty: give at least one obstacle".into());
+                }
+                (None, Some(list)) => (list, true),
             };
-            Some(ContactSpec { boundary, obstacle })
+            let obstacles = raws
+                .into_iter()
+                .enumerate()
+                .map(|(i, o)| obstacle(o, &obstacle_key(listed, i)))
+                .collect::<VResult<Vec<_>>>()?;
+            Some(ContactSpec { boundary, obstacles, listed })
         }
     };
 

@@ -122,6 +122,11 @@ fn minimal_with(from: &str, to: &str) -> String {
     MINIMAL.replacen(from, to, 1)
 }
 
+/// MINIMAL with a `[contact]` table on the boundary "c" and `obstacle` (the obstacle line(s)).
+fn with_contact(obstacle: &str) -> String {
+    format!("{MINIMAL}\n[contact]\nboundary = \"c\"\n{obstacle}\n")
+}
+
 fn full_with(from: &str, to: &str) -> String {
     assert!(FULL.contains(from), "{from}");
     FULL.replacen(from, to, 1)
@@ -204,7 +209,9 @@ fn full_scene_round_trips() {
     assert_eq!(ex.error_steps, vec![10, 30]);
     let c = s.contact.as_ref().unwrap();
     assert_eq!(c.boundary, "contact");
-    assert_eq!(c.obstacle, Obstacle::Plane { point: vec![0.0, -1.0], normal: vec![0.0, 1.0] });
+    let plane = Shape::Plane { point: vec![0.0, -1.0], normal: vec![0.0, 1.0] };
+    assert_eq!(c.obstacles, vec![Obstacle { shape: plane, motion: None }]);
+    assert!(!c.listed);
     s.check_dim(2).unwrap();
 }
 
@@ -267,23 +274,135 @@ fn defaults_for_exact_and_mass() {
 #[test]
 fn sphere_obstacle() {
     let dir = workspace();
-    let text = format!(
-        "{MINIMAL}\n[contact]\nboundary = \"c\"\nobstacle = {{ type = \"sphere\", center = [0, 2, 0], radius = 1.5 }}\n"
-    );
+    let text = with_contact("obstacle = { type = \"sphere\", center = [0, 2, 0], radius = 1.5 }");
     let s = parse_in(&dir, &text).unwrap();
     assert_eq!(
-        s.contact.as_ref().unwrap().obstacle,
-        Obstacle::Sphere { center: vec![0.0, 2.0, 0.0], radius: 1.5 }
+        s.contact.as_ref().unwrap().obstacles[0].shape,
+        Shape::Sphere { center: vec![0.0, 2.0, 0.0], radius: 1.5 }
     );
-    assert_eq!(s.effects().contact, Some(ObstacleKind::Sphere));
+    assert_eq!(
+        s.effects().contact,
+        vec![ObstacleEffect { kind: ObstacleKind::Sphere, moving: false }]
+    );
     s.check_dim(3).unwrap();
     let m = s.check_dim(2).unwrap_err().to_string();
     assert!(m.contains("contact.obstacle.center has 3 components but the mesh is 2D"), "{m}");
     // As a sub-table instead of an inline table.
-    let text = format!(
-        "{MINIMAL}\n[contact]\nboundary = \"c\"\n[contact.obstacle]\ntype = \"sphere\"\ncenter = [0, 2]\nradius = 1\n"
-    );
+    let text = with_contact("[contact.obstacle]\ntype = \"sphere\"\ncenter = [0, 2]\nradius = 1");
     parse_in(&dir, &text).unwrap();
+}
+
+#[test]
+fn moving_cylinder_among_several_obstacles() {
+    let dir = workspace();
+    let text = with_contact(
+        "obstacles = [\n  { type = \"plane\", point = [0, 0, 0], normal = [0, 0, 2], motion = [0, \"0*t\", \"t^2\"] },\n  { type = \"cylinder\", point = [0, 0, 3], axis = [0, 3, 4], radius = 0.5 },\n  { type = \"sphere\", center = [0, 0, 9], radius = 1, motion = [1, 2, 3] },\n]",
+    );
+    let s = parse_in(&dir, &text).unwrap();
+    let c = s.contact.as_ref().unwrap();
+    assert!(c.listed && c.obstacles.len() == 3);
+    assert_eq!(c.obstacle_key(2), "contact.obstacles[2]");
+    assert_eq!(
+        c.obstacles[1].shape,
+        Shape::Cylinder { point: vec![0.0, 0.0, 3.0], axis: vec![0.0, 0.6, 0.8], radius: 0.5 }
+    );
+    let d = c.obstacles[0].motion.as_ref().unwrap();
+    assert_eq!(d.eval([0.0; 3], 3.0), [0.0, 0.0, 9.0]);
+    // A constant motion only shifts the sphere: it is not "moving".
+    let moving: Vec<bool> = c.obstacles.iter().map(Obstacle::is_moving).collect();
+    assert_eq!(moving, [true, false, false]);
+    let line = s.effects().summary();
+    assert!(
+        line.contains(", contact (3 obstacles: moving plane, cylinder, sphere); not built:"),
+        "{line}"
+    );
+    s.check_dim(3).unwrap();
+    let m = s.check_dim(2).unwrap_err().to_string();
+    assert!(m.contains("contact.obstacles[1] is a cylinder but the mesh is 2D"), "{m}");
+    // One moving obstacle.
+    let text = with_contact(
+        "obstacle = { type = \"plane\", point = [0, 1], normal = [0, -1], motion = [\"0\", \"-1e-3*t\"] }",
+    );
+    let line = parse_in(&dir, &text).unwrap().effects().summary();
+    assert!(line.contains(", contact (moving plane obstacle); not built:"), "{line}");
+    // As an array of tables.
+    let text = with_contact(
+        "[[contact.obstacles]]\ntype = \"sphere\"\ncenter = [0, 2]\nradius = 1\n[[contact.obstacles]]\ntype = \"plane\"\npoint = [0, 0]\nnormal = [0, 1]\nmotion = [\"t\", 0]",
+    );
+    let s = parse_in(&dir, &text).unwrap();
+    assert_eq!(s.contact.as_ref().unwrap().obstacles.len(), 2);
+    s.check_dim(2).unwrap();
+}
+
+#[test]
+fn obstacle_errors_name_the_key() {
+    let plane = "{ type = \"plane\", point = [0, 0], normal = [0, 1] }";
+    let cases: &[(&str, &[&str])] = &[
+        (
+            "obstacles = [{ type = \"cylinder\", point = [0, 0, 0], axis = [0, 0, 0], radius = 1 }]",
+            &["contact.obstacles[0].axis = [0.0, 0.0, 0.0] is impossible: the axis must be nonzero"],
+        ),
+        (
+            "obstacle = { type = \"cylinder\", point = [0, 0, 0], axis = [0, 1, 0], radius = -2 }",
+            &["contact.obstacle.radius = -2 is impossible: the radius must be > 0"],
+        ),
+        (
+            "obstacle = { type = \"cylinder\", point = [0, 0], axis = [0, 1], radius = 1 }",
+            &["contact.obstacle.point has 2 components: a cylinder exists in 3D only"],
+        ),
+        (
+            "obstacle = { type = \"plane\", point = [0, 0], normal = [0, 1], motion = [\"0\", \"-y*t\"] }",
+            &["contact.obstacle.motion[1] = \"-y*t\" is impossible: a motion is a function of t only"],
+        ),
+        (
+            "obstacle = { type = \"plane\", point = [0, 0], normal = [0, 1], motion = [] }",
+            &["contact.obstacle.motion is empty"],
+        ),
+        (
+            "obstacles = []",
+            &["contact.obstacles is empty: give at least one obstacle"],
+        ),
+        (
+            "boundary2 = 1",
+            &["unknown key \"contact.boundary2\"", "allowed: boundary, obstacle, obstacles"],
+        ),
+        (
+            "obstacles = [{ type = \"cone\", point = [0, 0] }]",
+            &["\"cone\" is not allowed", "allowed: plane, sphere, cylinder"],
+        ),
+    ];
+    for (o, needles) in cases {
+        assert_err(&with_contact(o), needles);
+    }
+    assert_err(
+        &with_contact(&format!("obstacle = {plane}\nobstacles = [{plane}]")),
+        &["contact: give exactly one of contact.obstacle and contact.obstacles, not both"],
+    );
+    assert_err(
+        &with_contact(""),
+        &[
+            "contact: give the obstacle (contact.obstacle = ",
+            "or a list of them (contact.obstacles",
+        ],
+    );
+    // Found against the mesh's dimension.
+    let dir = workspace();
+    let dim_error = |o: &str, dim: usize| {
+        let s = parse_in(&dir, &with_contact(o)).unwrap();
+        let m = s.check_dim(dim).unwrap_err().to_string();
+        assert!(!m.contains('\n'), "{m}");
+        m
+    };
+    let m = dim_error(
+        "obstacle = { type = \"cylinder\", point = [0, 0, 0], axis = [0, 1, 0], radius = 1 }",
+        2,
+    );
+    assert!(m.contains("contact.obstacle is a cylinder but the mesh is 2D"), "{m}");
+    let m = dim_error(
+        &format!("obstacles = [{plane}, {{ type = \"sphere\", center = [0, 0], radius = 1, motion = [0, 0, \"t\"] }}]"),
+        2,
+    );
+    assert!(m.contains("contact.obstacles[1].motion has 3 components but the mesh is 2D"), "{m}");
 }
 
 #[test]
@@ -351,7 +470,7 @@ fn wrong_types_and_values() {
     );
     assert_err(
         &full_with("type = \"plane\"", "type = \"cone\""),
-        &["contact.obstacle", "\"cone\" is not allowed", "allowed: plane, sphere"],
+        &["contact.obstacle", "\"cone\" is not allowed", "allowed: plane, sphere, cylinder"],
     );
     assert_err(&minimal_with("rho = 2\n", ""), &["missing key \"material.rho\""]);
     assert_err(
@@ -539,7 +658,7 @@ fn effects_follow_the_scene() {
             tractions: varying,
             dirichlet: true,
             dirichlet_lifting: varying,
-            contact: Some(ObstacleKind::Plane),
+            contact: vec![ObstacleEffect { kind: ObstacleKind::Plane, moving: false }],
             exact_errors: true,
         }
     );
@@ -559,7 +678,7 @@ fn effects_follow_the_scene() {
             tractions: Some(Variation::Steady),
             dirichlet: true,
             dirichlet_lifting: Some(Variation::Steady),
-            contact: None,
+            contact: vec![],
             exact_errors: false,
         }
     );

@@ -58,6 +58,15 @@ pub fn scene_text(dir: &Path, name: &str, text: &str) -> PathBuf {
     path
 }
 
+/// Write the small test scene `NAME.toml`: the mesh `meshes/GEO` at size `h`, the material
+/// E = 100, nu = 0.3, rho = 1 (elastic waves at about 10), then `rest` (the other tables).
+pub fn small_scene(dir: &Path, name: &str, geo: &str, h: f64, rest: &str) -> PathBuf {
+    let text = format!(
+        "name = \"{name}\"\n[mesh]\ngeo = \"../meshes/{geo}\"\nparams = {{ h = {h} }}\n[material]\nE = 100.0\nnu = 0.3\nrho = 1.0\n{rest}"
+    );
+    scene_text(dir, &format!("{name}.toml"), &text)
+}
+
 /// `mpirun -n ranks massfree args...` (ranks = 0: the binary alone, as a singleton).
 pub fn massfree(ranks: usize, args: &[&str]) -> Output {
     let mut cmd = if ranks == 0 {
