@@ -66,6 +66,30 @@ fn read_summary(path: &Path) -> Result<RunSummary, String> {
     toml::from_str(&text).map_err(|e: toml::de::Error| e.to_string())
 }
 
+/// `mpirun -n ranks massfree run scene --quiet --no-output args... --summary summary`; the
+/// summary, or None if the run failed (its stderr printed).
+fn run_scene(ranks: usize, scene: &str, args: &[String], summary: &Path) -> Option<RunSummary> {
+    let _ = std::fs::remove_file(summary);
+    let o = Command::new("mpirun")
+        .args(["--oversubscribe", "-n", &ranks.to_string()])
+        .arg(repo().join("target/release/massfree"))
+        .arg("run")
+        .arg(repo().join("scenes").join(scene))
+        .args(["--quiet", "--no-output", "--summary"])
+        .arg(summary)
+        .args(args)
+        .env("OMPI_ALLOW_RUN_AS_ROOT", "1")
+        .env("OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1")
+        .env("OMPI_MCA_btl_vader_single_copy_mechanism", "none")
+        .output()
+        .ok()?;
+    if !o.status.success() {
+        eprintln!("bench: {scene} failed: {}", String::from_utf8_lossy(&o.stderr));
+        return None;
+    }
+    read_summary(summary).ok()
+}
+
 struct Row {
     label: String,
     ranks: usize,
@@ -331,6 +355,75 @@ fn main() {
                     ratio,
                     100.0 * csec / stepping,
                     c.extra_solves,
+                );
+                print!("{}", md.lines().last().map(|l| format!("{l}\n")).unwrap_or_default());
+            }
+        }
+    }
+    // The 3D impact (issue 11): the ball of scenes/sphere.toml at three mesh levels on 1 and 2
+    // ranks, each with contact and in free flight (the same ball 0.5 above the plane). Every
+    // contact step is also measured against one plain solve of the same step
+    // (-contact_reference_solve); its time is taken out of the contact run's figures.
+    if want("contact3d") {
+        md += "\n3D impact: ball on a plane (P1 tets, M_H^0, tau = 0.01; steps to t = 2.2, or 40 at the finest level):\n\n| DOFs | ranks | steps | step solver | max active | free ms/step | contact ms/step (contact steps) | contact / free step | contact run / free run | PDAS its mean / max | KSP its per contact step | contact step / plain solve (KSP its, time) | peak MiB free / contact |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
+        let levels: &[(&str, &str, usize)] = if quick {
+            &[("0.2", "0.04", 220)]
+        } else {
+            &[("0.1", "0.02", 220), ("0.05", "0.01", 220), ("0.027", "0.0055", 40)]
+        };
+        for &(h, hc, steps) in levels {
+            for ranks in [1, 2] {
+                let base = vec![
+                    "--param".to_string(),
+                    format!("h={h}"),
+                    "--param".into(),
+                    format!("hc={hc}"),
+                    "--steps".into(),
+                    steps.to_string(),
+                ];
+                let mut free_args = base.clone();
+                free_args.extend(["--param".into(), "gap=0.5".into()]);
+                let mut contact_args = base.clone();
+                contact_args.extend(["--".into(), "-contact_reference_solve".into()]);
+                let out = bench_dir();
+                eprintln!("bench: sphere h = {h}, hc = {hc} on {ranks} rank(s)");
+                let free =
+                    run_scene(ranks, "sphere.toml", &free_args, &out.join("sphere-free.toml"));
+                let hit = run_scene(
+                    ranks,
+                    "sphere.toml",
+                    &contact_args,
+                    &out.join("sphere-contact.toml"),
+                );
+                let (Some(f), Some(t)) = (free, hit) else {
+                    md += &format!("| h = {h} | {ranks} | failed |\n");
+                    continue;
+                };
+                let c = t.contact.as_ref().unwrap();
+                let r = c.reference.unwrap_or_default();
+                let n = t.steps as f64;
+                let free_ms = 1e3 * f.timings.stepping / f.steps as f64;
+                let contact_ms = 1e3 * (c.contact_steps_seconds - r.plain_seconds)
+                    / c.contact_steps.max(1) as f64;
+                let run_ms = 1e3 * (t.timings.stepping - r.plain_seconds_all_steps) / n;
+                md += &format!(
+                    "| {} | {ranks} | {} | {} + {} | {} | {:.1} | {:.1} | {:.1} | {:.1} | {:.2} / {} | {:.1} | {:.2}, {:.2} | {:.0} / {:.0} |\n",
+                    t.n_dofs,
+                    t.steps,
+                    t.ksp_type,
+                    t.pc_type,
+                    c.max_active_nodes,
+                    free_ms,
+                    contact_ms,
+                    contact_ms / free_ms,
+                    run_ms / free_ms,
+                    c.active_set_iterations_mean,
+                    c.active_set_iterations_max,
+                    c.ksp_iterations_contact_steps as f64 / c.contact_steps.max(1) as f64,
+                    r.contact_ksp_iterations as f64 / r.plain_ksp_iterations.max(1) as f64,
+                    r.contact_seconds / r.plain_seconds.max(1e-300),
+                    f.peak_memory_mib,
+                    t.peak_memory_mib,
                 );
                 print!("{}", md.lines().last().map(|l| format!("{l}\n")).unwrap_or_default());
             }

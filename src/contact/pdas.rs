@@ -46,6 +46,8 @@ pub struct ReferenceCost {
     /// Every solve of the active-set loop, and the operator rewrites between them.
     pub contact_ksp_iterations: usize,
     pub contact_seconds: f64,
+    /// The plain solves of every step (to take them out of the run's time).
+    pub plain_seconds_all_steps: f64,
 }
 
 impl<'w> ActiveSet<'w> {
@@ -138,6 +140,7 @@ impl ContactSolver for ActiveSet<'_> {
         };
         self.extra_solves += lp.iterations - 1;
         if let (Some(r), Some((plain_its, plain_s))) = (self.reference.as_mut(), plain) {
+            r.plain_seconds_all_steps += plain_s;
             if active.iter().any(|&a| a) {
                 r.steps += 1;
                 r.plain_ksp_iterations += plain_its;
