@@ -9,9 +9,9 @@
 //! vectors per node ever active and the dense systems O(active^2), which is why
 //! [`super::pdas`] is the default.
 
-use super::{ActiveSetLoop, ContactNodes, ContactSolver, StepContact};
+use super::{ActiveSetLoop, ContactNodes, ContactSolver, StepContact, StepSystem};
 use crate::error::{Error, Result};
-use crate::petsc::{Ksp, Matrix, Vector};
+use crate::petsc::{Ksp, Vector};
 
 struct Column {
     /// `K^{-1} e_{q,c}` for each component c.
@@ -24,8 +24,6 @@ struct Column {
 pub struct ColumnActiveSet<'w> {
     nodes: ContactNodes<'w>,
     columns: Vec<Option<Column>>,
-    /// The active set of the last step (the next step's first guess).
-    active: Vec<bool>,
     /// Factor of the force in the step equation (2 for the midpoint rule's du form).
     factor: f64,
     max_iterations: usize,
@@ -39,7 +37,6 @@ impl<'w> ColumnActiveSet<'w> {
         ColumnActiveSet {
             nodes,
             columns: (0..n).map(|_| None).collect(),
-            active: vec![false; n],
             factor,
             max_iterations: 50,
             column_solves: 0,
@@ -73,21 +70,14 @@ impl<'w> ColumnActiveSet<'w> {
     }
 
     /// One step: solve `K du = rhs - factor sum_q lambda_q n_q e_q` with the active-set loop.
-    fn solve_step(
-        &mut self,
-        ksp: &mut Ksp,
-        rhs: &Vector,
-        u: &Vector,
-        du: &mut Vector,
-        step: usize,
-        time: f64,
-    ) -> Result<(StepContact, usize)> {
+    fn solve_step(&mut self, sys: StepSystem<'_>) -> Result<(StepContact, usize)> {
+        let StepSystem { ksp, rhs, u, du, step, time, .. } = sys;
         let d = self.nodes.dim;
         let nc = self.nodes.len();
         let frames = self.nodes.frames(&self.nodes.trace(u)?, time);
         let info = ksp.solve(rhs, du)?;
         let d0 = self.nodes.trace(du)?;
-        let mut active = self.active.clone();
+        let mut active = self.nodes.active.clone();
         let mut lp = ActiveSetLoop::new(&active, self.max_iterations, step, time);
         let mut mu: Vec<f64>;
         let mut tr: Vec<f64>;
@@ -148,35 +138,20 @@ impl<'w> ColumnActiveSet<'w> {
         }
         let lambda: Vec<f64> = mu.iter().map(|m| m / self.factor).collect();
         let out = self.nodes.step_contact(&frames, active.clone(), &lambda, &tr, lp.iterations);
-        self.active = active;
+        self.nodes.active = active;
         Ok((out, info.iterations))
     }
 }
 
 impl<'w> ContactSolver for ColumnActiveSet<'w> {
-    fn prepare(&mut self, _k: &Matrix) -> Result<()> {
-        Ok(())
-    }
-    fn solve(
-        &mut self,
-        _k: &mut Matrix,
-        ksp: &mut Ksp,
-        rhs: &Vector,
-        u: &Vector,
-        du: &mut Vector,
-        step: usize,
-        time: f64,
-    ) -> Result<(StepContact, usize)> {
-        self.solve_step(ksp, rhs, u, du, step, time)
+    fn solve(&mut self, sys: StepSystem<'_>) -> Result<(StepContact, usize)> {
+        self.solve_step(sys)
     }
     fn nodes(&self) -> &ContactNodes<'_> {
         &self.nodes
     }
-    fn active(&self) -> &[bool] {
-        &self.active
-    }
-    fn set_active(&mut self, active: Vec<bool>) {
-        self.active = active;
+    fn active_mut(&mut self) -> &mut Vec<bool> {
+        &mut self.nodes.active
     }
     fn extra_solves(&self) -> usize {
         self.column_solves

@@ -97,28 +97,24 @@ impl ContactRow {
 /// (`factor` comes from the integrator), and reports the contact forces and per-node data.
 pub trait ContactSolver {
     /// Called once with the step operator before the first step (collective).
-    fn prepare(&mut self, k: &Matrix) -> Result<()>;
-    /// `u` is `u^n`; `du` holds the previous increment (initial guess) and gets the result.
-    /// `k` is the operator `ksp` solves with: the solver may change it near the contact nodes
-    /// (and restores it when the contact ends). Returns the step's contact data and the KSP
+    fn prepare(&mut self, _k: &Matrix) -> Result<()> {
+        Ok(())
+    }
+    /// Solves one step (see [`StepSystem`]). Returns the step's contact data and the KSP
     /// iterations of its solves.
-    #[allow(clippy::too_many_arguments)]
-    fn solve(
-        &mut self,
-        k: &mut Matrix,
-        ksp: &mut Ksp,
-        rhs: &Vector,
-        u: &Vector,
-        du: &mut Vector,
-        step: usize,
-        time: f64,
-    ) -> Result<(StepContact, usize)>;
-    /// The contact nodes (boundary, obstacles, per-node geometry).
+    fn solve(&mut self, sys: StepSystem<'_>) -> Result<(StepContact, usize)>;
+    /// The contact nodes (boundary, obstacles, per-node geometry, active set).
     fn nodes(&self) -> &ContactNodes<'_>;
+    /// The active set, to continue from a checkpoint's.
+    fn active_mut(&mut self) -> &mut Vec<bool>;
     /// The active set after the last step.
-    fn active(&self) -> &[bool];
+    fn active(&self) -> &[bool] {
+        &self.nodes().active
+    }
     /// Continue from a checkpoint's active set.
-    fn set_active(&mut self, active: Vec<bool>);
+    fn set_active(&mut self, active: Vec<bool>) {
+        *self.active_mut() = active;
+    }
     /// Solves with the step operator beyond one per step, so far.
     fn extra_solves(&self) -> usize;
     /// The contact steps' cost against plain solves, when measured.
@@ -141,6 +137,23 @@ pub trait ContactSolver {
     fn n_nodes(&self) -> usize {
         self.boundary().nodes.len()
     }
+}
+
+/// One step's linear system as the integrator hands it to the contact solver.
+pub struct StepSystem<'a> {
+    /// The operator `ksp` solves with: the solver may change it near the contact nodes (and
+    /// restores it when the contact ends).
+    pub k: &'a mut Matrix,
+    pub ksp: &'a mut Ksp,
+    /// The right-hand side of `K du = rhs - factor B^T lambda`.
+    pub rhs: &'a Vector,
+    /// `u^n`.
+    pub u: &'a Vector,
+    /// Holds the previous increment (the first guess) and gets the result.
+    pub du: &'a mut Vector,
+    /// The step being solved (`n + 1`) and its end time `t_{n+1}`.
+    pub step: usize,
+    pub time: f64,
 }
 
 /// The contact solver the options ask for (`-contact_solver pdas|columns`, default pdas).
@@ -192,6 +205,8 @@ pub struct ContactNodes<'w> {
     /// Gap tolerance: penetration below this counts as contact (1e-12 of the size of the
     /// contact boundary).
     pub gap_tol: f64,
+    /// The active set of the last step (the next step's first guess).
+    pub active: Vec<bool>,
 }
 
 impl<'w> ContactNodes<'w> {
@@ -203,6 +218,7 @@ impl<'w> ContactNodes<'w> {
         obstacles: Obstacles,
     ) -> ContactNodes<'w> {
         let dim = part.dim;
+        let n = boundary.nodes.len();
         let mut dofs = Vec::with_capacity(boundary.nodes.len() * dim);
         for &v in &boundary.nodes {
             for c in 0..dim {
@@ -228,6 +244,7 @@ impl<'w> ContactNodes<'w> {
             dofs,
             first_dof: part.first_dof(),
             gap_tol: 1e-12 * diag.max(f64::MIN_POSITIVE),
+            active: vec![false; n],
         }
     }
 

@@ -11,11 +11,11 @@
 //! active node's normal changes.
 
 use super::constraint::NormalConstraints;
-use super::{ActiveSetLoop, ContactNodes, ContactSolver, StepContact};
+use super::{ActiveSetLoop, ContactNodes, ContactSolver, StepContact, StepSystem};
 use std::time::Instant;
 
 use crate::error::Result;
-use crate::petsc::{Ksp, Matrix, Vector};
+use crate::petsc::{Matrix, Vector};
 
 pub struct ActiveSet<'w> {
     nodes: ContactNodes<'w>,
@@ -23,8 +23,6 @@ pub struct ActiveSet<'w> {
     constraints: Option<NormalConstraints>,
     /// The constrained right-hand side.
     b: Option<Vector>,
-    /// The active set of the last step (the next step's first guess).
-    active: Vec<bool>,
     /// Factor of the force in the step equation (2 for the midpoint rule's du form).
     factor: f64,
     max_iterations: usize,
@@ -59,12 +57,10 @@ impl<'w> ActiveSet<'w> {
     }
 
     pub fn new(nodes: ContactNodes<'w>, factor: f64) -> ActiveSet<'w> {
-        let n = nodes.len();
         ActiveSet {
             nodes,
             constraints: None,
             b: None,
-            active: vec![false; n],
             factor,
             max_iterations: 50,
             extra_solves: 0,
@@ -85,16 +81,8 @@ impl ContactSolver for ActiveSet<'_> {
         Ok(())
     }
 
-    fn solve(
-        &mut self,
-        k: &mut Matrix,
-        ksp: &mut Ksp,
-        rhs: &Vector,
-        u: &Vector,
-        du: &mut Vector,
-        step: usize,
-        time: f64,
-    ) -> Result<(StepContact, usize)> {
+    fn solve(&mut self, sys: StepSystem<'_>) -> Result<(StepContact, usize)> {
+        let StepSystem { k, ksp, rhs, u, du, step, time } = sys;
         if self.constraints.is_none() {
             self.prepare(k)?;
         }
@@ -108,7 +96,7 @@ impl ContactSolver for ActiveSet<'_> {
         // through the obstacle (a growing contact zone then needs no extra iteration).
         let ndu_last = self.nodes.normal_parts(&frames, &self.nodes.trace(du)?);
         let mut active: Vec<bool> = (0..nc)
-            .map(|p| self.active[p] || frames[p].0 - ndu_last[p] < -self.nodes.gap_tol)
+            .map(|p| self.nodes.active[p] || frames[p].0 - ndu_last[p] < -self.nodes.gap_tol)
             .collect();
         let plain = match self.reference {
             Some(_) => {
@@ -150,18 +138,15 @@ impl ContactSolver for ActiveSet<'_> {
             }
         }
         let out = self.nodes.step_contact(&frames, active.clone(), &lambda, &trace, lp.iterations);
-        self.active = active;
+        self.nodes.active = active;
         Ok((out, its))
     }
 
     fn nodes(&self) -> &ContactNodes<'_> {
         &self.nodes
     }
-    fn active(&self) -> &[bool] {
-        &self.active
-    }
-    fn set_active(&mut self, active: Vec<bool>) {
-        self.active = active;
+    fn active_mut(&mut self) -> &mut Vec<bool> {
+        &mut self.nodes.active
     }
     fn extra_solves(&self) -> usize {
         self.extra_solves

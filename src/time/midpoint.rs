@@ -17,7 +17,7 @@ use mpi::topology::SimpleCommunicator;
 use mpi::traits::*;
 
 use super::{Dirichlet, StepOperator};
-use crate::contact::{ContactSolver, StepContact};
+use crate::contact::{ContactSolver, StepContact, StepSystem};
 use crate::error::{Error, Result};
 use crate::petsc::{Matrix, Vector};
 
@@ -213,15 +213,15 @@ impl Midpoint {
             }
             Some(solver) => {
                 let (c, its) = solver
-                    .solve(
-                        &mut self.op.k,
-                        &mut self.op.ksp,
-                        &self.rhs,
-                        &self.u,
-                        &mut self.du,
-                        n + 1,
-                        t_next,
-                    )
+                    .solve(StepSystem {
+                        k: &mut self.op.k,
+                        ksp: &mut self.op.ksp,
+                        rhs: &self.rhs,
+                        u: &self.u,
+                        du: &mut self.du,
+                        step: n + 1,
+                        time: t_next,
+                    })
                     .map_err(with_step)?;
                 self.energy.contact_work += c.work;
                 (its, Some(c))
