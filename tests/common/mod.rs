@@ -6,6 +6,7 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 use std::sync::atomic::{AtomicUsize, Ordering};
 
+#[allow(unused_imports)] // not every test file reads dataset names
 pub use massfree::io::layout::{self, RunReader};
 pub use massfree::simulation::RunSummary;
 
