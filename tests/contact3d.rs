@@ -96,10 +96,12 @@ fn sparse_active_set_agrees_with_the_schur_complement() {
         let dmax = f1.iter().zip(f2).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
         assert!(dmax <= 1e-7 * fmax, "{base}: forces differ by {dmax} (max {fmax})");
         assert!(rel_diff(s1.energy_final, s2.energy_final) < 1e-9, "{base}: final energy");
-        // The sparse solver's extra solves: only active-set iterations after the first.
+        // The sparse solver's extra solves: active-set iterations after the first, and at
+        // most one full-accuracy confirmation per step after inexact iterations.
         let c1 = contact(s1);
         let extra = ((c1.active_set_iterations_mean - 1.0) * c1.contact_steps as f64).round();
-        assert!(c1.extra_solves as f64 <= extra + 1.0, "{base}: {} extra solves", c1.extra_solves);
+        let bound = extra + 1.0 + s1.steps as f64;
+        assert!(c1.extra_solves as f64 <= bound, "{base}: {} extra solves", c1.extra_solves);
     }
 }
 
@@ -137,5 +139,41 @@ fn ball_contact_does_not_depend_on_the_number_of_ranks() {
         let dmax = f1.iter().zip(f).map(|(x, y)| (x - y).abs()).fold(0.0, f64::max);
         assert!(dmax <= 1e-8 * fmax, "{} ranks: forces differ by {dmax}", s.ranks);
         assert!(rel_diff(s1.energy_final, s.energy_final) < 1e-8, "{} ranks: energy", s.ranks);
+    }
+}
+
+/// The active set found with inexact solves and confirmed by one full-accuracy solve, and
+/// with a multigrid preconditioner built once from the unconstrained operator, solve the
+/// same discrete problem as exact solves with a preconditioner rebuilt at every change: the
+/// same active sets, forces equal to the solver tolerance.
+#[test]
+fn inexact_iterations_and_a_kept_preconditioner_change_nothing() {
+    let dir = scratch("contact3d-inexact");
+    let scene = scene_variant("sphere.toml", &dir, &[("steps = 220", "steps = 120")]);
+    let variants: [&[&str]; 3] = [
+        &["-contact_loose_rtol", "0"],
+        &[],
+        &["-step_pc_type", "gamg", "-step_ksp_reuse_preconditioner", "true"],
+    ];
+    let mut runs = vec![];
+    for extra in variants {
+        let mut args = vec!["--", "-ksp_rtol", "1e-12"];
+        args.extend_from_slice(extra);
+        let s = run_scene(2, &scene, &args);
+        let r = reader(&dir.join("sphere-2.h5"));
+        let f = r.series(&layout::contact("force")).unwrap();
+        let a = r.series(&layout::contact("active")).unwrap();
+        runs.push((s, f, a));
+    }
+    let (s0, f0, a0) = &runs[0];
+    assert!(a0.iter().any(|&x| x != 0.0), "no contact");
+    assert_eq!(s0.pc_type, "jacobi");
+    assert_eq!(runs[2].0.pc_type, "gamg");
+    let fmax = f0.iter().cloned().fold(0.0, f64::max);
+    for (i, (s, f, a)) in runs.iter().enumerate().skip(1) {
+        assert_eq!(a0, a, "variant {i}: active sets differ");
+        let dmax = f0.iter().zip(f).map(|(x, y)| (x - y).abs()).fold(0.0, f64::max);
+        assert!(dmax <= 1e-7 * fmax, "variant {i}: forces differ by {dmax} (max {fmax})");
+        assert!(rel_diff(s0.energy_final, s.energy_final) < 1e-9, "variant {i}: energy");
     }
 }

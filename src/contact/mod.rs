@@ -168,7 +168,11 @@ pub fn solver<'w>(
     let nodes = ContactNodes::new(world, mesh, part, boundary, obstacles);
     match crate::petsc::Petsc::options_get_string("-contact_solver")?.as_deref() {
         None | Some("pdas") => {
-            let s = pdas::ActiveSet::new(nodes, factor);
+            let mut s = pdas::ActiveSet::new(nodes, factor);
+            // Until the active set repeats, half the digits of the step solver's tolerance
+            // (inexact semismooth Newton); then one solve to full accuracy confirms the set.
+            let loose = crate::petsc::Petsc::options_get_real("-contact_loose_rtol")?;
+            s = s.with_loose_rtol(loose);
             let measure = crate::petsc::Petsc::options_has("-contact_reference_solve")?;
             Ok(Box::new(if measure { s.with_reference_solve() } else { s }))
         }
@@ -393,6 +397,17 @@ impl ActiveSetLoop {
         (0..active.len())
             .map(|p| if active[p] { force[p] > -1e-12 * scale } else { gap[p] < -gap_tol })
             .collect()
+    }
+
+    /// Whether the loop has already been at `set`.
+    pub fn seen(&self, set: &[bool]) -> bool {
+        self.history.iter().any(|h| h == set)
+    }
+
+    /// Starts the cycle history anew from `set` (the iterations before were inexact: a
+    /// repeat among them says nothing about the exact ones).
+    pub fn restart(&mut self, set: &[bool]) {
+        self.history = vec![set.to_vec()];
     }
 
     /// Counts an iteration that gave `next` from `active`: `Ok(None)` when the set settled,

@@ -26,6 +26,10 @@ pub struct ActiveSet<'w> {
     /// Factor of the force in the step equation (2 for the midpoint rule's du form).
     factor: f64,
     max_iterations: usize,
+    /// Relative tolerance of the solves until the active set repeats (`-contact_loose_rtol`,
+    /// default the square root of the step solver's); at or below the step solver's own,
+    /// every solve is exact.
+    loose_rtol: Option<f64>,
     /// Solves beyond the first of each step.
     extra_solves: usize,
     /// With `-contact_reference_solve` (benchmark): each step's plain solve, for the cost ratio.
@@ -63,9 +67,17 @@ impl<'w> ActiveSet<'w> {
             b: None,
             factor,
             max_iterations: 50,
+            loose_rtol: None,
             extra_solves: 0,
             reference: None,
         }
+    }
+
+    /// Solve with relative tolerance `rtol` until the active set repeats, then to full
+    /// accuracy.
+    pub fn with_loose_rtol(mut self, rtol: Option<f64>) -> ActiveSet<'w> {
+        self.loose_rtol = rtol;
+        self
     }
 
     /// Operator rewrites so far.
@@ -112,21 +124,46 @@ impl ContactSolver for ActiveSet<'_> {
         let t0 = Instant::now();
         let mut lp = ActiveSetLoop::new(&active, self.max_iterations, step, time);
         let mut its = 0;
+        let tight = ksp.rtol()?;
+        let loose = self.loose_rtol.unwrap_or(tight.sqrt());
+        // Inexact solves only pay when the set may change: not while every node stays away
+        // from the obstacle by more than the largest normal motion of the last step.
+        let reach = ndu_last.iter().fold(0.0f64, |a, &x| a.max(x.abs()));
+        let quiet = (0..nc).all(|p| !active[p] && frames[p].0 - ndu_last[p] > reach);
+        let mut exact = quiet || loose <= tight;
+        let mut confirmations = 0;
         let (lambda, trace) = loop {
             cons.impose(k, &active, &normals)?;
             cons.rhs(rhs, &active, &frames, b)?;
-            its += ksp.solve(b, du)?.iterations;
+            if !exact {
+                ksp.set_tolerances(Some(loose), None, None, None)?;
+            }
+            let info = ksp.solve(b, du);
+            if !exact {
+                ksp.set_tolerances(Some(tight), None, None, None)?;
+            }
+            its += info?.iterations;
             let trace = self.nodes.trace(du)?;
             let lambda = cons.forces(&self.nodes, rhs, du, &active, &normals, self.factor)?;
             let ndu = self.nodes.normal_parts(&frames, &trace);
             let gap: Vec<f64> = (0..nc).map(|p| frames[p].0 - ndu[p]).collect();
             let next = ActiveSetLoop::next_set(&active, &lambda, &gap, self.nodes.gap_tol);
+            if !exact && (next == active || lp.seen(&next)) {
+                // The inexact solves found their set (or cycle among nearby sets): from here
+                // on solve to full accuracy, starting from where they ended. That solve
+                // confirms the set; it is counted as a solve, not as an active-set iteration.
+                exact = true;
+                confirmations += 1;
+                lp.restart(&next);
+                active = next;
+                continue;
+            }
             match lp.advance(&active, next, &self.nodes.tags)? {
                 None => break (lambda, trace),
                 Some(next) => active = next,
             }
         };
-        self.extra_solves += lp.iterations - 1;
+        self.extra_solves += lp.iterations - 1 + confirmations;
         if let (Some(r), Some((plain_its, plain_s))) = (self.reference.as_mut(), plain) {
             r.plain_seconds_all_steps += plain_s;
             if active.iter().any(|&a| a) {

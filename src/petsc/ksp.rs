@@ -116,6 +116,14 @@ impl Ksp {
         Ok(from_cstr(t))
     }
 
+    /// The relative tolerance in force.
+    pub fn rtol(&self) -> Result<f64> {
+        let (mut rtol, mut atol, mut dtol, mut its) = (0.0, 0.0, 0.0, 0);
+        // SAFETY: valid handle; out-pointers.
+        chk!(ffi::KSPGetTolerances(self.ksp, &mut rtol, &mut atol, &mut dtol, &mut its))?;
+        Ok(rtol)
+    }
+
     /// Convergence tolerances; `None` keeps PETSc's current value (`PETSC_DEFAULT`).
     pub fn set_tolerances(
         &mut self,
@@ -143,6 +151,13 @@ impl Ksp {
     pub fn set_initial_guess_nonzero(&mut self, nonzero: bool) -> Result<()> {
         // SAFETY: valid handle.
         chk!(ffi::KSPSetInitialGuessNonzero(self.ksp, petsc_bool(nonzero)))
+    }
+
+    /// Keep the preconditioner built so far when the operator's values change (PETSc's
+    /// `-ksp_reuse_preconditioner`).
+    pub fn set_reuse_preconditioner(&mut self, reuse: bool) -> Result<()> {
+        // SAFETY: valid handle.
+        chk!(ffi::KSPSetReusePreconditioner(self.ksp, petsc_bool(reuse)))
     }
 
     /// Reads `-<prefix>ksp_*` / `-<prefix>pc_*` options. Call it after the programmatic

@@ -133,6 +133,17 @@ impl StepOperator {
         ksp.set_from_options()?;
         ksp.set_options_prefix("step_")?;
         ksp.set_from_options()?;
+        // A multigrid preconditioner is built once from the unconstrained operator and kept
+        // when a contact solver rewrites rows near the contact: recomputing its coarse
+        // operators at every active-set change cost more than the few extra iterations
+        // (README "Step solver by regime"). `-step_ksp_reuse_preconditioner false` rebuilds.
+        let multigrid = matches!(ksp.pc_type()?.as_str(), "gamg" | "hypre" | "ml" | "mg");
+        if multigrid
+            && !Petsc::options_has("-ksp_reuse_preconditioner")?
+            && !Petsc::options_has("-step_ksp_reuse_preconditioner")?
+        {
+            ksp.set_reuse_preconditioner(true)?;
+        }
         // The previous step's increment is a good first guess for an iterative solver (du
         // changes smoothly in time); a direct solve (preonly) must start from zero.
         let iterative = ksp.ksp_type()? != "preonly";
