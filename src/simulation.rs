@@ -474,14 +474,21 @@ impl<'a> Simulation<'a> {
             kernels::stiffness(mesh.cells[c].kind, xy, &mat, out)
                 .map_err(|e| Error::Mesh(format!("{e} (gmsh element tag {})", mesh.cells[c].tag)))
         })?;
-        let layer =
-            build_layer(mesh, self.scene.mass.kind, self.scene.mass.contact_boundary.as_deref())?;
+        let layer = build_layer(mesh, self.scene.mass.kind, &self.scene.mass.layer_groups())?;
         let m = mass_matrix(mesh, part, mat.rho, self.scene.mass.kind, layer.as_ref())?;
         let neumann: Vec<(String, crate::scene::expr::VecExpr)> =
             self.scene.neumann.iter().map(|n| (n.group.clone(), n.traction.clone())).collect();
         let loads = Loads::new(mesh, part, self.scene.body_force.as_ref(), &neumann)?;
         let dirichlet = Dirichlet::new(mesh, part, &self.scene.dirichlet)?;
         let contact: Option<Box<dyn ContactSolver + 'a>> = match &self.scene.contact {
+            Some(spec) if spec.master.is_some() => Some(contact::mortar::pair_solver(
+                self.world,
+                &self.mesh,
+                &self.part,
+                &spec.boundary,
+                spec.master.as_deref().unwrap_or_default(),
+                Midpoint::CONTACT_FORCE_FACTOR,
+            )?),
             Some(spec) => Some(contact::solver(
                 self.world,
                 &self.mesh,

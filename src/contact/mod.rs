@@ -23,6 +23,7 @@ pub mod columns;
 pub mod constraint;
 pub mod history;
 pub mod metrics;
+pub mod mortar;
 pub mod obstacle;
 pub mod pdas;
 
@@ -211,6 +212,9 @@ pub struct ContactNodes<'w> {
     pub gap_tol: f64,
     /// The active set of the last step (the next step's first guess).
     pub active: Vec<bool>,
+    /// Instead of the obstacles, one plane per node, `(c_q, n_q)`: node q must keep
+    /// `n_q . y_q <= c_q` (two-body contact in the mortar basis, [`mortar::MortarActiveSet`]).
+    pub node_planes: Option<Vec<(f64, [f64; 3])>>,
 }
 
 impl<'w> ContactNodes<'w> {
@@ -249,6 +253,7 @@ impl<'w> ContactNodes<'w> {
             first_dof: part.first_dof(),
             gap_tol: 1e-12 * diag.max(f64::MIN_POSITIVE),
             active: vec![false; n],
+            node_planes: None,
         }
     }
 
@@ -290,7 +295,13 @@ impl<'w> ContactNodes<'w> {
                 for c in 0..d {
                     y[c] += u_trace[k * d + c];
                 }
-                obstacle::closest(&placed, y)
+                match &self.node_planes {
+                    Some(p) => {
+                        let (c, n) = p[k];
+                        (0, c - (0..d).map(|i| n[i] * y[i]).sum::<f64>(), n)
+                    }
+                    None => obstacle::closest(&placed, y),
+                }
             })
             .collect()
     }

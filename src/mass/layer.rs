@@ -202,8 +202,21 @@ impl MassFreeLayer {
     /// facet of any cell); variant 0: a layer cell has no non-contact vertex; variant 1: a
     /// layer cell has no partner outside the layer, or a degenerate partner (`Error::Mesh`).
     pub fn build(mesh: &Mesh, contact_group: &str, variant: Variant) -> Result<MassFreeLayer> {
-        let name = contact_group;
-        let elems = boundary_group(mesh, name)?;
+        MassFreeLayer::build_along(mesh, &[contact_group], variant)
+    }
+
+    /// The layer along several contact boundary groups (both sides of a two-body contact).
+    pub fn build_along(
+        mesh: &Mesh,
+        contact_groups: &[&str],
+        variant: Variant,
+    ) -> Result<MassFreeLayer> {
+        let joined = contact_groups.join("\" and \"");
+        let name = joined.as_str();
+        let mut elems = Vec::new();
+        for g in contact_groups {
+            elems.extend(boundary_group(mesh, g)?);
+        }
         let facets = facet_map(mesh, &cells_near(mesh, &elems));
 
         let mut contact_nodes: Vec<usize> =

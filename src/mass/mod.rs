@@ -18,20 +18,20 @@ pub use layer::{MassFreeLayer, Variant};
 pub fn build_layer(
     mesh: &Mesh,
     kind: MassKind,
-    contact_boundary: Option<&str>,
+    contact_boundaries: &[&str],
 ) -> Result<Option<MassFreeLayer>> {
     let variant = match kind {
         MassKind::Modified0 => Variant::Zero,
         MassKind::Modified1 => Variant::One,
         _ => return Ok(None),
     };
-    let group = contact_boundary.ok_or_else(|| {
-        Error::Scene(format!(
+    if contact_boundaries.is_empty() {
+        return Err(Error::Scene(format!(
             "mass.kind = {} needs mass.contact_boundary: the mass-free layer is built along the potential contact boundary",
             kind.name()
-        ))
-    })?;
-    MassFreeLayer::build(mesh, group, variant).map(Some)
+        )));
+    }
+    MassFreeLayer::build_along(mesh, contact_boundaries, variant).map(Some)
 }
 
 /// Assemble the mass matrix of the requested kind; `layer` must be `build_layer`'s result.

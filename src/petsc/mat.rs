@@ -133,6 +133,26 @@ impl Matrix {
         chk!(ffi::MatMult(self.m, x.raw(), y.raw()))
     }
 
+    /// `y = A^T x`.
+    pub fn mult_transpose(&self, x: &Vector, y: &mut Vector) -> Result<()> {
+        // SAFETY: valid handles; `y` is distinct from `x` by the borrow rules.
+        chk!(ffi::MatMultTranspose(self.m, x.raw(), y.raw()))
+    }
+
+    /// `P^T A P` as a new matrix (`A` = self, square; PETSc's `MatPtAP`).
+    pub fn ptap(&self, p: &Matrix) -> Result<Matrix> {
+        let mut c: ffi::Mat = ptr::null_mut();
+        // SAFETY: valid assembled handles; `c` is an out-pointer (MAT_INITIAL_MATRIX).
+        chk!(ffi::MatPtAP(
+            self.m,
+            p.m,
+            ffi::MatReuse_MAT_INITIAL_MATRIX,
+            ffi::PETSC_DEFAULT as f64,
+            &mut c
+        ))?;
+        Matrix::from_raw(c)
+    }
+
     /// `z = y + A x`.
     pub fn mult_add(&self, x: &Vector, y: &Vector, z: &mut Vector) -> Result<()> {
         // SAFETY: valid handles; `z` is distinct from `x` (PETSc allows z == y, not needed).

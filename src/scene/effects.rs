@@ -108,13 +108,17 @@ pub struct Effects {
     pub contact: Vec<ObstacleEffect>,
     /// Errors against the exact solution are computed (at `exact.error_steps`).
     pub exact_errors: bool,
+    /// Two-body contact: (slave group, master group), dual mortar.
+    pub contact_pair: Option<(String, String)>,
 }
 
 impl Scene {
     /// What must be built: only what the scene asks for.
     pub fn effects(&self) -> Effects {
-        let layer_boundary =
-            self.mass.contact_boundary.clone().filter(|_| self.mass.kind.is_modified());
+        let groups: Vec<String> =
+            self.mass.layer_groups().iter().map(|g| format!("\"{g}\"")).collect();
+        let layer_boundary = Some(groups.join(" and "))
+            .filter(|_| self.mass.kind.is_modified() && !groups.is_empty());
         let nonzero = |f: &Option<VecExpr>| f.as_ref().is_some_and(|f| !f.is_zero());
         Effects {
             mass: self.mass.kind,
@@ -131,6 +135,10 @@ impl Scene {
                 .flat_map(|c| &c.obstacles)
                 .map(ObstacleEffect::of)
                 .collect(),
+            contact_pair: self
+                .contact
+                .as_ref()
+                .and_then(|c| c.master.as_ref().map(|m| (c.boundary.clone(), m.clone()))),
             exact_errors: self.exact.is_some(),
         }
     }
@@ -161,12 +169,14 @@ impl Effects {
             if self.dirichlet_lifting.is_some() { "non-zero values" } else { "zero values" };
         let names: Vec<String> = self.contact.iter().map(|o| o.name()).collect();
         let obstacle = match names.len() {
-            0 => None,
+            0 => self
+                .contact_pair
+                .as_ref()
+                .map(|(s, m)| format!("two bodies, slave {s:?} on master {m:?}, dual mortar")),
             1 => Some(format!("{} obstacle", names[0])),
             n => Some(format!("{n} obstacles: {}", names.join(", "))),
         };
-        let layer =
-            self.layer_boundary.as_ref().map(|g| format!("{} along {g:?}", self.mass.name()));
+        let layer = self.layer_boundary.as_ref().map(|g| format!("{} along {g}", self.mass.name()));
         let optional: [(&str, Option<String>); 9] = [
             ("mass-free layer", with("mass-free layer", layer.as_deref())),
             ("initial displacement", flag("initial displacement", self.initial_displacement)),

@@ -59,6 +59,9 @@
 //! # obstacle = { type = "sphere", center = [0.0, 2.0], radius = 1.0, motion = ["0", "-t"] }
 //! # obstacles = [{ type = "plane", ... }, { type = "cylinder", point = [0, 0, -1],
 //! #               axis = [0, 1, 0], radius = 1 }]   # instead of obstacle; cylinders: 3D only
+//! # Two deformable bodies instead of boundary + obstacle (dual mortar, non-matching meshes):
+//! # slave = "upper_contact"
+//! # master = "lower_contact"     # the mass-free layer then runs along both
 //! ```
 //!
 //! Numbers are accepted wherever an expression is (`value = [0, -1.5]`).
@@ -194,6 +197,16 @@ pub struct MassSpec {
     pub kind: MassKind,
     /// Potential contact boundary (physical group); always `Some` for the modified kinds.
     pub contact_boundary: Option<String>,
+    /// Further groups the layer runs along: the master side of a contact pair, unless the
+    /// scene names `mass.contact_boundary` itself.
+    pub also_along: Vec<String>,
+}
+
+impl MassSpec {
+    /// Every group the mass-free layer runs along.
+    pub fn layer_groups(&self) -> Vec<&str> {
+        self.contact_boundary.iter().chain(&self.also_along).map(String::as_str).collect()
+    }
 }
 
 /// Defaults for the step operator's KSP; command-line PETSc options still win.
@@ -293,8 +306,10 @@ impl Obstacle {
 
 #[derive(Debug, Clone, PartialEq)]
 pub struct ContactSpec {
-    /// Physical group of the potential contact boundary.
+    /// Physical group of the potential contact boundary (the slave side of a pair).
     pub boundary: String,
+    /// The master side of a two-body pair (`contact.master`; then there are no obstacles).
+    pub master: Option<String>,
     /// At least one; each contact node meets the one with the smallest gap.
     pub obstacles: Vec<Obstacle>,
     /// Given as the list `contact.obstacles` (else as `contact.obstacle`).
@@ -657,7 +672,9 @@ struct RawExact {
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 struct RawContact {
-    boundary: String,
+    boundary: Option<String>,
+    slave: Option<String>,
+    master: Option<String>,
     obstacle: Option<RawObstacle>,
     obstacles: Option<Vec<RawObstacle>>,
 }
@@ -1152,26 +1169,46 @@ fn build(raw: RawScene, stem: &str, base_dir: &Path) -> VResult<Scene> {
     let contact = match raw.contact {
         None => None,
         Some(c) => {
-            let boundary = group_name(c.boundary, "contact.boundary")?;
-            let (raws, listed) = match (c.obstacle, c.obstacles) {
-                (Some(_), Some(_)) => {
-                    return Err("contact: give exactly one of contact.obstacle and contact.obstacles, not both".into());
+            let (boundary, master) = match (c.boundary, c.slave, c.master) {
+                (Some(b), None, None) => (group_name(b, "contact.boundary")?, None),
+                (None, Some(s), Some(m)) => {
+                    if c.obstacle.is_some() || c.obstacles.is_some() {
+                        return Err("contact: a slave/master pair takes no obstacle (two deformable bodies); give contact.boundary with the obstacles instead".into());
+                    }
+                    let (s, m) = (group_name(s, "contact.slave")?, group_name(m, "contact.master")?);
+                    if s == m {
+                        return Err(format!("contact.slave and contact.master are the same group \"{s}\""));
+                    }
+                    (s, Some(m))
                 }
-                (None, None) => {
-                    return Err("contact: give the obstacle (contact.obstacle = { type = ... }) or a list of them (contact.obstacles = [{ ... }, ...])".into());
-                }
-                (Some(o), None) => (vec![o], false),
-                (None, Some(list)) if list.is_empty() => {
-                    return Err("contact.obstacles is empty: give at least one obstacle".into());
-                }
-                (None, Some(list)) => (list, true),
+                (None, Some(_), None) => return Err("contact.slave needs contact.master (the other body's contact boundary)".into()),
+                (None, None, Some(_)) => return Err("contact.master needs contact.slave (this body's contact boundary)".into()),
+                (None, None, None) => return Err("contact: give contact.boundary (with an obstacle) or contact.slave and contact.master (two bodies)".into()),
+                (Some(_), _, _) => return Err("contact: give either contact.boundary (with obstacles) or contact.slave and contact.master, not both".into()),
             };
-            let obstacles = raws
-                .into_iter()
-                .enumerate()
-                .map(|(i, o)| obstacle(o, &obstacle_key(listed, i)))
-                .collect::<VResult<Vec<_>>>()?;
-            Some(ContactSpec { boundary, obstacles, listed })
+            if master.is_some() {
+                Some(ContactSpec { boundary, master, obstacles: Vec::new(), listed: false })
+            } else {
+                let (raws, listed) = match (c.obstacle, c.obstacles) {
+                    (Some(_), Some(_)) => {
+                        return Err("contact: give exactly one of contact.obstacle and contact.obstacles, not both".into());
+                    }
+                    (None, None) => {
+                        return Err("contact: give the obstacle (contact.obstacle = { type = ... }) or a list of them (contact.obstacles = [{ ... }, ...])".into());
+                    }
+                    (Some(o), None) => (vec![o], false),
+                    (None, Some(list)) if list.is_empty() => {
+                        return Err("contact.obstacles is empty: give at least one obstacle".into());
+                    }
+                    (None, Some(list)) => (list, true),
+                };
+                let obstacles = raws
+                    .into_iter()
+                    .enumerate()
+                    .map(|(i, o)| obstacle(o, &obstacle_key(listed, i)))
+                    .collect::<VResult<Vec<_>>>()?;
+                Some(ContactSpec { boundary, master, obstacles, listed })
+            }
         }
     };
 
@@ -1181,9 +1218,12 @@ fn build(raw: RawScene, stem: &str, base_dir: &Path) -> VResult<Scene> {
         None => (MassKind::Consistent, None),
     };
     // The mass-free layer sits on the contact boundary unless the scene names another group.
-    let contact_boundary = match contact_boundary {
-        Some(g) => Some(group_name(g, "mass.contact_boundary")?),
-        None => contact.as_ref().map(|c: &ContactSpec| c.boundary.clone()),
+    let (contact_boundary, also_along) = match contact_boundary {
+        Some(g) => (Some(group_name(g, "mass.contact_boundary")?), Vec::new()),
+        None => (
+            contact.as_ref().map(|c: &ContactSpec| c.boundary.clone()),
+            contact.as_ref().and_then(|c| c.master.clone()).into_iter().collect(),
+        ),
     };
     if kind.is_modified() && contact_boundary.is_none() {
         return Err(format!(
@@ -1191,7 +1231,7 @@ fn build(raw: RawScene, stem: &str, base_dir: &Path) -> VResult<Scene> {
             kind.name()
         ));
     }
-    let mass = MassSpec { kind, contact_boundary };
+    let mass = MassSpec { kind, contact_boundary, also_along };
 
     Ok(Scene {
         name,

@@ -364,7 +364,7 @@ fn obstacle_errors_name_the_key() {
         ),
         (
             "boundary2 = 1",
-            &["unknown key \"contact.boundary2\"", "allowed: boundary, obstacle, obstacles"],
+            &["unknown key \"contact.boundary2\"", "allowed: boundary, slave, master, obstacle, obstacles"],
         ),
         (
             "obstacles = [{ type = \"cone\", point = [0, 0] }]",
@@ -651,7 +651,7 @@ fn effects_follow_the_scene() {
         s.effects(),
         Effects {
             mass: MassKind::Modified1,
-            layer_boundary: Some("bottom".into()),
+            layer_boundary: Some("\"bottom\"".into()),
             initial_displacement: false,
             initial_velocity: true,
             body_force: varying,
@@ -660,6 +660,7 @@ fn effects_follow_the_scene() {
             dirichlet_lifting: varying,
             contact: vec![ObstacleEffect { kind: ObstacleKind::Plane, moving: false }],
             exact_errors: true,
+            contact_pair: None,
         }
     );
     let text = format!(
@@ -680,6 +681,7 @@ fn effects_follow_the_scene() {
             dirichlet_lifting: Some(Variation::Steady),
             contact: vec![],
             exact_errors: false,
+            contact_pair: None,
         }
     );
     assert_eq!(
@@ -786,4 +788,46 @@ fn variant_text_parses_back_to_the_overridden_scene() {
     let msh = dir.join("meshes/beam.msh").canonicalize().unwrap();
     assert_eq!(v.mesh, MeshSource::Msh { path: msh });
     assert_eq!((v.name, v.steps, v.output, v.mass), (s.name, s.steps, s.output, s.mass));
+}
+
+#[test]
+fn contact_pairs_of_two_bodies() {
+    let dir = workspace();
+    let pair = |rest: &str| format!("{MINIMAL}\n[contact]\n{rest}\n");
+    let s = parse_in(
+        &dir,
+        &format!("{}[mass]\nkind = \"modified1\"\n", pair("slave = \"a\"\nmaster = \"b\"")),
+    )
+    .unwrap();
+    let c = s.contact.as_ref().unwrap();
+    assert_eq!((c.boundary.as_str(), c.master.as_deref()), ("a", Some("b")));
+    assert!(c.obstacles.is_empty());
+    // The layer runs along both sides unless the scene names its group.
+    assert_eq!(s.mass.layer_groups(), vec!["a", "b"]);
+    assert!(s.effects().summary().contains(
+        "mass-free layer (modified1 along \"a\" and \"b\"), contact (two bodies, slave \"a\" on master \"b\", dual mortar)"
+    ));
+    let named = format!(
+        "{}[mass]\nkind = \"modified1\"\ncontact_boundary = \"a\"\n",
+        pair("slave = \"a\"\nmaster = \"b\"")
+    );
+    assert_eq!(parse_in(&dir, &named).unwrap().mass.layer_groups(), vec!["a"]);
+    let plane = "{ type = \"plane\", point = [0, 0], normal = [0, 1] }";
+    let cases: Vec<(String, &str)> = vec![
+        (pair("slave = \"a\""), "contact.slave needs contact.master"),
+        (pair("master = \"b\""), "contact.master needs contact.slave"),
+        (
+            pair("slave = \"a\"\nmaster = \"a\""),
+            "contact.slave and contact.master are the same group \"a\"",
+        ),
+        (
+            pair(&format!("slave = \"a\"\nmaster = \"b\"\nobstacle = {plane}")),
+            "a slave/master pair takes no obstacle",
+        ),
+        (pair("boundary = \"c\"\nslave = \"a\"\nmaster = \"b\""), "not both"),
+        (pair(""), "give contact.boundary (with an obstacle) or contact.slave and contact.master"),
+    ];
+    for (text, needle) in &cases {
+        assert_err(text, &[needle]);
+    }
 }

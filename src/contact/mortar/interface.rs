@@ -1,0 +1,278 @@
+//! The mortar interface of one contact pair: dual-mortar matrices `D` (diagonal) and `M`, the
+//! averaged slave normals and the weighted gaps, on a given configuration (METHOD.md 5b).
+//!
+//! `D_qq = int_{Gamma_s} phi_q`, `M_ql = int_{Gamma_s} psi_q (phi_l o projection)`,
+//! `g_q = int psi_q n_q . (x_m(projection) - x_s)` (positive while the bodies are apart), so
+//! that the weighted gap after an increment `du` is, to first order,
+//! `g_q - n_q . (D_qq du_q - sum_l M_ql du_l)`.
+//!
+//! Distributed by the slave side: each rank integrates the slave facets whose cell it owns
+//! against the master facets its bucket search finds, and the ranks sum their parts
+//! (O(slave nodes) replicated data, the contact nodes' share, like the obstacle contact's).
+//! Today every rank holds the whole mesh, so the master facets are at hand; with a
+//! distributed mesh a rank fetches the master facets within its slave facets' boxes.
+
+use std::collections::HashMap;
+
+use mpi::collective::SystemOperation;
+use mpi::datatype::PartitionMut;
+use mpi::topology::SimpleCommunicator;
+use mpi::traits::*;
+
+use super::*;
+use crate::error::{Error, Result};
+use crate::mesh::topology::{boundary_group, cells_near, facet_key, facet_map};
+use crate::mesh::Mesh;
+use crate::partition::Partition;
+
+/// One boundary facet of a contact group: its mesh nodes, ordered so that its normal points
+/// out of its body, and the cell it bounds.
+#[derive(Debug, Clone)]
+pub struct SurfaceFacet {
+    pub nodes: Vec<usize>,
+    pub cell: usize,
+}
+
+/// The facets of a contact boundary group, oriented outwards (gmsh does not promise an
+/// orientation for boundary elements): the facet normal must point away from its cell's
+/// centroid. Errors name the group.
+pub fn oriented_facets(mesh: &Mesh, group: &str) -> Result<Vec<SurfaceFacet>> {
+    let elems = boundary_group(mesh, group)?;
+    let facets = facet_map(mesh, &cells_near(mesh, &elems));
+    let mut out = Vec::with_capacity(elems.len());
+    for e in &elems {
+        let all: Vec<usize> = (0..e.kind.n_nodes()).collect();
+        let cell = facets[&facet_key(e.nodes(), &all)].0;
+        let mut nodes = e.nodes().to_vec();
+        let x: Vec<[f64; 3]> = nodes.iter().map(|&v| mesh.coords[v]).collect();
+        let n = facet_normal(mesh.dim, &x)
+            .map_err(|err| Error::Mesh(format!("contact group \"{group}\": {err}")))?;
+        let centre = centroid(&x);
+        let inside = centroid(&mesh.element_coords(&mesh.cells[cell]));
+        if dot3(n, sub3(centre, inside)) < 0.0 {
+            // Keep the first node (a quad stays a quad), reverse the cycle; a line swaps.
+            if nodes.len() == 2 {
+                nodes.reverse();
+            } else {
+                nodes[1..].reverse();
+            }
+        }
+        out.push(SurfaceFacet { nodes, cell });
+    }
+    Ok(out)
+}
+
+fn centroid(x: &[[f64; 3]]) -> [f64; 3] {
+    let s = x.iter().fold([0.0; 3], |a, p| add3(a, *p));
+    scale3(1.0 / x.len() as f64, s)
+}
+
+/// The (unnormalized) normal of a facet at its centre, in 3D components (z = 0 in 2D).
+fn facet_normal(dim: usize, x: &[[f64; 3]]) -> std::result::Result<Vec3, GeomError> {
+    let idx: Vec<usize> = (0..x.len()).collect();
+    if dim == 2 {
+        let p: Vec<Vec2> = x.iter().map(|p| [p[0], p[1]]).collect();
+        let n = Facet2::from_nodes(&p, [0, 1])?.normal();
+        Ok([n[0], n[1], 0.0])
+    } else {
+        let f = Facet3::from_nodes(x, &idx)?;
+        Ok(f.normal(f.centre_param()))
+    }
+}
+
+/// The mortar data of one slave/master pair, identical on every rank.
+#[derive(Debug, Clone, Default)]
+pub struct MortarInterface {
+    /// Slave nodes (mesh indices, ascending).
+    pub slave: Vec<usize>,
+    /// Master nodes (mesh indices, ascending).
+    pub master: Vec<usize>,
+    /// `D_qq` per slave node.
+    pub d: Vec<f64>,
+    /// `(q, l, M_ql)`: slave index, master index (into `slave`, `master`), sorted.
+    pub m: Vec<(u32, u32, f64)>,
+    /// Averaged unit slave normals (towards the master).
+    pub normals: Vec<[f64; 3]>,
+    /// Weighted gaps `g_q`.
+    pub gap: Vec<f64>,
+}
+
+impl MortarInterface {
+    /// Evaluates the pair on the configuration `x` (node positions, e.g. reference + `u`).
+    /// `reach`: master facets farther than this from a slave facet are not considered (the
+    /// search inflates the facets' boxes by it). Collective.
+    pub fn build(
+        world: &SimpleCommunicator,
+        mesh: &Mesh,
+        part: &Partition,
+        slave_facets: &[SurfaceFacet],
+        master_facets: &[SurfaceFacet],
+        x: &[[f64; 3]],
+        reach: f64,
+    ) -> Result<MortarInterface> {
+        let err = |e: GeomError| Error::Solver(format!("mortar: {e}"));
+        let dim = mesh.dim;
+        let slave = sorted_nodes(slave_facets);
+        let master = sorted_nodes(master_facets);
+        let s_of: HashMap<usize, u32> =
+            slave.iter().enumerate().map(|(k, &v)| (v, k as u32)).collect();
+        let m_of: HashMap<usize, u32> =
+            master.iter().enumerate().map(|(k, &v)| (v, k as u32)).collect();
+        let mine: Vec<&SurfaceFacet> =
+            slave_facets.iter().filter(|f| part.cell_rank[f.cell] == part.rank).collect();
+        let pos = |f: &SurfaceFacet| -> Vec<[f64; 3]> { f.nodes.iter().map(|&v| x[v]).collect() };
+        let ns = slave.len();
+
+        // Averaged nodal normals: sum of the adjacent facets' unit normals.
+        let mut nsum = vec![0.0; 3 * ns];
+        for f in &mine {
+            let n = facet_normal(dim, &pos(f)).map_err(err)?;
+            let n = scale3(1.0 / norm3(n), n);
+            for &v in &f.nodes {
+                let q = s_of[&v] as usize;
+                for c in 0..3 {
+                    nsum[3 * q + c] += n[c];
+                }
+            }
+        }
+        let mut total = vec![0.0; 3 * ns];
+        world.all_reduce_into(&nsum[..], &mut total[..], SystemOperation::sum());
+        let normals: Vec<[f64; 3]> = (0..ns)
+            .map(|q| {
+                let n = [total[3 * q], total[3 * q + 1], total[3 * q + 2]];
+                scale3(1.0 / norm3(n), n)
+            })
+            .collect();
+
+        // Candidate pairs by bucket search over the boxes of the facets.
+        let boxes = |fs: &[&SurfaceFacet]| -> Result<Vec<Aabb>> {
+            fs.iter()
+                .map(|f| {
+                    let p = pos(f);
+                    Ok(if dim == 2 {
+                        let q: Vec<Vec2> = p.iter().map(|a| [a[0], a[1]]).collect();
+                        facet_aabb_2d(&Facet2::from_nodes(&q, [0, 1]).map_err(err)?, reach)
+                    } else {
+                        let idx: Vec<usize> = (0..p.len()).collect();
+                        facet_aabb_3d(&Facet3::from_nodes(&p, &idx).map_err(err)?, reach)
+                    })
+                })
+                .collect()
+        };
+        let masters: Vec<&SurfaceFacet> = master_facets.iter().collect();
+        let pairs = candidate_pairs(&boxes(&mine)?, &boxes(&masters)?);
+
+        // D per owned slave facet, M and the weighted gaps per overlapping pair.
+        let mut d = vec![0.0; ns];
+        let mut gap = vec![0.0; ns];
+        let mut m: HashMap<(u32, u32), f64> = HashMap::new();
+        let mut k = 0;
+        for (si, f) in mine.iter().enumerate() {
+            let p = pos(f);
+            let qs: Vec<usize> = f.nodes.iter().map(|v| s_of[v] as usize).collect();
+            let (dual, slave2, slave3) = if dim == 2 {
+                let q: Vec<Vec2> = p.iter().map(|a| [a[0], a[1]]).collect();
+                let fs = Facet2::from_nodes(&q, [0, 1]).map_err(err)?;
+                (dual_basis_2d(&fs).map_err(err)?, Some(fs), None)
+            } else {
+                let idx: Vec<usize> = (0..p.len()).collect();
+                let fs = Facet3::from_nodes(&p, &idx).map_err(err)?;
+                (dual_basis_3d(&fs).map_err(err)?, None, Some(fs))
+            };
+            for (j, &q) in qs.iter().enumerate() {
+                d[q] += dual.d[j];
+            }
+            while k < pairs.len() && pairs[k].0 == si {
+                let mf = masters[pairs[k].1];
+                k += 1;
+                let pm = pos(mf);
+                let found = if let Some(fs) = &slave2 {
+                    let nrm = [
+                        [normals[qs[0]][0], normals[qs[0]][1]],
+                        [normals[qs[1]][0], normals[qs[1]][1]],
+                    ];
+                    let q: Vec<Vec2> = pm.iter().map(|a| [a[0], a[1]]).collect();
+                    let fm = Facet2::from_nodes(&q, [0, 1]).map_err(err)?;
+                    mortar_pair_2d(fs, &nrm, &dual, &fm).map_err(err)?
+                } else {
+                    let fs = slave3.as_ref().expect("3D slave facet");
+                    let nrm: Vec<Vec3> = qs.iter().map(|&q| normals[q]).collect();
+                    let idx: Vec<usize> = (0..pm.len()).collect();
+                    let fm = Facet3::from_nodes(&pm, &idx).map_err(err)?;
+                    mortar_pair_3d(fs, &nrm, &dual, &fm).map_err(err)?
+                };
+                let Some(pi) = found else { continue };
+                for (j, &q) in qs.iter().enumerate() {
+                    gap[q] += pi.weighted_gap[j];
+                    for (l, &v) in mf.nodes.iter().enumerate() {
+                        *m.entry((q as u32, m_of[&v])).or_insert(0.0) += pi.m[j][l];
+                    }
+                }
+            }
+        }
+
+        // Sum the ranks' parts: D and the gaps by reduction, M's entries gathered and merged.
+        let mut dg = d;
+        dg.extend_from_slice(&gap);
+        let mut dg_all = vec![0.0; dg.len()];
+        world.all_reduce_into(&dg[..], &mut dg_all[..], SystemOperation::sum());
+        let (d, gap) = (dg_all[..ns].to_vec(), dg_all[ns..].to_vec());
+        let mut local: Vec<(u32, u32, f64)> = m.into_iter().map(|((q, l), v)| (q, l, v)).collect();
+        local.sort_by(|a, b| (a.0, a.1).cmp(&(b.0, b.1)));
+        let m = merge(&gather(world, &local));
+        Ok(MortarInterface { slave, master, d, m, normals, gap })
+    }
+
+    /// `sum_l M_ql` per slave node (equals `D_qq` where the master covers the node's support).
+    pub fn m_row_sums(&self) -> Vec<f64> {
+        let mut s = vec![0.0; self.slave.len()];
+        for &(q, _, v) in &self.m {
+            s[q as usize] += v;
+        }
+        s
+    }
+}
+
+fn sorted_nodes(facets: &[SurfaceFacet]) -> Vec<usize> {
+    let mut v: Vec<usize> = facets.iter().flat_map(|f| f.nodes.iter().copied()).collect();
+    v.sort_unstable();
+    v.dedup();
+    v
+}
+
+/// Every rank's `(q, l, value)` entries, in rank order.
+fn gather(world: &SimpleCommunicator, local: &[(u32, u32, f64)]) -> Vec<(u32, u32, f64)> {
+    let keys: Vec<u64> = local.iter().map(|e| (u64::from(e.0) << 32) | u64::from(e.1)).collect();
+    let vals: Vec<f64> = local.iter().map(|e| e.2).collect();
+    let n = world.size() as usize;
+    let mut counts = vec![0i32; n];
+    world.all_gather_into(&(keys.len() as i32), &mut counts[..]);
+    let displs: Vec<i32> =
+        counts.iter().scan(0, |s, &c| Some(std::mem::replace(s, *s + c))).collect();
+    let total = counts.iter().sum::<i32>() as usize;
+    let mut all_keys = vec![0u64; total];
+    let mut all_vals = vec![0.0f64; total];
+    world.all_gather_varcount_into(
+        &keys[..],
+        &mut PartitionMut::new(&mut all_keys[..], &counts[..], &displs[..]),
+    );
+    world.all_gather_varcount_into(
+        &vals[..],
+        &mut PartitionMut::new(&mut all_vals[..], &counts[..], &displs[..]),
+    );
+    all_keys.iter().zip(&all_vals).map(|(&k, &v)| ((k >> 32) as u32, k as u32, v)).collect()
+}
+
+/// Entries sorted by (q, l), duplicates (the same pair from two ranks) summed.
+fn merge(entries: &[(u32, u32, f64)]) -> Vec<(u32, u32, f64)> {
+    let mut e = entries.to_vec();
+    e.sort_by(|a, b| (a.0, a.1).cmp(&(b.0, b.1)));
+    let mut out: Vec<(u32, u32, f64)> = Vec::with_capacity(e.len());
+    for (q, l, v) in e {
+        match out.last_mut() {
+            Some(last) if last.0 == q && last.1 == l => last.2 += v,
+            _ => out.push((q, l, v)),
+        }
+    }
+    out
+}
