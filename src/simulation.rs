@@ -483,8 +483,8 @@ impl<'a> Simulation<'a> {
         let contact: Option<Box<dyn ContactSolver + 'a>> = match &self.scene.contact {
             Some(spec) if spec.master.is_some() => Some(contact::mortar::pair_solver(
                 self.world,
-                &self.mesh,
-                &self.part,
+                Rc::clone(&self.mesh),
+                Rc::clone(&self.part),
                 &spec.boundary,
                 spec.master.as_deref().unwrap_or_default(),
                 Midpoint::CONTACT_FORCE_FACTOR,

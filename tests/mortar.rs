@@ -25,8 +25,8 @@ fn check(world: &mpi::topology::SimpleCommunicator, name: &str, dim: usize, kind
     let part = Partition::new(&mesh, 0, 1).unwrap();
     let slave = oriented_facets(&mesh, "upper_contact").unwrap();
     let master = oriented_facets(&mesh, "lower_contact").unwrap();
-    let i =
-        MortarInterface::build(world, &mesh, &part, &slave, &master, &mesh.coords, 0.1).unwrap();
+    let i = MortarInterface::build(world, &mesh, &part, &slave, &master, &|v| mesh.coords[v], 0.1)
+        .unwrap();
     assert!(!i.slave.is_empty() && !i.master.is_empty(), "{label}: empty interface");
     assert!(i.slave.iter().all(|v| !i.master.contains(v)), "{label}: bodies share nodes");
     // The interface is the unit segment / unit square.
@@ -84,8 +84,8 @@ fn two_discs(world: &mpi::topology::SimpleCommunicator) {
     let slave = oriented_facets(&mesh, "upper_contact").unwrap();
     let master = oriented_facets(&mesh, "lower_contact").unwrap();
     // The search must reach every master facet a slave normal can hit: 0.3 > gap + tilt.
-    let i =
-        MortarInterface::build(world, &mesh, &part, &slave, &master, &mesh.coords, 0.3).unwrap();
+    let i = MortarInterface::build(world, &mesh, &part, &slave, &master, &|v| mesh.coords[v], 0.3)
+        .unwrap();
     assert!(i.normals.iter().all(|n| n[1] < -0.5), "slave normals must point down");
     let low = (0..i.slave.len())
         .min_by(|&a, &b| mesh.coords[i.slave[a]][1].total_cmp(&mesh.coords[i.slave[b]][1]))

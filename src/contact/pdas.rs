@@ -80,6 +80,11 @@ impl<'w> ActiveSet<'w> {
         self
     }
 
+    /// The contact nodes (e.g. to move the planes of a two-body contact).
+    pub fn nodes_mut(&mut self) -> &mut ContactNodes<'w> {
+        &mut self.nodes
+    }
+
     /// Operator rewrites so far.
     pub fn operator_updates(&self) -> usize {
         self.constraints.as_ref().map_or(0, |c| c.updates)

@@ -98,7 +98,8 @@ pub struct MortarInterface {
 }
 
 impl MortarInterface {
-    /// Evaluates the pair on the configuration `x` (node positions, e.g. reference + `u`).
+    /// Evaluates the pair on the configuration `x` (the position of a mesh node, e.g.
+    /// reference + `u`; asked only for the pair's nodes).
     /// `reach`: master facets farther than this from a slave facet are not considered (the
     /// search inflates the facets' boxes by it). Collective.
     pub fn build(
@@ -107,7 +108,7 @@ impl MortarInterface {
         part: &Partition,
         slave_facets: &[SurfaceFacet],
         master_facets: &[SurfaceFacet],
-        x: &[[f64; 3]],
+        x: &dyn Fn(usize) -> [f64; 3],
         reach: f64,
     ) -> Result<MortarInterface> {
         let err = |e: GeomError| Error::Solver(format!("mortar: {e}"));
@@ -120,7 +121,7 @@ impl MortarInterface {
             master.iter().enumerate().map(|(k, &v)| (v, k as u32)).collect();
         let mine: Vec<&SurfaceFacet> =
             slave_facets.iter().filter(|f| part.cell_rank[f.cell] == part.rank).collect();
-        let pos = |f: &SurfaceFacet| -> Vec<[f64; 3]> { f.nodes.iter().map(|&v| x[v]).collect() };
+        let pos = |f: &SurfaceFacet| -> Vec<[f64; 3]> { f.nodes.iter().map(|&v| x(v)).collect() };
         let ns = slave.len();
 
         // Averaged nodal normals: sum of the adjacent facets' unit normals.

@@ -15,7 +15,9 @@
 //! The slave nodes get the force `D lambda` (the inner solver's nodal force), the master
 //! nodes `-M^T lambda`, and the contact work `-lambda^T (D n.du_s - M n.du_m)` equals
 //! `-sum_q (D lambda)_q n_q . u~_q`, the inner solver's. Small sliding: `D`, `M`, normals and
-//! gaps come from the reference configuration, once per run (METHOD.md 5b).
+//! gaps are evaluated on the reference configuration and re-evaluated on the current one
+//! while the bodies approach (no node in contact), then kept through the contact (METHOD.md
+//! 5b).
 //!
 //! Memory: `T` (O(slave nodes) entries beyond the identity) and `T^T K T`, a second operator
 //! with `K`'s pattern widened at the slave nodes towards their master neighbours.
@@ -29,11 +31,80 @@ use crate::petsc::{Ksp, Matrix, Vector};
 
 pub struct MortarActiveSet<'w> {
     inner: ActiveSet<'w>,
+    pair: Pair,
     /// `E` (without the identity) and `T = I + E`.
     e: Matrix,
     t: Matrix,
     /// `T^T K T`, its solver, and work vectors (built from the step operator by `prepare`).
     hat: Option<Hat>,
+    /// Re-evaluate the interface (while no node is in contact) when an interface node moved
+    /// farther than this since the last evaluation (`-mortar_update_distance`, default a
+    /// tenth of the smallest slave facet; `inf`: the reference configuration only).
+    update_distance: f64,
+    /// The interface nodes' displacements at the last evaluation, and the evaluations so far.
+    evaluated_at: Vec<f64>,
+    pub evaluations: usize,
+}
+
+/// What the interface is evaluated from: the pair's facets and nodes, the mesh and partition.
+struct Pair {
+    mesh: std::rc::Rc<crate::mesh::Mesh>,
+    part: std::rc::Rc<Partition>,
+    slave: Vec<super::SurfaceFacet>,
+    master: Vec<super::SurfaceFacet>,
+    reach: f64,
+    /// Slave and master nodes (mesh indices, ascending) and their DOFs (global, owned here).
+    nodes: Vec<usize>,
+    dofs: Vec<(i32, bool)>,
+}
+
+impl Pair {
+    /// The pair's nodes' displacements, on every rank.
+    fn trace(&self, world: &mpi::topology::SimpleCommunicator, u: &Vector) -> Result<Vec<f64>> {
+        use mpi::collective::SystemOperation;
+        use mpi::traits::*;
+        let lo = self.part.first_dof();
+        let mut local = vec![0.0; self.dofs.len()];
+        u.with_local_slice(|s| {
+            for (i, &(d, owned)) in self.dofs.iter().enumerate() {
+                if owned {
+                    local[i] = s[d as usize - lo];
+                }
+            }
+        })?;
+        let mut all = vec![0.0; local.len()];
+        world.all_reduce_into(&local[..], &mut all[..], SystemOperation::sum());
+        Ok(all)
+    }
+
+    /// The interface at displacement `trace` (of `self.nodes`).
+    fn evaluate(
+        &self,
+        world: &mpi::topology::SimpleCommunicator,
+        trace: &[f64],
+    ) -> Result<MortarInterface> {
+        let dim = self.part.dim;
+        let at: std::collections::HashMap<usize, usize> =
+            self.nodes.iter().enumerate().map(|(k, &v)| (v, k)).collect();
+        let x = |v: usize| {
+            let mut p = self.mesh.coords[v];
+            if let Some(&k) = at.get(&v) {
+                for c in 0..dim {
+                    p[c] += trace[k * dim + c];
+                }
+            }
+            p
+        };
+        MortarInterface::build(
+            world,
+            &self.mesh,
+            &self.part,
+            &self.slave,
+            &self.master,
+            &x,
+            self.reach,
+        )
+    }
 }
 
 struct Hat {
@@ -46,38 +117,53 @@ struct Hat {
 }
 
 impl<'w> MortarActiveSet<'w> {
-    /// `nodes`: the slave boundary's contact nodes (their boundary weights are `D`); the
-    /// interface evaluated on the reference configuration.
-    pub fn new(
+    /// `nodes`: the slave boundary's contact nodes (their boundary weights are `D`).
+    fn new(
         mut nodes: ContactNodes<'w>,
-        iface: &MortarInterface,
-        part: &Partition,
-        coords: &[[f64; 3]],
+        pair: Pair,
+        update_distance: f64,
         factor: f64,
     ) -> Result<MortarActiveSet<'w>> {
+        let zero = vec![0.0; pair.dofs.len()];
+        let iface = pair.evaluate(nodes.world, &zero)?;
         if nodes.boundary.nodes != iface.slave {
             return Err(Error::Solver("mortar: the contact nodes are not the slave nodes".into()));
         }
-        // Node q keeps n_q . (x_q + u~_q) <= n_q . x_q + g_q / D_qq.
-        // A slave node with no master facet in reach cannot touch (small sliding).
-        let dim = part.dim;
-        let covered = iface.m_row_sums();
-        let planes = (0..iface.slave.len())
-            .map(|q| {
-                if covered[q] <= 0.0 {
-                    return (f64::MAX, iface.normals[q]);
-                }
-                let n = iface.normals[q];
-                let x = coords[iface.slave[q]];
-                let c = (0..dim).map(|i| n[i] * x[i]).sum::<f64>() + iface.gap[q] / iface.d[q];
-                (c, n)
-            })
-            .collect();
-        nodes.node_planes = Some(planes);
-        let e = transfer(part, iface, false)?;
-        let t = transfer(part, iface, true)?;
-        Ok(MortarActiveSet { inner: ActiveSet::new(nodes, factor), e, t, hat: None })
+        nodes.node_planes =
+            Some(planes(&iface, &pair, &vec![0.0; iface.slave.len() * pair.part.dim]));
+        let e = transfer(&pair.part, &iface, false)?;
+        let t = transfer(&pair.part, &iface, true)?;
+        Ok(MortarActiveSet {
+            inner: ActiveSet::new(nodes, factor),
+            pair,
+            e,
+            t,
+            hat: None,
+            update_distance,
+            evaluated_at: zero,
+            evaluations: 1,
+        })
     }
+}
+
+/// Node q keeps `n_q . (x_q + u~_q) <= c_q`, `c_q = n_q . (x_q + u~^e_q) + g_q / D_qq` with
+/// `u~^e` the slave nodes' mortar-basis displacement where the interface was evaluated, so that
+/// the gap there is the weighted gap. A slave node with no master facet in reach cannot touch.
+fn planes(iface: &MortarInterface, pair: &Pair, ut_slave: &[f64]) -> Vec<(f64, [f64; 3])> {
+    let dim = pair.part.dim;
+    let covered = iface.m_row_sums();
+    (0..iface.slave.len())
+        .map(|q| {
+            let n = iface.normals[q];
+            if covered[q] <= 0.0 {
+                return (f64::MAX, n);
+            }
+            let x = pair.mesh.coords[iface.slave[q]];
+            let c = (0..dim).map(|i| n[i] * (x[i] + ut_slave[q * dim + i])).sum::<f64>()
+                + iface.gap[q] / iface.d[q];
+            (c, n)
+        })
+        .collect()
 }
 
 /// `E` (or `T = I + E` with `identity`), rows owned as the partition says.
@@ -146,23 +232,82 @@ fn ksp_like(k: &Matrix, like: &Ksp) -> Result<Ksp> {
     Ok(ksp)
 }
 
-impl ContactSolver for MortarActiveSet<'_> {
-    fn prepare(&mut self, k: &Matrix) -> Result<()> {
+impl MortarActiveSet<'_> {
+    /// Re-evaluates the interface at the pair's displacement `trace`: `T`, the planes, and
+    /// `T^T K T` with the constraints and the solver's operators (collective).
+    fn update(&mut self, k: &Matrix, trace: Vec<f64>) -> Result<()> {
+        let world = self.inner.nodes().world;
+        let iface = self.pair.evaluate(world, &trace)?;
+        let dim = self.pair.part.dim;
+        let at: std::collections::HashMap<usize, usize> =
+            self.pair.nodes.iter().enumerate().map(|(k, &v)| (v, k)).collect();
+        // u~ of the slave nodes at the evaluation: u_q - sum_l (M_ql / D_qq) u_l.
+        let mut ut = vec![0.0; iface.slave.len() * dim];
+        for (q, &v) in iface.slave.iter().enumerate() {
+            for c in 0..dim {
+                ut[q * dim + c] = trace[at[&v] * dim + c];
+            }
+        }
+        for &(q, l, m) in &iface.m {
+            let (q, l) = (q as usize, at[&iface.master[l as usize]]);
+            for c in 0..dim {
+                ut[q * dim + c] -= m / iface.d[q] * trace[l * dim + c];
+            }
+        }
+        self.inner.nodes_mut().node_planes = Some(planes(&iface, &self.pair, &ut));
+        self.e = transfer(&self.pair.part, &iface, false)?;
+        self.t = transfer(&self.pair.part, &iface, true)?;
+        self.rebuild(k)?;
+        self.evaluated_at = trace;
+        self.evaluations += 1;
+        Ok(())
+    }
+
+    /// `T^T K T`, the constraints on it, and the solver's operators.
+    fn rebuild(&mut self, k: &Matrix) -> Result<()> {
         let mut k_hat = k.ptap(&self.t)?;
         k_hat.set_option_symmetric(true)?;
         self.inner.prepare(&k_hat)?;
-        let (rhs, u) = k_hat.create_vecs()?;
-        let (du, tmp) = k_hat.create_vecs()?;
-        self.hat = Some(Hat { k: k_hat, ksp: None, rhs, u, du, tmp });
+        match self.hat.as_mut() {
+            Some(h) => {
+                if let Some(ksp) = h.ksp.as_mut() {
+                    ksp.set_operators(&k_hat, &k_hat)?;
+                }
+                h.k = k_hat;
+            }
+            None => {
+                let (rhs, u) = k_hat.create_vecs()?;
+                let (du, tmp) = k_hat.create_vecs()?;
+                self.hat = Some(Hat { k: k_hat, ksp: None, rhs, u, du, tmp });
+            }
+        }
         Ok(())
+    }
+}
+
+impl ContactSolver for MortarActiveSet<'_> {
+    fn prepare(&mut self, k: &Matrix) -> Result<()> {
+        self.rebuild(k)
     }
 
     fn solve(&mut self, sys: StepSystem<'_>) -> Result<(StepContact, usize)> {
         let StepSystem { k, ksp, rhs, u, du, step, time } = sys;
         if self.hat.is_none() {
-            self.prepare(k)?;
+            self.rebuild(k)?;
         }
-        let h = self.hat.as_mut().expect("prepared above");
+        // Re-evaluated only while no slave node is active: re-evaluating in contact at every
+        // step let the energy grow in the two-disc run (measured; README), so in contact the
+        // interface stays as it was at the touch-down (small sliding).
+        let in_contact = self.inner.nodes().active.iter().any(|&a| a);
+        if self.update_distance.is_finite() && !in_contact {
+            let trace = self.pair.trace(self.inner.nodes().world, u)?;
+            let moved =
+                trace.iter().zip(&self.evaluated_at).fold(0.0f64, |a, (x, y)| a.max((x - y).abs()));
+            if moved > self.update_distance {
+                self.update(k, trace)?;
+            }
+        }
+        let h = self.hat.as_mut().expect("built above");
         if h.ksp.is_none() {
             h.ksp = Some(ksp_like(&h.k, ksp)?);
         }
@@ -211,33 +356,45 @@ impl ContactSolver for MortarActiveSet<'_> {
     }
 }
 
-/// The contact solver of a slave/master pair of deformable bodies: the interface evaluated on
-/// the reference configuration (small sliding), the active set on the slave nodes. The search
-/// reaches as far as the largest slave facet.
+/// The contact solver of a slave/master pair of deformable bodies: the interface evaluated
+/// on the reference configuration and again, while no node is in contact, whenever an
+/// interface node has moved farther than the update distance since the last evaluation; the
+/// active set on the slave nodes. The
+/// search reaches as far as the largest slave facet.
 pub fn pair_solver<'w>(
     world: &'w mpi::topology::SimpleCommunicator,
-    mesh: &crate::mesh::Mesh,
-    part: &Partition,
+    mesh: std::rc::Rc<crate::mesh::Mesh>,
+    part: std::rc::Rc<Partition>,
     slave: &str,
     master: &str,
     factor: f64,
 ) -> Result<Box<dyn ContactSolver + 'w>> {
     use super::oriented_facets;
-    let sf = oriented_facets(mesh, slave)?;
-    let mf = oriented_facets(mesh, master)?;
-    let reach = sf
+    let sf = oriented_facets(&mesh, slave)?;
+    let mf = oriented_facets(&mesh, master)?;
+    let size = |f: &super::SurfaceFacet| {
+        let x0 = mesh.coords[f.nodes[0]];
+        f.nodes
+            .iter()
+            .map(|&v| (0..3).map(|c| (mesh.coords[v][c] - x0[c]).powi(2)).sum::<f64>().sqrt())
+            .fold(0.0, f64::max)
+    };
+    let reach = sf.iter().map(size).fold(0.0, f64::max);
+    let smallest = sf.iter().map(size).fold(f64::MAX, f64::min);
+    let update_distance =
+        crate::petsc::Petsc::options_get_real("-mortar_update_distance")?.unwrap_or(0.1 * smallest);
+    let mut nodes: Vec<usize> =
+        sf.iter().chain(&mf).flat_map(|f| f.nodes.iter().copied()).collect();
+    nodes.sort_unstable();
+    nodes.dedup();
+    let dofs = nodes
         .iter()
-        .map(|f| {
-            let x0 = mesh.coords[f.nodes[0]];
-            f.nodes
-                .iter()
-                .map(|&v| (0..3).map(|c| (mesh.coords[v][c] - x0[c]).powi(2)).sum::<f64>().sqrt())
-                .fold(0.0, f64::max)
-        })
-        .fold(0.0, f64::max);
-    let iface = MortarInterface::build(world, mesh, part, &sf, &mf, &mesh.coords, reach)?;
-    let boundary = crate::contact::ContactBoundary::build(mesh, slave)?;
-    let nodes =
-        ContactNodes::new(world, mesh, part, boundary, crate::contact::Obstacles(Vec::new()));
-    Ok(Box::new(MortarActiveSet::new(nodes, &iface, part, &mesh.coords, factor)?))
+        .flat_map(|&v| (0..part.dim).map(move |c| (v, c)))
+        .map(|(v, c)| (part.dof(v, c) as i32, part.owns(v)))
+        .collect();
+    let boundary = crate::contact::ContactBoundary::build(&mesh, slave)?;
+    let contact_nodes =
+        ContactNodes::new(world, &mesh, &part, boundary, crate::contact::Obstacles(Vec::new()));
+    let pair = Pair { mesh, part, slave: sf, master: mf, reach, nodes, dofs };
+    Ok(Box::new(MortarActiveSet::new(contact_nodes, pair, update_distance, factor)?))
 }
