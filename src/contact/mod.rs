@@ -184,6 +184,28 @@ pub fn solver<'w>(
     }
 }
 
+/// Values of a distributed vector at a list of global DOFs `(dof, owned here)`, on every rank:
+/// owners contribute, a sum over ranks assembles them (each DOF has exactly one owner, so the
+/// sum is exact). Collective; `first_dof` is this rank's first owned DOF.
+pub fn trace(
+    world: &SimpleCommunicator,
+    dofs: &[(i32, bool)],
+    first_dof: usize,
+    x: &Vector,
+) -> Result<Vec<f64>> {
+    let mut local = vec![0.0; dofs.len()];
+    x.with_local_slice(|s| {
+        for (i, &(dof, owned)) in dofs.iter().enumerate() {
+            if owned {
+                local[i] = s[dof as usize - first_dof];
+            }
+        }
+    })?;
+    let mut global = vec![0.0; local.len()];
+    world.all_reduce_into(&local[..], &mut global[..], SystemOperation::sum());
+    Ok(global)
+}
+
 /// What the contact solver found in one step (all per contact node, same on every rank).
 #[derive(Debug, Clone, Default)]
 pub struct StepContact {
@@ -268,18 +290,7 @@ impl<'w> ContactNodes<'w> {
     /// Values of a distributed vector at all contact DOFs, on every rank (owners contribute,
     /// a sum over ranks assembles them: each entry has exactly one owner, so the sum is exact).
     pub fn trace(&self, x: &Vector) -> Result<Vec<f64>> {
-        let mut local = vec![0.0; self.dofs.len()];
-        let lo = self.first_dof;
-        x.with_local_slice(|s| {
-            for (i, &(dof, owned)) in self.dofs.iter().enumerate() {
-                if owned {
-                    local[i] = s[dof as usize - lo];
-                }
-            }
-        })?;
-        let mut global = vec![0.0; local.len()];
-        self.world.all_reduce_into(&local[..], &mut global[..], SystemOperation::sum());
-        Ok(global)
+        trace(self.world, &self.dofs, self.first_dof, x)
     }
 
     /// For every contact node at displacement `u` (trace given), with the obstacles placed at

@@ -175,7 +175,22 @@ impl Ksp {
 
     /// Solves `A x = b`. A negative converged reason becomes `Error::Solver` naming the
     /// prefix, the reason and the iteration count.
+    ///
+    /// A nonzero initial guess whose residual is already beyond the divergence tolerance
+    /// relative to `b` (`DIVERGED_DTOL` before the first iteration: `b` is tiny, e.g. a body
+    /// that starts in equilibrium, while the guess is the last step's motion) is dropped and
+    /// the solve starts again from zero.
     pub fn solve(&mut self, b: &Vector, x: &mut Vector) -> Result<SolveInfo> {
+        let info = self.solve_once(b, x)?;
+        if info.reason == ffi::KSPConvergedReason_KSP_DIVERGED_DTOL && info.iterations == 0 {
+            x.zero()?;
+            let again = self.solve_once(b, x)?;
+            return self.checked(again);
+        }
+        self.checked(info)
+    }
+
+    fn solve_once(&mut self, b: &Vector, x: &mut Vector) -> Result<SolveInfo> {
         // SAFETY: valid handles; `b` and `x` are distinct by the borrow rules.
         chk!(ffi::KSPSolve(self.ksp, b.raw(), x.raw()))?;
         let mut reason: ffi::KSPConvergedReason = 0;
@@ -187,7 +202,12 @@ impl Ksp {
         chk!(ffi::KSPGetIterationNumber(self.ksp, &mut its))?;
         // SAFETY: as above.
         chk!(ffi::KSPGetResidualNorm(self.ksp, &mut rnorm))?;
-        let info = SolveInfo { iterations: to_usize(its), residual_norm: rnorm, reason };
+        Ok(SolveInfo { iterations: to_usize(its), residual_norm: rnorm, reason })
+    }
+
+    /// A negative converged reason as `Error::Solver`.
+    fn checked(&self, info: SolveInfo) -> Result<SolveInfo> {
+        let (reason, rnorm) = (info.reason, info.residual_norm);
         if reason < 0 {
             let mut s: *const std::os::raw::c_char = ptr::null();
             // SAFETY: valid handle; the returned string is a static PETSc constant.

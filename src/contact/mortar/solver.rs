@@ -22,6 +22,8 @@
 //! Memory: `T` (O(slave nodes) entries beyond the identity) and `T^T K T`, a second operator
 //! with `K`'s pattern widened at the slave nodes towards their master neighbours.
 
+use std::collections::HashMap;
+
 use super::MortarInterface;
 use crate::contact::pdas::ActiveSet;
 use crate::contact::{ContactNodes, ContactSolver, StepContact, StepSystem};
@@ -56,25 +58,28 @@ struct Pair {
     /// Slave and master nodes (mesh indices, ascending) and their DOFs (global, owned here).
     nodes: Vec<usize>,
     dofs: Vec<(i32, bool)>,
+    /// Per entry of `dofs`: a Dirichlet DOF (agreed on every rank).
+    fixed: Vec<bool>,
 }
 
 impl Pair {
     /// The pair's nodes' displacements, on every rank.
     fn trace(&self, world: &mpi::topology::SimpleCommunicator, u: &Vector) -> Result<Vec<f64>> {
-        use mpi::collective::SystemOperation;
-        use mpi::traits::*;
-        let lo = self.part.first_dof();
-        let mut local = vec![0.0; self.dofs.len()];
-        u.with_local_slice(|s| {
-            for (i, &(d, owned)) in self.dofs.iter().enumerate() {
-                if owned {
-                    local[i] = s[d as usize - lo];
-                }
-            }
-        })?;
-        let mut all = vec![0.0; local.len()];
-        world.all_reduce_into(&local[..], &mut all[..], SystemOperation::sum());
-        Ok(all)
+        crate::contact::trace(world, &self.dofs, self.part.first_dof(), u)
+    }
+
+    /// Whether `E` couples component `c` of slave node `s` to master node `m`: not where either
+    /// DOF is a Dirichlet DOF. Then `T` is the identity on every Dirichlet row and column, and
+    /// `T^T K T` keeps the step operator's Dirichlet rows (`du_D` stays prescribed). Exact
+    /// when the prescribed master increments are zero and a Dirichlet slave component is
+    /// tangential (`n_c = 0`), as on a symmetry or roller side that meets the interface.
+    fn coupled(&self, at: &HashMap<usize, usize>, s: usize, m: usize, c: usize) -> bool {
+        let d = self.part.dim;
+        !self.fixed[at[&s] * d + c] && !self.fixed[at[&m] * d + c]
+    }
+
+    fn slots(&self) -> HashMap<usize, usize> {
+        self.nodes.iter().enumerate().map(|(k, &v)| (v, k)).collect()
     }
 
     /// The interface at displacement `trace` (of `self.nodes`).
@@ -84,8 +89,7 @@ impl Pair {
         trace: &[f64],
     ) -> Result<MortarInterface> {
         let dim = self.part.dim;
-        let at: std::collections::HashMap<usize, usize> =
-            self.nodes.iter().enumerate().map(|(k, &v)| (v, k)).collect();
+        let at = self.slots();
         let x = |v: usize| {
             let mut p = self.mesh.coords[v];
             if let Some(&k) = at.get(&v) {
@@ -131,8 +135,8 @@ impl<'w> MortarActiveSet<'w> {
         }
         nodes.node_planes =
             Some(planes(&iface, &pair, &vec![0.0; iface.slave.len() * pair.part.dim]));
-        let e = transfer(&pair.part, &iface, false)?;
-        let t = transfer(&pair.part, &iface, true)?;
+        let e = transfer(&pair, &iface, false)?;
+        let t = transfer(&pair, &iface, true)?;
         Ok(MortarActiveSet {
             inner: ActiveSet::new(nodes, factor),
             pair,
@@ -166,8 +170,11 @@ fn planes(iface: &MortarInterface, pair: &Pair, ut_slave: &[f64]) -> Vec<(f64, [
         .collect()
 }
 
-/// `E` (or `T = I + E` with `identity`), rows owned as the partition says.
-fn transfer(part: &Partition, iface: &MortarInterface, identity: bool) -> Result<Matrix> {
+/// `E` (or `T = I + E` with `identity`), rows owned as the partition says; zero in every
+/// Dirichlet row and column ([`Pair::coupled`]).
+fn transfer(pair: &Pair, iface: &MortarInterface, identity: bool) -> Result<Matrix> {
+    let part = &pair.part;
+    let at = pair.slots();
     let dim = part.dim;
     let n_local = part.n_owned_dofs();
     let lo = part.first_dof();
@@ -206,8 +213,13 @@ fn transfer(part: &Partition, iface: &MortarInterface, identity: bool) -> Result
             continue;
         }
         for c in 0..dim {
+            // Decoupled entries stay as explicit zeros: every component of a node keeps the
+            // same columns in `T^T K T`, as the normal constraints need (node blocks).
             let cols: Vec<i32> = row.iter().map(|&(l, _)| part.dof(l as usize, c) as i32).collect();
-            let vals: Vec<f64> = row.iter().map(|&(_, x)| x).collect();
+            let vals: Vec<f64> = row
+                .iter()
+                .map(|&(l, x)| if pair.coupled(&at, v, l as usize, c) { x } else { 0.0 })
+                .collect();
             m.set_values(&[part.dof(v, c) as i32], &cols, &vals, false)?;
         }
     }
@@ -239,9 +251,9 @@ impl MortarActiveSet<'_> {
         let world = self.inner.nodes().world;
         let iface = self.pair.evaluate(world, &trace)?;
         let dim = self.pair.part.dim;
-        let at: std::collections::HashMap<usize, usize> =
-            self.pair.nodes.iter().enumerate().map(|(k, &v)| (v, k)).collect();
-        // u~ of the slave nodes at the evaluation: u_q - sum_l (M_ql / D_qq) u_l.
+        let at = self.pair.slots();
+        // u~ of the slave nodes at the evaluation: u_q - sum_l (M_ql / D_qq) u_l (the coupled
+        // components, as `T`).
         let mut ut = vec![0.0; iface.slave.len() * dim];
         for (q, &v) in iface.slave.iter().enumerate() {
             for c in 0..dim {
@@ -249,14 +261,14 @@ impl MortarActiveSet<'_> {
             }
         }
         for &(q, l, m) in &iface.m {
-            let (q, l) = (q as usize, at[&iface.master[l as usize]]);
-            for c in 0..dim {
-                ut[q * dim + c] -= m / iface.d[q] * trace[l * dim + c];
+            let (q, v) = (q as usize, iface.master[l as usize]);
+            for c in (0..dim).filter(|&c| self.pair.coupled(&at, iface.slave[q], v, c)) {
+                ut[q * dim + c] -= m / iface.d[q] * trace[at[&v] * dim + c];
             }
         }
         self.inner.nodes_mut().node_planes = Some(planes(&iface, &self.pair, &ut));
-        self.e = transfer(&self.pair.part, &iface, false)?;
-        self.t = transfer(&self.pair.part, &iface, true)?;
+        self.e = transfer(&self.pair, &iface, false)?;
+        self.t = transfer(&self.pair, &iface, true)?;
         self.rebuild(k)?;
         self.evaluated_at = trace;
         self.evaluations += 1;
@@ -367,6 +379,7 @@ pub fn pair_solver<'w>(
     part: std::rc::Rc<Partition>,
     slave: &str,
     master: &str,
+    dirichlet_dofs: &[i32],
     factor: f64,
 ) -> Result<Box<dyn ContactSolver + 'w>> {
     use super::oriented_facets;
@@ -391,10 +404,20 @@ pub fn pair_solver<'w>(
         .iter()
         .flat_map(|&v| (0..part.dim).map(move |c| (v, c)))
         .map(|(v, c)| (part.dof(v, c) as i32, part.owns(v)))
-        .collect();
+        .collect::<Vec<_>>();
+    // Dirichlet flags: each owner marks its DOFs, a sum over ranks tells every rank.
+    let marked: std::collections::HashSet<i32> = dirichlet_dofs.iter().copied().collect();
+    let local: Vec<f64> =
+        dofs.iter().map(|&(d, owned)| f64::from(u8::from(owned && marked.contains(&d)))).collect();
+    let mut all = vec![0.0; local.len()];
+    {
+        use mpi::traits::*;
+        world.all_reduce_into(&local[..], &mut all[..], mpi::collective::SystemOperation::sum());
+    }
+    let fixed = all.iter().map(|&x| x > 0.0).collect();
     let boundary = crate::contact::ContactBoundary::build(&mesh, slave)?;
     let contact_nodes =
         ContactNodes::new(world, &mesh, &part, boundary, crate::contact::Obstacles(Vec::new()));
-    let pair = Pair { mesh, part, slave: sf, master: mf, reach, nodes, dofs };
+    let pair = Pair { mesh, part, slave: sf, master: mf, reach, nodes, dofs, fixed };
     Ok(Box::new(MortarActiveSet::new(contact_nodes, pair, update_distance, factor)?))
 }
