@@ -487,7 +487,6 @@ impl<'a> Simulation<'a> {
                 Rc::clone(&self.part),
                 &spec.boundary,
                 spec.master.as_deref().unwrap_or_default(),
-                dirichlet.dofs(),
                 Midpoint::CONTACT_FORCE_FACTOR,
             )?),
             Some(spec) => Some(contact::solver(

@@ -58,24 +58,12 @@ struct Pair {
     /// Slave and master nodes (mesh indices, ascending) and their DOFs (global, owned here).
     nodes: Vec<usize>,
     dofs: Vec<(i32, bool)>,
-    /// Per entry of `dofs`: a Dirichlet DOF (agreed on every rank).
-    fixed: Vec<bool>,
 }
 
 impl Pair {
     /// The pair's nodes' displacements, on every rank.
     fn trace(&self, world: &mpi::topology::SimpleCommunicator, u: &Vector) -> Result<Vec<f64>> {
         crate::contact::trace(world, &self.dofs, self.part.first_dof(), u)
-    }
-
-    /// Whether `E` couples component `c` of slave node `s` to master node `m`: not where either
-    /// DOF is a Dirichlet DOF. Then `T` is the identity on every Dirichlet row and column, and
-    /// `T^T K T` keeps the step operator's Dirichlet rows (`du_D` stays prescribed). Exact
-    /// when the prescribed master increments are zero and a Dirichlet slave component is
-    /// tangential (`n_c = 0`), as on a symmetry or roller side that meets the interface.
-    fn coupled(&self, at: &HashMap<usize, usize>, s: usize, m: usize, c: usize) -> bool {
-        let d = self.part.dim;
-        !self.fixed[at[&s] * d + c] && !self.fixed[at[&m] * d + c]
     }
 
     fn slots(&self) -> HashMap<usize, usize> {
@@ -135,8 +123,8 @@ impl<'w> MortarActiveSet<'w> {
         }
         nodes.node_planes =
             Some(planes(&iface, &pair, &vec![0.0; iface.slave.len() * pair.part.dim]));
-        let e = transfer(&pair, &iface, false)?;
-        let t = transfer(&pair, &iface, true)?;
+        let e = transfer(&pair.part, &iface, false)?;
+        let t = transfer(&pair.part, &iface, true)?;
         Ok(MortarActiveSet {
             inner: ActiveSet::new(nodes, factor),
             pair,
@@ -170,11 +158,12 @@ fn planes(iface: &MortarInterface, pair: &Pair, ut_slave: &[f64]) -> Vec<(f64, [
         .collect()
 }
 
-/// `E` (or `T = I + E` with `identity`), rows owned as the partition says; zero in every
-/// Dirichlet row and column ([`Pair::coupled`]).
-fn transfer(pair: &Pair, iface: &MortarInterface, identity: bool) -> Result<Matrix> {
-    let part = &pair.part;
-    let at = pair.slots();
+/// `E` (or `T = I + E` with `identity`), rows owned as the partition says.
+///
+/// Dirichlet DOFs need nothing here: `T` is invertible, so `T^T K T u~ = T^T rhs` is
+/// `K du = rhs` itself, the step operator's Dirichlet rows included (the mortar patch test
+/// has Dirichlet DOFs on both sides of the interface).
+fn transfer(part: &Partition, iface: &MortarInterface, identity: bool) -> Result<Matrix> {
     let dim = part.dim;
     let n_local = part.n_owned_dofs();
     let lo = part.first_dof();
@@ -213,13 +202,8 @@ fn transfer(pair: &Pair, iface: &MortarInterface, identity: bool) -> Result<Matr
             continue;
         }
         for c in 0..dim {
-            // Decoupled entries stay as explicit zeros: every component of a node keeps the
-            // same columns in `T^T K T`, as the normal constraints need (node blocks).
             let cols: Vec<i32> = row.iter().map(|&(l, _)| part.dof(l as usize, c) as i32).collect();
-            let vals: Vec<f64> = row
-                .iter()
-                .map(|&(l, x)| if pair.coupled(&at, v, l as usize, c) { x } else { 0.0 })
-                .collect();
+            let vals: Vec<f64> = row.iter().map(|&(_, x)| x).collect();
             m.set_values(&[part.dof(v, c) as i32], &cols, &vals, false)?;
         }
     }
@@ -252,8 +236,7 @@ impl MortarActiveSet<'_> {
         let iface = self.pair.evaluate(world, &trace)?;
         let dim = self.pair.part.dim;
         let at = self.pair.slots();
-        // u~ of the slave nodes at the evaluation: u_q - sum_l (M_ql / D_qq) u_l (the coupled
-        // components, as `T`).
+        // u~ of the slave nodes at the evaluation: u_q - sum_l (M_ql / D_qq) u_l.
         let mut ut = vec![0.0; iface.slave.len() * dim];
         for (q, &v) in iface.slave.iter().enumerate() {
             for c in 0..dim {
@@ -261,14 +244,14 @@ impl MortarActiveSet<'_> {
             }
         }
         for &(q, l, m) in &iface.m {
-            let (q, v) = (q as usize, iface.master[l as usize]);
-            for c in (0..dim).filter(|&c| self.pair.coupled(&at, iface.slave[q], v, c)) {
-                ut[q * dim + c] -= m / iface.d[q] * trace[at[&v] * dim + c];
+            let (q, l) = (q as usize, at[&iface.master[l as usize]]);
+            for c in 0..dim {
+                ut[q * dim + c] -= m / iface.d[q] * trace[l * dim + c];
             }
         }
         self.inner.nodes_mut().node_planes = Some(planes(&iface, &self.pair, &ut));
-        self.e = transfer(&self.pair, &iface, false)?;
-        self.t = transfer(&self.pair, &iface, true)?;
+        self.e = transfer(&self.pair.part, &iface, false)?;
+        self.t = transfer(&self.pair.part, &iface, true)?;
         self.rebuild(k)?;
         self.evaluated_at = trace;
         self.evaluations += 1;
@@ -379,7 +362,6 @@ pub fn pair_solver<'w>(
     part: std::rc::Rc<Partition>,
     slave: &str,
     master: &str,
-    dirichlet_dofs: &[i32],
     factor: f64,
 ) -> Result<Box<dyn ContactSolver + 'w>> {
     use super::oriented_facets;
@@ -404,20 +386,10 @@ pub fn pair_solver<'w>(
         .iter()
         .flat_map(|&v| (0..part.dim).map(move |c| (v, c)))
         .map(|(v, c)| (part.dof(v, c) as i32, part.owns(v)))
-        .collect::<Vec<_>>();
-    // Dirichlet flags: each owner marks its DOFs, a sum over ranks tells every rank.
-    let marked: std::collections::HashSet<i32> = dirichlet_dofs.iter().copied().collect();
-    let local: Vec<f64> =
-        dofs.iter().map(|&(d, owned)| f64::from(u8::from(owned && marked.contains(&d)))).collect();
-    let mut all = vec![0.0; local.len()];
-    {
-        use mpi::traits::*;
-        world.all_reduce_into(&local[..], &mut all[..], mpi::collective::SystemOperation::sum());
-    }
-    let fixed = all.iter().map(|&x| x > 0.0).collect();
+        .collect();
     let boundary = crate::contact::ContactBoundary::build(&mesh, slave)?;
     let contact_nodes =
         ContactNodes::new(world, &mesh, &part, boundary, crate::contact::Obstacles(Vec::new()));
-    let pair = Pair { mesh, part, slave: sf, master: mf, reach, nodes, dofs, fixed };
+    let pair = Pair { mesh, part, slave: sf, master: mf, reach, nodes, dofs };
     Ok(Box::new(MortarActiveSet::new(contact_nodes, pair, update_distance, factor)?))
 }
