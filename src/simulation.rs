@@ -5,6 +5,7 @@
 //! the summary. The physics (here) is separate from the time integrator (`time::Midpoint`)
 //! and from the contact solver (`contact::ContactSolver`).
 
+use crate::bodies::{Bodies, BodySummary};
 use std::path::{Path, PathBuf};
 use std::rc::Rc;
 use std::time::Instant;
@@ -106,6 +107,10 @@ pub struct RunSummary {
     /// Total momentum `1^T M v` at the start and the end, per component.
     pub momentum_initial: Vec<f64>,
     pub momentum_final: Vec<f64>,
+    /// Momentum and contact impulse of every body (physical group of the mesh's dimension),
+    /// over this run (from the checkpoint on for a restart).
+    #[serde(default)]
+    pub bodies: Vec<BodySummary>,
     pub contact: Option<ContactSummary>,
     /// PNG pictures written (rank 0's list).
     pub pictures: Vec<PathBuf>,
@@ -190,6 +195,7 @@ pub struct Simulation<'a> {
     /// Contact nodes and cells of the mass-free layer (once assembled).
     layer_summary: Option<(usize, usize)>,
     mass_check: MassCheck,
+    bodies: Bodies,
     /// Scatter to this rank's block of natural (gmsh) node order, built on first use.
     natural: Option<(Scatter, Vector)>,
     /// Values at the nodes of this rank's cells, built on first use (exact errors).
@@ -232,6 +238,8 @@ struct Record {
     /// Reference of the energy balance (the initial energy, or the restarted run's).
     e0: f64,
     p0: [f64; 3],
+    /// Every body's momentum at the start of this run (a restart's: at the checkpoint).
+    p0_bodies: Vec<[f64; 3]>,
     e_max: f64,
     /// max_n |E^n - E^0 - W^n| / max_n E^n
     balance: f64,
@@ -353,6 +361,13 @@ impl<'a> Simulation<'a> {
                 return Err(e);
             }
         };
+        let bodies = match Bodies::new(&mesh, &part) {
+            Ok(b) => b,
+            Err(e) => {
+                end_with_error(world, agree, output, &e);
+                return Err(e);
+            }
+        };
         Ok(Simulation {
             world,
             agree,
@@ -366,6 +381,7 @@ impl<'a> Simulation<'a> {
             timings,
             layer_summary: None,
             mass_check: MassCheck::default(),
+            bodies,
             natural: None,
             local_view: None,
             output,
@@ -610,9 +626,11 @@ impl<'a> Simulation<'a> {
         };
         let t_start = start as f64 * self.scene.tau;
         let n_steps = self.n_steps();
+        let p0_bodies = self.bodies.momenta(self.world, midpoint.mv())?;
         let mut record = Record {
             e0,
             p0,
+            p0_bodies,
             e_max: e0.abs(),
             balance: 0.0,
             drift: 0.0,
@@ -803,6 +821,7 @@ impl<'a> Simulation<'a> {
             self.time_matmult(&midpoint.operator().k, midpoint.v(), &mut scratch)?;
         let peak_memory_mib = sum_over_ranks(self.world, peak_rss_mib());
         let p1 = self.momentum(midpoint.mv())?;
+        let p1_bodies = self.bodies.momenta(self.world, midpoint.mv())?;
         let e = midpoint.energy();
         let contact_summary = contact.map(|c| {
             let mut s = record.history.summary(
@@ -840,6 +859,7 @@ impl<'a> Simulation<'a> {
                 pictures.clear();
             }
         }
+        let bodies = self.body_summaries(&record.p0_bodies, &p1_bodies, &contact_summary)?;
         let ksp = &midpoint.operator().ksp;
         let (layer_contact_nodes, layer_cells) = self.layer_summary.unwrap_or((0, 0));
         Ok(RunSummary {
@@ -866,6 +886,7 @@ impl<'a> Simulation<'a> {
             mass: self.mass_check.clone(),
             momentum_initial: record.p0[..self.part.dim].to_vec(),
             momentum_final: p1[..self.part.dim].to_vec(),
+            bodies,
             contact: contact_summary,
             pictures,
             effects: self.scene.effects().summary(),
@@ -1171,6 +1192,42 @@ impl<'a> Simulation<'a> {
             ("partition".into(), format!("{:?}", self.opts.partition)),
             ("metis_seed".into(), crate::partition::METIS_SEED.to_string()),
         ]
+    }
+
+    /// Every body's momenta and the impulse the contact gave it: the contact boundary's body
+    /// (a pair's slave) gets the contact impulse, a pair's master body the master impulse.
+    fn body_summaries(
+        &self,
+        p0: &[[f64; 3]],
+        p1: &[[f64; 3]],
+        contact: &Option<ContactSummary>,
+    ) -> Result<Vec<BodySummary>> {
+        let dim = self.part.dim;
+        let mut out: Vec<BodySummary> = self
+            .bodies
+            .names
+            .iter()
+            .enumerate()
+            .map(|(b, name)| BodySummary {
+                name: name.clone(),
+                momentum_initial: p0[b][..dim].to_vec(),
+                momentum_final: p1[b][..dim].to_vec(),
+                contact_impulse: vec![0.0; dim],
+            })
+            .collect();
+        if let (Some(spec), Some(c)) = (&self.scene.contact, contact) {
+            let sides =
+                [(Some(&spec.boundary), &c.impulse), (spec.master.as_ref(), &c.master_impulse)];
+            for (group, impulse) in sides {
+                let Some(group) = group else { continue };
+                if let Some(b) = self.bodies.holding(self.world, &self.mesh, group)? {
+                    for i in 0..dim {
+                        out[b].contact_impulse[i] += impulse[i];
+                    }
+                }
+            }
+        }
+        Ok(out)
     }
 
     /// Total momentum `1^T M v` per component (from the product `M v` the step keeps).

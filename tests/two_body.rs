@@ -42,6 +42,21 @@ fn two_discs_as_two_bodies_match_the_disc_on_a_plane() {
         let one_disc = p.momentum_initial[1].abs();
         assert!(d < 1e-8 * one_disc.max(scale), "momentum {c} changed by {d}");
     }
+    // Per body: the momentum change equals the impulse of the contact forces on it (METHOD.md
+    // 7; `-M^T lambda` on the master, `D lambda` on the slave, summed independently of `M v`),
+    // and it pushes each disc back (against its initial momentum; a tenth of it is far above
+    // round-off and well below what 240 steps of contact give).
+    assert_eq!(b.bodies.len(), 2, "bodies {:?}", b.bodies);
+    for body in &b.bodies {
+        let p0 = body.momentum_initial[1].abs();
+        let back = -body.contact_impulse[1] * body.momentum_initial[1].signum();
+        assert!(back > 0.1 * p0, "{}: impulse {:?}", body.name, body);
+        for c in 0..2 {
+            let dp = body.momentum_final[c] - body.momentum_initial[c];
+            let d = (dp - body.contact_impulse[c]).abs();
+            assert!(d < 1e-8 * p0, "{}: momentum change {dp} vs impulse {:?}", body.name, body);
+        }
+    }
     let total = |h5: &std::path::Path| -> Vec<f64> {
         let run = reader(h5);
         let nc = run.file.dataset(&layout::contact("force")).unwrap().shape()[1];

@@ -12,6 +12,8 @@ pub struct History {
     rows: Vec<ContactRow>,
     /// The obstacle's impulse `tau sum_n sum_q lambda_q n_q` per component.
     impulse: [f64; 3],
+    /// The master body's impulse `tau sum_n master_force` (two-body pairs).
+    master_impulse: [f64; 3],
     weights: Vec<f64>,
 }
 
@@ -40,8 +42,12 @@ pub struct ContactSummary {
     pub episodes_max: usize,
     pub episodes_mean: f64,
     pub contact_work: f64,
-    /// Impulse the contact gave the body, `-tau sum_n sum_q lambda_q n_q`, per component.
+    /// Impulse the contact gave the body (the slave body of a pair),
+    /// `-tau sum_n sum_q lambda_q n_q`, per component.
     pub impulse: Vec<f64>,
+    /// Impulse the contact gave the master body of a pair (empty against obstacles).
+    #[serde(default)]
+    pub master_impulse: Vec<f64>,
     /// Solves with the step operator beyond one per step: active-set iterations after the
     /// first (pdas), or the Schur complement's column solves (columns).
     pub extra_solves: usize,
@@ -71,6 +77,7 @@ impl History {
         self.rows.push(c.row.clone());
         for i in 0..3 {
             self.impulse[i] += tau * c.resultant[i];
+            self.master_impulse[i] += tau * c.master_force[i];
         }
     }
 
@@ -146,6 +153,11 @@ impl History {
             },
             contact_work,
             impulse: (0..dim).map(|i| -self.impulse[i]).collect(),
+            master_impulse: if c.is_pair() {
+                (0..dim).map(|i| self.master_impulse[i]).collect()
+            } else {
+                vec![]
+            },
             extra_solves: c.extra_solves(),
             contact_steps_seconds,
             ksp_iterations_contact_steps: 0,

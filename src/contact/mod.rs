@@ -138,6 +138,10 @@ pub trait ContactSolver {
     fn n_nodes(&self) -> usize {
         self.boundary().nodes.len()
     }
+    /// A slave/master pair of deformable bodies (not rigid obstacles).
+    fn is_pair(&self) -> bool {
+        false
+    }
 }
 
 /// One step's linear system as the integrator hands it to the contact solver.
@@ -215,6 +219,9 @@ pub struct StepContact {
     pub work: f64,
     /// `sum_q lambda_q n_q` (the force the obstacle takes; the body gets its negative).
     pub resultant: [f64; 3],
+    /// The force on the master body of a two-body pair, `sum_l (M^T lambda)_l n`, i.e.
+    /// `sum_q (sum_l M_ql / D_qq) lambda_q n_q` (zero against rigid obstacles).
+    pub master_force: [f64; 3],
 }
 
 /// The contact nodes as every rank sees them: boundary, obstacles, reference positions, gmsh
@@ -382,6 +389,7 @@ impl<'w> ContactNodes<'w> {
             normals: frames.iter().map(|f| f.1).collect(),
             work: 0.0,
             resultant: [0.0; 3],
+            master_force: [0.0; 3],
         };
         for p in 0..nc {
             if out.row.active[p] {

@@ -43,6 +43,9 @@ pub struct MortarActiveSet<'w> {
     /// farther than this since the last evaluation (`-mortar_update_distance`, default a
     /// tenth of the smallest slave facet; `inf`: the reference configuration only).
     update_distance: f64,
+    /// `sum_l M_ql / D_qq` per slave node (1 where the master covers the node's support): the
+    /// master body's share of the slave node's force.
+    coverage: Vec<f64>,
     /// The interface nodes' displacements at the last evaluation, and the evaluations so far.
     evaluated_at: Vec<f64>,
     pub evaluations: usize,
@@ -131,6 +134,7 @@ impl<'w> MortarActiveSet<'w> {
             e,
             t,
             hat: None,
+            coverage: coverage(&iface),
             update_distance,
             evaluated_at: zero,
             evaluations: 1,
@@ -156,6 +160,10 @@ fn planes(iface: &MortarInterface, pair: &Pair, ut_slave: &[f64]) -> Vec<(f64, [
             (c, n)
         })
         .collect()
+}
+
+fn coverage(iface: &MortarInterface) -> Vec<f64> {
+    iface.m_row_sums().iter().zip(&iface.d).map(|(s, d)| s / d).collect()
 }
 
 /// `E` (or `T = I + E` with `identity`), rows owned as the partition says.
@@ -252,6 +260,7 @@ impl MortarActiveSet<'_> {
         self.inner.nodes_mut().node_planes = Some(planes(&iface, &self.pair, &ut));
         self.e = transfer(&self.pair.part, &iface, false)?;
         self.t = transfer(&self.pair.part, &iface, true)?;
+        self.coverage = coverage(&iface);
         self.rebuild(k)?;
         self.evaluated_at = trace;
         self.evaluations += 1;
@@ -321,9 +330,16 @@ impl ContactSolver for MortarActiveSet<'_> {
             step,
             time,
         };
-        let out = self.inner.solve(inner)?;
+        let (mut out, its) = self.inner.solve(inner)?;
         self.t.mult(&h.du, du)?;
-        Ok(out)
+        // The master nodes get -M^T lambda in the equation of motion: a force
+        // sum_q coverage_q lambda_q n_q on the master body.
+        for (q, &f) in out.row.force.iter().enumerate() {
+            for c in 0..3 {
+                out.master_force[c] += self.coverage[q] * f * out.normals[q][c];
+            }
+        }
+        Ok((out, its))
     }
 
     fn nodes(&self) -> &ContactNodes<'_> {
@@ -334,6 +350,9 @@ impl ContactSolver for MortarActiveSet<'_> {
     }
     fn extra_solves(&self) -> usize {
         self.inner.extra_solves()
+    }
+    fn is_pair(&self) -> bool {
+        true
     }
     fn penetrating(&self, u: &Vector, time: f64) -> Result<Vec<(usize, usize)>> {
         // The planes hold for u~ = T^{-1} u.
