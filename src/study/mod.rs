@@ -780,6 +780,7 @@ mod tests {
             mass: MassCheck::default(),
             momentum_initial: vec![0.0, 0.0],
             momentum_final: vec![0.0, 0.0],
+            bodies: vec![],
             contact: Some(ContactSummary {
                 max_pressure: 2.5,
                 episodes_max: 1,
