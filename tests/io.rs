@@ -432,6 +432,11 @@ fn a_two_body_run_file_names_its_pair() {
     let k = slave.iter().position(|&v| v == low).unwrap();
     let gap1 = raw(&f, "contact/gap")[nc + k];
     assert!((gap1 - (0.1 - 1600e-6)).abs() < 1e-5, "gap of the lowest slave node {gap1}");
+    // compare draws that node's pressure.
+    let curves = massfree::post::read_curves(&h5).unwrap();
+    let column: Vec<f64> = p.chunks(nc).map(|r| r[k]).collect();
+    assert_eq!(curves.lowest_pressure, column, "compare draws another node");
+    assert!(column.iter().any(|&x| x > 0.0));
     // The XDMF index shows the whole mesh: both bodies' cells and nodes.
     let text = std::fs::read_to_string(dir.join("two_discs-2.xdmf")).unwrap();
     let doc = roxmltree::Document::parse(&text).unwrap();
