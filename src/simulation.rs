@@ -1278,8 +1278,18 @@ impl<'a> Simulation<'a> {
             let object = format!("mesh/groups/{}", group_key(&g.name));
             meta.push(Meta::int_on(&object, "dim", g.dim as i64));
         }
+        use crate::io::layout;
+        // A slave/master pair: its groups as attributes of /contact (written by rank 0's serial
+        // handle, `io::meta`), its master nodes below (created collectively). Every rank holds
+        // the whole mesh and the scene, so names and nodes are the same on every rank.
+        let master = self.scene.contact.as_ref().and_then(|s| s.master.clone());
         if let Some(c) = contact {
-            meta.push(Meta::text_on("contact", "group", c.boundary().group.clone()));
+            let group = c.boundary().group.clone();
+            meta.push(Meta::text_on(layout::CONTACT, layout::CONTACT_GROUP_ATTR, group.clone()));
+            if let Some(m) = &master {
+                meta.push(Meta::text_on(layout::CONTACT, layout::CONTACT_SLAVE_GROUP_ATTR, group));
+                meta.push(Meta::text_on(layout::CONTACT, layout::CONTACT_MASTER_GROUP_ATTR, m));
+            }
         }
         file.write_meta(self.world, &meta)?;
         let mut out = Output::open(file, self.world, &self.mesh, &self.part.cell_rank, plan)?;
@@ -1287,6 +1297,9 @@ impl<'a> Simulation<'a> {
         out.write_mass_check(&mc.total_mass, &mc.first_moment, &mc.second_moment, &mc.probe)?;
         if let Some(c) = contact {
             out.create_contact(&c.boundary().nodes, &c.boundary().weights)?;
+            if let Some(m) = &master {
+                out.create_contact_pair(self.world, &self.mesh.group_nodes(m)?)?;
+            }
         }
         self.output = RunOutput::Open(out);
         self.timings.output += t0.elapsed().as_secs_f64();

@@ -254,6 +254,11 @@ fn post_writes_pictures_and_csv_equal_to_the_file() {
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     assert!(out.contains("contact: steps"), "{out}");
     let f = open(&h5);
+    // One body against an obstacle: no pair in the file, none in the summary.
+    assert!(f.dataset("contact/master_nodes").is_err());
+    assert!(text_attr(&f, "contact", "master_group").is_none());
+    assert_eq!(text_attr(&f, "contact", "group").as_deref(), Some("contact"));
+    assert!(!out.contains("contact pair"), "{out}");
     let written: Vec<String> =
         out.lines().filter_map(|l| l.strip_prefix("wrote ")).map(String::from).collect();
     assert!(written.iter().filter(|w| w.ends_with(".png")).count() >= 3);
@@ -366,4 +371,91 @@ fn compression_on_one_rank_keeps_the_data_and_is_refused_on_two() {
         !o.status.success() && err.contains("output.compression works on one rank only"),
         "{err}"
     );
+}
+
+fn text_attr(f: &hdf5::File, group: &str, name: &str) -> Option<String> {
+    let a = f.group(group).ok()?.attr(name).ok()?;
+    Some(a.read_scalar::<hdf5::types::VarLenUnicode>().ok()?.to_string())
+}
+
+fn nodes_of(f: &hdf5::File, name: &str) -> Vec<u64> {
+    f.dataset(name).unwrap_or_else(|e| panic!("{name}: {e}")).read_raw::<u64>().unwrap()
+}
+
+/// A two-body run's file names its pair: the slave and master groups (attributes of
+/// /contact), the slave nodes (`contact/nodes`) and the master nodes (`contact/master_nodes`),
+/// consistent with the mesh's groups; per slave node the pressure is force / weight and the gap
+/// is the weighted gap over `D_qq` (a distance). On 2 ranks, so the metadata (attributes) and
+/// the new dataset go through the collective path; the XDMF index covers both bodies.
+#[test]
+fn a_two_body_run_file_names_its_pair() {
+    let dir = scratch("io-pair");
+    let scene = scene_variant("two_discs.toml", &dir, &[("steps = 1000", "steps = 80")]);
+    let s = run_scene(2, &scene, &[]);
+    let h5 = dir.join("two_discs-2.h5");
+    let f = open(&h5);
+    assert_eq!(text_attr(&f, "contact", "slave_group").as_deref(), Some("upper_contact"));
+    assert_eq!(text_attr(&f, "contact", "master_group").as_deref(), Some("lower_contact"));
+    assert_eq!(text_attr(&f, "contact", "group").as_deref(), Some("upper_contact"));
+    let slave = nodes_of(&f, "contact/nodes");
+    let master = nodes_of(&f, "contact/master_nodes");
+    assert_eq!(slave, nodes_of(&f, "mesh/groups/upper_contact/nodes"));
+    assert_eq!(master, nodes_of(&f, "mesh/groups/lower_contact/nodes"));
+    assert!(!master.is_empty() && master.iter().all(|v| !slave.contains(v)));
+    let upper = nodes_of(&f, "mesh/groups/upper/nodes");
+    let lower = nodes_of(&f, "mesh/groups/lower/nodes");
+    assert!(slave.iter().all(|v| upper.contains(v)) && master.iter().all(|v| lower.contains(v)));
+    let xy = raw(&f, "mesh/coordinates");
+    assert!(slave.iter().all(|&v| xy[3 * v as usize + 1] > 0.0));
+    assert!(master.iter().all(|&v| xy[3 * v as usize + 1] < 0.0));
+    // Per slave node and step: pressure = force / weight, weights sum to the slave arc's
+    // length (a quarter of the circle of radius 8, as an inscribed polygon: measured 3e-4
+    // shorter), forces only where active.
+    let nc = slave.len();
+    let w = raw(&f, "contact/weights");
+    assert_eq!(w.len(), nc);
+    let arc = w.iter().sum::<f64>();
+    let quarter = 4.0 * std::f64::consts::PI;
+    assert!(arc < quarter && rel_diff(arc, quarter) < 1e-3, "slave arc length {arc}");
+    let (p, force) = (raw(&f, "contact/pressure"), raw(&f, "contact/force"));
+    let active = f.dataset("contact/active").unwrap().read_raw::<u8>().unwrap();
+    assert_eq!(f.dataset("contact/pressure").unwrap().shape(), vec![81, nc]);
+    for (i, (&pi, &fi)) in p.iter().zip(&force).enumerate() {
+        assert!((pi - fi / w[i % nc]).abs() <= 1e-12 * pi.abs(), "pressure at entry {i}");
+        assert!(fi >= 0.0 && (active[i] == 1 || fi == 0.0), "force at entry {i}");
+    }
+    assert!(active.contains(&1), "80 steps reach the contact (it starts at step 63)");
+    // The gap of the slave node closest to the master (0, 0.05) after one step: the discs
+    // start 0.1 apart and close at 2 * 800 * tau.
+    let low = s.contact.as_ref().unwrap().lowest_node as u64;
+    assert_eq!(&xy[3 * low as usize..3 * low as usize + 2], &[0.0, 0.05]);
+    let k = slave.iter().position(|&v| v == low).unwrap();
+    let gap1 = raw(&f, "contact/gap")[nc + k];
+    assert!((gap1 - (0.1 - 1600e-6)).abs() < 1e-5, "gap of the lowest slave node {gap1}");
+    // compare draws that node's pressure.
+    let curves = massfree::post::read_curves(&h5).unwrap();
+    let column: Vec<f64> = p.chunks(nc).map(|r| r[k]).collect();
+    assert_eq!(curves.lowest_pressure, column, "compare draws another node");
+    assert!(column.iter().any(|&x| x > 0.0));
+    // The XDMF index shows the whole mesh: both bodies' cells and nodes.
+    let text = std::fs::read_to_string(dir.join("two_discs-2.xdmf")).unwrap();
+    let doc = roxmltree::Document::parse(&text).unwrap();
+    let cells = f.dataset("mesh/cells/quadrilateral").unwrap().shape()[0];
+    for t in doc.descendants().filter(|n| n.has_tag_name("Topology")) {
+        assert_eq!(t.attribute("NumberOfElements"), Some(cells.to_string().as_str()));
+    }
+    let conn = nodes_of(&f, "mesh/cells/quadrilateral");
+    assert!(upper.iter().chain(&lower).all(|v| conn.contains(v)), "a body is missing");
+    // post names the pair and the slave node whose pressure compare draws.
+    let o = massfree(0, &["post", h5.to_str().unwrap(), "-o", dir.join("p").to_str().unwrap()]);
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let tag = nodes_of(&f, "mesh/node_tags")[low as usize];
+    let line = format!(
+        "contact pair: slave \"upper_contact\" ({nc} nodes), master \"lower_contact\" ({} nodes); lowest slave node (closest to the master at t = 0): gmsh node {tag} at (0, 0.05)",
+        master.len()
+    );
+    assert!(out.contains(&line), "{out}");
+    let o = std::process::Command::new("h5dump").arg("-H").arg(&h5).output().unwrap();
+    assert!(o.status.success());
 }

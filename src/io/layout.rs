@@ -33,6 +33,14 @@ pub const ENERGY_SERIES: [&str; 8] = [
 pub const CONTACT: &str = "contact";
 pub const CONTACT_NODES: &str = "contact/nodes";
 pub const CONTACT_WEIGHTS: &str = "contact/weights";
+/// Attribute of `/contact`: the contact boundary group (the slave group of a pair).
+pub const CONTACT_GROUP_ATTR: &str = "group";
+/// Attributes of `/contact` for a slave/master pair of bodies (absent with obstacles).
+pub const CONTACT_SLAVE_GROUP_ATTR: &str = "slave_group";
+pub const CONTACT_MASTER_GROUP_ATTR: &str = "master_group";
+/// The master side's nodes of a pair (rows of coordinates, like `contact/nodes`, whose rows
+/// are the slave nodes then).
+pub const CONTACT_MASTER_NODES: &str = "contact/master_nodes";
 /// Per contact node and step.
 pub const CONTACT_PER_NODE: [&str; 4] = ["pressure", "force", "gap", "active"];
 /// Per step.
@@ -88,6 +96,23 @@ impl RunReader {
             .and_then(|a| a.read_scalar::<VarLenUnicode>())
             .map(|s| s.to_string())
             .unwrap_or_default()
+    }
+
+    /// A text attribute of a group (empty when absent).
+    pub fn group_text(&self, group: &str, name: &str) -> String {
+        self.file
+            .group(group)
+            .and_then(|g| g.attr(name))
+            .and_then(|a| a.read_scalar::<VarLenUnicode>())
+            .map(|s| s.to_string())
+            .unwrap_or_default()
+    }
+
+    /// The slave and master groups of a two-body run (`None` with obstacles or no contact).
+    pub fn contact_pair(&self) -> Option<(String, String)> {
+        let slave = self.group_text(CONTACT, CONTACT_SLAVE_GROUP_ATTR);
+        let master = self.group_text(CONTACT, CONTACT_MASTER_GROUP_ATTR);
+        (!slave.is_empty() && !master.is_empty()).then_some((slave, master))
     }
 
     /// A dataset's values as numbers, flattened.

@@ -11,7 +11,9 @@
 //! - `/energy/{step,time,kinetic,potential,total,external_work}` [n_steps + 1], one entry per
 //!   step (external work `W^n = sum_k f^{k+1/2} . du^k`, so `total - total[0] - external_work`
 //!   is the integrator's energy balance, zero up to solver tolerance),
-//! - `/mesh/groups/<name>/nodes` (attribute `dim`), `/contact/...`, `/checkpoint/...`,
+//! - `/mesh/groups/<name>/nodes` (attribute `dim`), `/contact/...` (for a slave/master pair
+//!   also `/contact/master_nodes` and the attributes `slave_group`, `master_group`),
+//!   `/checkpoint/...`,
 //! - attributes on `/`: `scene`, `settings` (key = value lines), `solver_options`, `ranks`,
 //!   `version`, `status` (`running`, `finished`, `failed: ...`, `interrupted: ...`),
 //!   `summary`, `timings`. The file is created (status `running`) before the mesh is read, so
@@ -636,6 +638,32 @@ impl Output {
             weights: weights.to_vec(),
             n_written: 0,
         });
+        Ok(())
+    }
+
+    /// `/contact/master_nodes` of a slave/master pair: the master group's nodes (0-based rows
+    /// of /mesh/coordinates; `/contact/nodes` holds the slave nodes). Collective: every rank
+    /// creates the dataset with the same shape (checked), rank 0 writes its values into the
+    /// contiguous dataset (no metadata touched). Every rank holds the whole mesh and scene, so
+    /// the group's nodes are the same list on every rank; only rank 0's reach the file anyway.
+    pub fn create_contact_pair(
+        &mut self,
+        world: &mpi::topology::SimpleCommunicator,
+        master_nodes: &[usize],
+    ) -> Result<()> {
+        let path = self.path.clone();
+        agreed_layout(world, &[master_nodes.len()], &path)?;
+        group(&self.file, layout::CONTACT, &path)?;
+        let ds = (self.file.new_dataset::<u64>())
+            .shape((master_nodes.len(),))
+            .create(layout::CONTACT_MASTER_NODES)
+            .map_err(|e| h5err(&path, &format!("create /{}", layout::CONTACT_MASTER_NODES), e))?;
+        if self.rank == 0 {
+            let n64: Vec<u64> = master_nodes.iter().map(|&v| v as u64).collect();
+            ds.write(&n64).map_err(|e| {
+                h5err(&path, &format!("write /{}", layout::CONTACT_MASTER_NODES), e)
+            })?;
+        }
         Ok(())
     }
 

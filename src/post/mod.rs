@@ -280,6 +280,27 @@ pub fn post(path: &Path, opts: &PostOptions) -> Result<Vec<String>> {
             .and_then(|d| d.read_raw::<u64>())
             .map_err(|e| h5(path, "read contact/nodes", e))?;
         let rows = p.nrows().min(n);
+        if let Some((slave, master)) = run.contact_pair() {
+            let n_master = file.dataset(layout::CONTACT_MASTER_NODES).map_or(0, |d| d.size());
+            let mut line = format!(
+                "contact pair: slave \"{slave}\" ({} nodes), master \"{master}\" ({n_master} nodes)",
+                cn.len()
+            );
+            // The node whose pressure `compare` draws: the slave node closest to the master.
+            if let Some(c) = run.summary().and_then(|s| s.contact) {
+                let x = &coords[3 * c.lowest_node..3 * c.lowest_node + 3];
+                let at = if x[2] == 0.0 {
+                    format!("({}, {})", x[0], x[1])
+                } else {
+                    format!("({}, {}, {})", x[0], x[1], x[2])
+                };
+                line.push_str(&format!(
+                    "; lowest slave node (closest to the master at t = 0): gmsh node {} at {at}",
+                    c.lowest_node_tag
+                ));
+            }
+            lines.push(line);
+        }
         let any: Vec<bool> = (0..rows).map(|r| a.row(r).iter().any(|&x| x == 1)).collect();
         match crate::contact::metrics::contact_period(&any) {
             Some((f0, f1)) => {
