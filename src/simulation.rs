@@ -1410,8 +1410,14 @@ pub fn summary_lines(sim: &Simulation, s: &RunSummary) -> Vec<String> {
             sim.scene.mass.kind.name(),
             match sim.layer_summary {
                 Some((nodes, cells)) => format!(
-                    " (mass-free layer along \"{}\": {nodes} contact nodes, {cells} layer cells)",
-                    sim.scene.mass.contact_boundary.as_deref().unwrap_or(""),
+                    " (mass-free layer along {}: {nodes} contact nodes, {cells} layer cells)",
+                    sim.scene
+                        .mass
+                        .layer_groups()
+                        .iter()
+                        .map(|g| format!("\"{g}\""))
+                        .collect::<Vec<_>>()
+                        .join(" and "),
                 ),
                 None => String::new(),
             }
