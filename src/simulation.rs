@@ -833,6 +833,9 @@ impl<'a> Simulation<'a> {
             s.ksp_iterations_contact_steps = record.contact_ksp_iterations;
             s
         });
+        // Collective: every rank has the same contact solver.
+        let mortar = contact.and_then(|c| c.mortar_cost()).map(|m| m.max_over_ranks(self.world));
+        let contact_summary = contact_summary.map(|s| ContactSummary { mortar, ..s });
         // Pictures next to the HDF5 file, drawn by rank 0 from the histories in memory. A
         // picture that cannot be drawn (e.g. no font) is a warning, not a failed run; every
         // rank learns the outcome, since the summary written below must be the same on all.
@@ -1464,6 +1467,18 @@ pub fn summary_lines(sim: &Simulation, s: &RunSummary) -> Vec<String> {
             "chatter: lowest node osc2 {:.2e}, total-force TV index {:.3}, episodes per node max {} (mean {:.2})",
             c.lowest_osc2, c.total_force_tv_index, c.episodes_max, c.episodes_mean
         ));
+        if let Some(m) = &c.mortar {
+            lines.push(format!(
+                "mortar: {} interface evaluations {:.3} s (search {:.3} s), T^T K T rebuilds {:.3} s, per-step basis changes {:.3} s; {:.1}% of the stepping",
+                m.evaluations,
+                m.evaluation_seconds,
+                m.search_seconds,
+                m.operator_seconds,
+                m.step_seconds,
+                100.0 * (m.evaluation_seconds + m.operator_seconds + m.step_seconds)
+                    / s.timings.stepping.max(1e-300)
+            ));
+        }
     }
     if let Some(p) = &s.output {
         lines.push(format!("output: {}", p.display()));

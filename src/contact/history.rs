@@ -58,6 +58,9 @@ pub struct ContactSummary {
     pub ksp_iterations_contact_steps: usize,
     /// The contact steps against one plain solve each (`-contact_reference_solve` only).
     pub reference: Option<super::pdas::ReferenceCost>,
+    /// The mortar interface's cost (two-body pairs; wall times the largest over the ranks).
+    #[serde(default)]
+    pub mortar: Option<super::mortar::MortarCost>,
 }
 
 impl History {
@@ -162,6 +165,7 @@ impl History {
             contact_steps_seconds,
             ksp_iterations_contact_steps: 0,
             reference: c.reference_cost(),
+            mortar: None,
         }
     }
 }

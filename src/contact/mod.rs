@@ -142,6 +142,10 @@ pub trait ContactSolver {
     fn is_pair(&self) -> bool {
         false
     }
+    /// What the mortar interface cost so far on this rank (two-body pairs).
+    fn mortar_cost(&self) -> Option<mortar::MortarCost> {
+        None
+    }
 }
 
 /// One step's linear system as the integrator hands it to the contact solver.

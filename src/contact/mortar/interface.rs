@@ -111,6 +111,19 @@ impl MortarInterface {
         x: &dyn Fn(usize) -> [f64; 3],
         reach: f64,
     ) -> Result<MortarInterface> {
+        Self::build_timed(world, mesh, part, slave_facets, master_facets, x, reach).map(|r| r.0)
+    }
+
+    /// [`MortarInterface::build`], and this rank's wall time of the bucket search (seconds).
+    pub fn build_timed(
+        world: &SimpleCommunicator,
+        mesh: &Mesh,
+        part: &Partition,
+        slave_facets: &[SurfaceFacet],
+        master_facets: &[SurfaceFacet],
+        x: &dyn Fn(usize) -> [f64; 3],
+        reach: f64,
+    ) -> Result<(MortarInterface, f64)> {
         let err = |e: GeomError| Error::Solver(format!("mortar: {e}"));
         let dim = mesh.dim;
         let slave = sorted_nodes(slave_facets);
@@ -160,8 +173,10 @@ impl MortarInterface {
                 })
                 .collect()
         };
+        let t_search = std::time::Instant::now();
         let masters: Vec<&SurfaceFacet> = master_facets.iter().collect();
         let pairs = candidate_pairs(&boxes(&mine)?, &boxes(&masters)?);
+        let search_seconds = t_search.elapsed().as_secs_f64();
 
         // D per owned slave facet, M and the weighted gaps per overlapping pair.
         let mut d = vec![0.0; ns];
@@ -221,7 +236,7 @@ impl MortarInterface {
         let mut local: Vec<(u32, u32, f64)> = m.into_iter().map(|((q, l), v)| (q, l, v)).collect();
         local.sort_by(|a, b| (a.0, a.1).cmp(&(b.0, b.1)));
         let m = merge(&gather(world, &local));
-        Ok(MortarInterface { slave, master, d, m, normals, gap })
+        Ok((MortarInterface { slave, master, d, m, normals, gap }, search_seconds))
     }
 
     /// `sum_l M_ql` per slave node (equals `D_qq` where the master covers the node's support).

@@ -46,9 +46,47 @@ pub struct MortarActiveSet<'w> {
     /// `sum_l M_ql / D_qq` per slave node (1 where the master covers the node's support): the
     /// master body's share of the slave node's force.
     coverage: Vec<f64>,
-    /// The interface nodes' displacements at the last evaluation, and the evaluations so far.
+    /// The interface nodes' displacements at the last evaluation.
     evaluated_at: Vec<f64>,
+    cost: MortarCost,
+}
+
+/// What the mortar interface cost this rank (the run reports the largest over the ranks).
+#[derive(Debug, Clone, Copy, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct MortarCost {
+    /// Evaluations of the interface (the reference configuration's included).
     pub evaluations: usize,
+    /// Wall time of the evaluations: `D`, `M`, normals, weighted gaps, with the search.
+    pub evaluation_seconds: f64,
+    /// Of that, the bucket search for candidate facet pairs.
+    pub search_seconds: f64,
+    /// Wall time of rebuilding `T` and `T^T K T` with its constraint rows after an evaluation.
+    pub operator_seconds: f64,
+    /// Wall time of the per-step check whether the interface moved (one reduction of the
+    /// interface nodes' displacements), and of the basis changes `T^T rhs`, `T u~`.
+    pub step_seconds: f64,
+}
+
+impl MortarCost {
+    /// The largest of every entry over the ranks (collective).
+    pub fn max_over_ranks(&self, world: &mpi::topology::SimpleCommunicator) -> MortarCost {
+        use mpi::traits::*;
+        let local = [
+            self.evaluation_seconds,
+            self.search_seconds,
+            self.operator_seconds,
+            self.step_seconds,
+        ];
+        let mut all = [0.0; 4];
+        world.all_reduce_into(&local[..], &mut all[..], mpi::collective::SystemOperation::max());
+        MortarCost {
+            evaluations: self.evaluations,
+            evaluation_seconds: all[0],
+            search_seconds: all[1],
+            operator_seconds: all[2],
+            step_seconds: all[3],
+        }
+    }
 }
 
 /// What the interface is evaluated from: the pair's facets and nodes, the mesh and partition.
@@ -73,12 +111,14 @@ impl Pair {
         self.nodes.iter().enumerate().map(|(k, &v)| (v, k)).collect()
     }
 
-    /// The interface at displacement `trace` (of `self.nodes`).
+    /// The interface at displacement `trace` (of `self.nodes`), its cost counted in `cost`.
     fn evaluate(
         &self,
         world: &mpi::topology::SimpleCommunicator,
         trace: &[f64],
+        cost: &mut MortarCost,
     ) -> Result<MortarInterface> {
+        let t0 = std::time::Instant::now();
         let dim = self.part.dim;
         let at = self.slots();
         let x = |v: usize| {
@@ -90,7 +130,7 @@ impl Pair {
             }
             p
         };
-        MortarInterface::build(
+        let (iface, search) = MortarInterface::build_timed(
             world,
             &self.mesh,
             &self.part,
@@ -98,7 +138,11 @@ impl Pair {
             &self.master,
             &x,
             self.reach,
-        )
+        )?;
+        cost.evaluations += 1;
+        cost.search_seconds += search;
+        cost.evaluation_seconds += t0.elapsed().as_secs_f64();
+        Ok(iface)
     }
 }
 
@@ -120,7 +164,8 @@ impl<'w> MortarActiveSet<'w> {
         factor: f64,
     ) -> Result<MortarActiveSet<'w>> {
         let zero = vec![0.0; pair.dofs.len()];
-        let iface = pair.evaluate(nodes.world, &zero)?;
+        let mut cost = MortarCost::default();
+        let iface = pair.evaluate(nodes.world, &zero, &mut cost)?;
         if nodes.boundary.nodes != iface.slave {
             return Err(Error::Solver("mortar: the contact nodes are not the slave nodes".into()));
         }
@@ -137,7 +182,7 @@ impl<'w> MortarActiveSet<'w> {
             coverage: coverage(&iface),
             update_distance,
             evaluated_at: zero,
-            evaluations: 1,
+            cost,
         })
     }
 }
@@ -241,7 +286,8 @@ impl MortarActiveSet<'_> {
     /// `T^T K T` with the constraints and the solver's operators (collective).
     fn update(&mut self, k: &Matrix, trace: Vec<f64>) -> Result<()> {
         let world = self.inner.nodes().world;
-        let iface = self.pair.evaluate(world, &trace)?;
+        let iface = self.pair.evaluate(world, &trace, &mut self.cost)?;
+        let t0 = std::time::Instant::now();
         let dim = self.pair.part.dim;
         let at = self.pair.slots();
         // u~ of the slave nodes at the evaluation: u_q - sum_l (M_ql / D_qq) u_l.
@@ -263,7 +309,7 @@ impl MortarActiveSet<'_> {
         self.coverage = coverage(&iface);
         self.rebuild(k)?;
         self.evaluated_at = trace;
-        self.evaluations += 1;
+        self.cost.operator_seconds += t0.elapsed().as_secs_f64();
         Ok(())
     }
 
@@ -303,14 +349,18 @@ impl ContactSolver for MortarActiveSet<'_> {
         // step let the energy grow in the two-disc run (measured; README), so in contact the
         // interface stays as it was at the touch-down (small sliding).
         let in_contact = self.inner.nodes().active.iter().any(|&a| a);
+        let t0 = std::time::Instant::now();
+        let mut step_seconds = 0.0;
         if self.update_distance.is_finite() && !in_contact {
             let trace = self.pair.trace(self.inner.nodes().world, u)?;
             let moved =
                 trace.iter().zip(&self.evaluated_at).fold(0.0f64, |a, (x, y)| a.max((x - y).abs()));
+            step_seconds += t0.elapsed().as_secs_f64();
             if moved > self.update_distance {
                 self.update(k, trace)?;
             }
         }
+        let t1 = std::time::Instant::now();
         let h = self.hat.as_mut().expect("built above");
         if h.ksp.is_none() {
             h.ksp = Some(ksp_like(&h.k, ksp)?);
@@ -321,6 +371,7 @@ impl ContactSolver for MortarActiveSet<'_> {
         h.u.waxpy(-1.0, &h.tmp, u)?;
         self.e.mult(du, &mut h.tmp)?;
         h.du.waxpy(-1.0, &h.tmp, du)?;
+        step_seconds += t1.elapsed().as_secs_f64();
         let inner = StepSystem {
             k: &mut h.k,
             ksp: h.ksp.as_mut().expect("built above"),
@@ -331,7 +382,9 @@ impl ContactSolver for MortarActiveSet<'_> {
             time,
         };
         let (mut out, its) = self.inner.solve(inner)?;
+        let t2 = std::time::Instant::now();
         self.t.mult(&h.du, du)?;
+        self.cost.step_seconds += step_seconds + t2.elapsed().as_secs_f64();
         // The master nodes get -M^T lambda in the equation of motion: a force
         // sum_q coverage_q lambda_q n_q on the master body.
         for (q, &f) in out.row.force.iter().enumerate() {
@@ -353,6 +406,9 @@ impl ContactSolver for MortarActiveSet<'_> {
     }
     fn is_pair(&self) -> bool {
         true
+    }
+    fn mortar_cost(&self) -> Option<MortarCost> {
+        Some(self.cost)
     }
     fn penetrating(&self, u: &Vector, time: f64) -> Result<Vec<(usize, usize)>> {
         // The planes hold for u~ = T^{-1} u.
