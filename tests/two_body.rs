@@ -103,3 +103,169 @@ fn two_body_contact_does_not_depend_on_the_number_of_ranks() {
         assert!(rel_diff(s1.energy_final, s.energy_final) < 1e-8, "{} ranks: energy", s.ranks);
     }
 }
+
+/// Per step (row 0 = the start): the total contact force on the slave side (the sum of the
+/// nodal forces `D lambda`) and whether any slave node is active.
+fn force_history(h5: &std::path::Path) -> (Vec<f64>, Vec<bool>) {
+    let run = reader(h5);
+    let nc = run.file.dataset(&layout::contact("force")).unwrap().shape()[1];
+    let force = run.series(&layout::contact("force")).unwrap();
+    let active = run.series(&layout::contact("active")).unwrap();
+    let total = force.chunks(nc).map(|r| r.iter().sum()).collect();
+    let any = active.chunks(nc).map(|r| r.iter().any(|&a| a != 0.0)).collect();
+    (total, any)
+}
+
+fn peak(f: &[f64]) -> f64 {
+    f.iter().cloned().fold(0.0, f64::max)
+}
+
+/// The mean of `field`'s x-component over the cells whose nodes all satisfy `inside`, by cell
+/// area (exact for bilinear fields on the bars' rectangles).
+fn mean_x(h5: &std::path::Path, field: &str, time: f64, inside: &dyn Fn(f64) -> bool) -> f64 {
+    let run = reader(h5);
+    let x = run.coordinates().unwrap();
+    let (v, comps) = run.field_at(field, time).unwrap();
+    let (mut int, mut area) = (0.0, 0.0);
+    for (_, c) in run.cells().unwrap() {
+        if !c.iter().all(|&k| inside(x[k][0])) {
+            continue;
+        }
+        let xs: Vec<f64> = c.iter().map(|&k| x[k][0]).collect();
+        let ys: Vec<f64> = c.iter().map(|&k| x[k][1]).collect();
+        let a = (xs.iter().cloned().fold(f64::MIN, f64::max)
+            - xs.iter().cloned().fold(f64::MAX, f64::min))
+            * (ys.iter().cloned().fold(f64::MIN, f64::max)
+                - ys.iter().cloned().fold(f64::MAX, f64::min));
+        int += a * c.iter().map(|&k| v[k * comps]).sum::<f64>() / c.len() as f64;
+        area += a;
+    }
+    int / area
+}
+
+/// Two identical bars (`scenes/two_bars.toml`: length L = 1, height H = 0.1, E = 100, nu = 0,
+/// rho = 1, so c = sqrt(E/rho) = 10) hit each other head-on, each at v0 = 0.1. With nu = 0 a
+/// uniform strip in plane strain is exactly 1D (the y-equations decouple), and 1D theory says:
+/// at impact both ends stop, the interface stress is `rho c v0` (= 1) until the compression
+/// wave has run to the far end and back, `2L/c` (= 0.2 = 1600 steps), then each bar leaves
+/// with `-v0`, stress free. The gap closes at `t_a = gap/(2 v0)` = 10.5 steps, between two
+/// steps (METHOD.md 7: an arrival on a step boundary would make the contact node chatter with
+/// `M`). Asserted for `M_H^1` (the project's default) and the consistent `M`:
+/// * the plateau: on `[t_a + L/(2c), t_a + 1.4 L/c]` the pressure (total force / H) is
+///   `rho c v0` within 1%. The window starts 100 element transits `h/c` after the impact,
+///   whose transient (the smeared front and, with `M_H^1`, a damped ringing of the layer with a
+///   period of about 7 `h/c`) lives on the mesh time scale; it ends before the fastest discrete
+///   wave can bring the release front's precursor back: the consistent Q1 mass under the
+///   midpoint rule at `c tau/h = 1/4` has group velocities up to 1.30 c (max over kh of
+///   `d omega/dk` of `omega = 2/tau atan(tau/2 c/h sqrt(6(1 - cos kh)/(2 + cos kh)))`), which
+///   come back no earlier than `t_a + 2L/(1.30 c) = t_a + 1.54 L/c`;
+/// * the contact period (steps with an active node) is `2L/(c tau)` within 2 steps (where the
+///   discrete start and end fall between steps) plus one element transit `h/(c tau)` = 4 steps
+///   (the release front is resolved to an element);
+/// * after release each bar's mean velocity (over the bar without its end element column,
+///   whose massless contact nodes keep the undamped period-2 mode of METHOD.md 7) is `-v0`
+///   within 2%: the impulse differs from the continuum's `2 m v0` only within the release
+///   front, smeared by dispersion over `w = (2L h^2)^(1/3)` (Airy scaling after a path of 2L)
+///   = 0.037, at most `w/(4L)` of the impulse, i.e. `w/(2L)` = 1.9% of the velocity;
+/// * energy: the balance below 1e-8; the final energy below the initial one (the contact work
+///   at activation `lambda g^n >= 0` is the only loss) by less than `h/L` = 0.5%: activation
+///   stops at most the end element column of each bar abruptly; the total momentum is kept
+///   (the contact forces are internal).
+#[test]
+fn two_bars_impact_follows_1d_wave_theory() {
+    let dir = scratch("two-bars");
+    let scene = scene_variant("two_bars.toml", &dir, &[]);
+    let h5 = dir.join("two_bars-2.h5");
+    let (l, hh, c, v0, rho): (f64, f64, f64, f64, f64) = (1.0, 0.1, 10.0, 0.1, 1.0);
+    let (n, tau, gap, steps): (f64, f64, f64, usize) = (200.0, 1.25e-4, 2.625e-4, 1700);
+    let h = l / n;
+    let t_a = gap / (2.0 * v0);
+    let sigma = rho * c * v0;
+    for mass in ["modified1", "consistent"] {
+        let s = run_scene(2, &scene, &["--mass", mass, "--", "-ksp_rtol", "1e-12"]);
+        assert_eq!(s.mass_kind, mass);
+        let cs = contact(&s);
+        let (force, any) = force_history(&h5);
+        // The contact period: one, through the run.
+        let first = any.iter().position(|&a| a).expect("no contact");
+        let last = any.iter().rposition(|&a| a).unwrap();
+        assert!(any[first..=last].iter().all(|&a| a), "{mass}: contact interrupted");
+        assert_eq!((first, last), (cs.first_contact_step, cs.last_contact_step));
+        assert_eq!(first, (t_a / tau).ceil() as usize, "{mass}: contact starts at {first}");
+        let duration = (last + 1 - first) as f64;
+        let expect = 2.0 * l / (c * tau);
+        eprintln!(
+            "{mass}: contact steps {first}..{last}: {duration} steps vs 2L/(c tau) = {expect}"
+        );
+        assert!(
+            (duration - expect).abs() <= 2.0 + h / (c * tau),
+            "{mass}: contact lasts {duration} steps, 2L/c is {expect}"
+        );
+        assert!(last < steps, "{mass}: the bars must have separated");
+        // The plateau.
+        let from = ((t_a + 0.5 * l / c) / tau).ceil() as usize;
+        let to = ((t_a + 1.4 * l / c) / tau).floor() as usize;
+        let p: Vec<f64> = force[from..=to].iter().map(|f| f / hh).collect();
+        let dev = p.iter().map(|x| (x / sigma - 1.0).abs()).fold(0.0, f64::max);
+        let mean = p.iter().sum::<f64>() / p.len() as f64;
+        eprintln!("{mass}: plateau steps {from}..{to}: mean {mean}, largest deviation {dev:.2e} of rho c v0 = {sigma}");
+        assert!(dev < 0.01, "{mass}: plateau deviates by {dev} from rho c v0 = {sigma}");
+        // Velocities after release, from the last step's field.
+        let t_end = steps as f64 * tau;
+        let vl = mean_x(&h5, "velocity", t_end, &|x| x <= l - h + 1e-9);
+        let vr = mean_x(&h5, "velocity", t_end, &|x| x >= l + gap + h - 1e-9);
+        eprintln!("{mass}: mean velocities after release {vl}, {vr} (v0 = {v0})");
+        assert!((vl / -v0 - 1.0).abs() < 0.02, "{mass}: left bar leaves at {vl}, not -v0");
+        assert!((vr / v0 - 1.0).abs() < 0.02, "{mass}: right bar leaves at {vr}, not +v0");
+        // Energy and momentum.
+        assert!(s.energy_balance < 1e-8, "{mass}: energy balance {}", s.energy_balance);
+        let loss = (s.energy_initial - s.energy_final) / s.energy_initial;
+        eprintln!(
+            "{mass}: energy loss {loss:.2e} of the initial energy (contact work {})",
+            cs.contact_work
+        );
+        assert!((-1e-8..h / l).contains(&loss), "{mass}: relative energy loss {loss}");
+        let p_bar = rho * l * hh * v0;
+        let dp = (s.momentum_final[0] - s.momentum_initial[0]).abs();
+        assert!(dp < 1e-8 * p_bar, "{mass}: momentum changed by {dp}");
+    }
+}
+
+/// Two bars with matching, straight contact ends are by symmetry one bar against a rigid wall
+/// at the middle plane: the dual mortar then has `M = D`, the slave normals are exact and the
+/// weighted gap is the nodal one, so the discrete problems coincide and the contact force
+/// histories must agree to the solver tolerance (the mortar path against the obstacle path).
+/// The impact transient (the first 300 steps) is the demanding part; the other bar moves away.
+#[test]
+fn two_bars_are_one_bar_against_a_wall() {
+    let dir = scratch("two-bars-wall");
+    let two = scene_variant("two_bars.toml", &dir, &[]);
+    let wall = scene_text(
+        &dir,
+        "wall.toml",
+        &std::fs::read_to_string(&two)
+            .unwrap()
+            .replace("name = \"two_bars\"", "name = \"wall\"")
+            .replace("0.1 * (1.00013125 - x) / abs(1.00013125 - x)", "0.1")
+            .replace("slave = \"left_contact\"", "boundary = \"left_contact\"")
+            .replace(
+                "master = \"right_contact\"",
+                "obstacle = { type = \"plane\", point = [1.00013125, 0.0], normal = [-1.0, 0.0] }",
+            ),
+    );
+    let args = ["--steps", "300", "--", "-ksp_rtol", "1e-13"];
+    let b = run_scene(2, &two, &args);
+    let w = run_scene(2, &wall, &args);
+    let (fb, ab) = force_history(&dir.join("two_bars-2.h5"));
+    let (fw, aw) = force_history(&dir.join("wall-2.h5"));
+    assert!(ab.iter().any(|&a| a), "no contact");
+    assert_eq!(ab, aw, "the contact periods differ");
+    let fmax = peak(&fw);
+    let dmax = fb.iter().zip(&fw).map(|(x, y)| (x - y).abs()).fold(0.0, f64::max);
+    eprintln!("two bars against the wall: forces differ by {dmax:.2e} (peak {fmax})");
+    assert!(dmax < 1e-8 * fmax, "forces differ by {dmax} (peak {fmax})");
+    // Both bars carry the energy in both runs; the pair does the contact work of two walls.
+    assert!(rel_diff(b.energy_initial, w.energy_initial) < 1e-12);
+    let (cb, cw) = (contact(&b), contact(&w));
+    assert!(rel_diff(cb.contact_work, 2.0 * cw.contact_work) < 1e-6, "contact work");
+}
