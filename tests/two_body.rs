@@ -269,3 +269,59 @@ fn two_bars_are_one_bar_against_a_wall() {
     let (cb, cw) = (contact(&b), contact(&w));
     assert!(rel_diff(cb.contact_work, 2.0 * cw.contact_work) < 1e-6, "contact work");
 }
+
+/// Two identical balls (`scenes/two_spheres.toml`: R = 1, E = 100, nu = 0.3, rho = 1, each at
+/// v = 0.0167 towards the other, tau = 0.02) against Hertz's quasi-static impact theory for two spheres:
+/// `1/R* = 1/R1 + 1/R2`, `1/E* = (1 - nu1^2)/E1 + (1 - nu2^2)/E2`, `m* = m1 m2/(m1 + m2)`
+/// (m the discrete mass of each ball), approach speed `v_rel = 2v`;
+/// `delta_max = (15 m* v_rel^2 / (16 E* sqrt(R*)))^(2/5)`,
+/// `F_max = 4/3 E* sqrt(R*) delta_max^(3/2)`, `t_c = 2.9432 delta_max / v_rel` (the factor is
+/// `2 int_0^1 dx / sqrt(1 - x^(5/2))`; in the form `C (m*^2 / (R* E*^2 v_rel))^(1/5)` it is
+/// C = 2.9432 (15/16)^(2/5) = 2.868). Quasi-static: v/c_p = 1.4e-3 and t_c is about 10 wave
+/// transits of a ball. Asserted within 10%: the contact radius `a = sqrt(R* delta_max)` = 0.1
+/// spans only 2.5 elements of the contact mesh (hc = 0.04), so the discrete contact area grows
+/// and shrinks by rings of nodes (the same bound as the ball on a plane in tests/contact3d.rs).
+/// Also: one contact period and one episode per node, the balls separate; the impulse is
+/// `2 m v` within 1% (by energy the balls cannot leave faster than they came; Hunter's estimate
+/// of the energy radiated as waves, about 1.04 (v/c_p)^(3/5) = 2% for a half-space, bounds
+/// the deficit by about 1%); the energy balance below 1e-8 and the total momentum kept.
+#[test]
+fn two_balls_collide_as_hertz_says() {
+    let dir = scratch("two-spheres");
+    let scene = scene_variant("two_spheres.toml", &dir, &[]);
+    let s = run_scene(2, &scene, &[]);
+    let c = contact(&s);
+    let (e, nu, r, v, tau) = (100.0f64, 0.3f64, 1.0f64, 0.0167f64, 0.02f64);
+    // Two bodies of the same mass: m is half the total.
+    let m = 0.5 * s.mass.total_mass[2];
+    let r_star = 1.0 / (1.0 / r + 1.0 / r);
+    let e_star = 1.0 / (2.0 * (1.0 - nu * nu) / e);
+    let m_star = m * m / (m + m);
+    let v_rel = 2.0 * v;
+    let delta = (15.0 * m_star * v_rel * v_rel / (16.0 * e_star * r_star.sqrt())).powf(0.4);
+    let f_max = 4.0 / 3.0 * e_star * r_star.sqrt() * delta.powf(1.5);
+    let t_c = 2.9432 * delta / v_rel;
+    assert!((delta / r - 0.02).abs() < 0.002, "the scene is meant for delta_max/R = 2% ({delta})");
+    let (force, any) = force_history(&dir.join("two_spheres-2.h5"));
+    let steps = any.iter().filter(|&&a| a).count();
+    let duration = steps as f64 * tau;
+    let fpeak = peak(&force);
+    eprintln!(
+        "t_c {duration} vs Hertz {t_c} ({:+.1}%); F_max {fpeak} vs Hertz {f_max} ({:+.1}%)",
+        100.0 * (duration / t_c - 1.0),
+        100.0 * (fpeak / f_max - 1.0)
+    );
+    assert!((duration / t_c - 1.0).abs() < 0.10, "contact time {duration} vs Hertz {t_c}");
+    assert!((fpeak / f_max - 1.0).abs() < 0.10, "peak force {fpeak} vs Hertz {f_max}");
+    assert_eq!(c.contact_steps, c.last_contact_step - c.first_contact_step + 1);
+    assert_eq!(c.episodes_max, 1, "a node touched more than once");
+    assert!(c.last_contact_step < s.steps, "the balls must have separated");
+    let impulse = c.impulse[2];
+    eprintln!("impulse {impulse} vs 2 m v = {}", 2.0 * m * v);
+    assert!((impulse / (2.0 * m * v) - 1.0).abs() < 0.01, "impulse {impulse} vs 2 m v");
+    assert!(s.energy_balance < 1e-8, "energy balance {}", s.energy_balance);
+    let loss = (s.energy_initial - s.energy_final) / s.energy_initial;
+    assert!((-1e-8..1e-3).contains(&loss), "relative energy loss {loss}");
+    let dp = (s.momentum_final[2] - s.momentum_initial[2]).abs();
+    assert!(dp < 1e-8 * m * v, "momentum changed by {dp}");
+}
