@@ -1,6 +1,8 @@
 //! Two deformable bodies in contact with dual mortar multipliers (issue 12): the paper's two
-//! discs as two real bodies against the symmetric disc-on-plane model, chatter with `M`
-//! against `M_H`, and rank independence with the contact zone cut by the partition.
+//! discs as two real bodies against the symmetric disc-on-plane model (matching and
+//! non-matching meshes, quads and triangles), chatter with `M` against `M_H`, rank independence
+//! with the contact zone cut by the partition, two bars hitting head-on against 1D wave theory
+//! (and against one bar on a wall), and two balls against Hertz's impact theory.
 
 mod common;
 use common::*;
