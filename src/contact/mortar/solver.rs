@@ -341,7 +341,10 @@ impl MortarActiveSet<'_> {
 
 impl ContactSolver for MortarActiveSet<'_> {
     fn prepare(&mut self, k: &Matrix) -> Result<()> {
-        self.rebuild(k)
+        let t0 = std::time::Instant::now();
+        self.rebuild(k)?;
+        self.cost.operator_seconds += t0.elapsed().as_secs_f64();
+        Ok(())
     }
 
     fn solve(&mut self, sys: StepSystem<'_>) -> Result<(StepContact, usize)> {
