@@ -105,9 +105,9 @@ enum Command {
         /// Override the scene's mass treatment: consistent, lumped, modified0, modified1.
         #[arg(long, value_name = "KIND")]
         mass: Option<String>,
-        /// How cells are split over ranks: metis (default) or x-slabs (equal-count slabs
-        /// along x, a predictable cut through the median x).
-        #[arg(long, default_value = "metis", value_parser = ["metis", "x-slabs"])]
+        /// How cells are split over ranks: metis (default), x-slabs or y-slabs (equal-count
+        /// slabs along x or y, a predictable cut through the median).
+        #[arg(long, default_value = "metis", value_parser = ["metis", "x-slabs", "y-slabs"])]
         partition: String,
         /// Continue a finished or interrupted run from the checkpoint in its HDF5 file.
         #[arg(long, value_name = "RUN.h5")]

@@ -80,6 +80,9 @@ pub enum Strategy {
     /// Equal-count slabs of cell centroids along x: a predictable cut through x = median,
     /// e.g. to make a contact zone straddle the partition boundary.
     SlabsX,
+    /// The same along y: e.g. two bodies stacked in y each on its own rank(s), so that a
+    /// contact pair's slave and master sides live on different ranks.
+    SlabsY,
 }
 
 impl Strategy {
@@ -87,17 +90,21 @@ impl Strategy {
         match name {
             "metis" => Some(Strategy::Metis),
             "x-slabs" => Some(Strategy::SlabsX),
+            "y-slabs" => Some(Strategy::SlabsY),
             _ => None,
         }
     }
 }
 
-/// Cells sorted by centroid x (ties by index), cut into `nparts` equal-count slabs.
-pub fn slabs_x(mesh: &Mesh, nparts: usize) -> Vec<usize> {
+/// Cells sorted by centroid coordinate `axis` (ties by index), cut into `nparts` equal-count
+/// slabs.
+pub fn slabs(mesh: &Mesh, nparts: usize, axis: usize) -> Vec<usize> {
     let cx: Vec<f64> = mesh
         .cells
         .iter()
-        .map(|c| c.nodes().iter().map(|&v| mesh.coords[v][0]).sum::<f64>() / c.nodes().len() as f64)
+        .map(|c| {
+            c.nodes().iter().map(|&v| mesh.coords[v][axis]).sum::<f64>() / c.nodes().len() as f64
+        })
         .collect();
     let mut order: Vec<usize> = (0..mesh.cells.len()).collect();
     order.sort_by(|&a, &b| cx[a].total_cmp(&cx[b]).then(a.cmp(&b)));
@@ -123,7 +130,8 @@ impl Partition {
     ) -> Result<Partition> {
         let cell_rank = match strategy {
             Strategy::Metis => partition_cells(mesh, size)?,
-            Strategy::SlabsX => slabs_x(mesh, size),
+            Strategy::SlabsX => slabs(mesh, size, 0),
+            Strategy::SlabsY => slabs(mesh, size, 1),
         };
         Ok(Self::from_cell_ranks(mesh, rank, size, cell_rank))
     }
