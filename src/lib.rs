@@ -7,6 +7,7 @@
 //! `../shared/reference/METHOD.md` (with the paper, `hager-wohlmuth-2009.txt`).
 
 pub mod assembly;
+pub mod bodies;
 pub mod console;
 pub mod contact;
 pub mod error;

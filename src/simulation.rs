@@ -14,11 +14,12 @@ use mpi::topology::SimpleCommunicator;
 use mpi::traits::*;
 
 use crate::assembly::{self, Loads};
+use crate::bodies::Bodies;
 use crate::console::{Console, Progress};
 use crate::contact::history::{ContactSummary, History as ContactHistory};
 use crate::contact::{self, ContactBoundary, ContactSolver, Obstacles};
 use crate::error::{Error, Result};
-use crate::fem::{self, kernels};
+use crate::fem::kernels;
 use crate::io::{
     group_key, natural_range, read_checkpoint, Checkpoint, Meta, Output, OutputPlan, PlannedField,
     RunFile,
@@ -30,7 +31,7 @@ use crate::petsc::{Matrix, NullSpace, Scatter, Vector};
 use crate::phase::{self, HangTimeout, Phase, Watchdog};
 use crate::post::{picture_paths, write_pictures, RunCurves};
 use crate::scene::{Field, MeshSource, Scene};
-use crate::time::{Dirichlet, Energy, Forces, Midpoint, Regime, StepOperator, StepSolverDefaults};
+use crate::time::{Dirichlet, Energy, Forces, Midpoint, StepOperator, StepSolverDefaults};
 
 /// What the command line adds to a scene.
 #[derive(Debug, Clone, Default)]
@@ -111,6 +112,32 @@ pub struct RunSummary {
     pub pictures: Vec<PathBuf>,
     /// What the run simulated and what it did not build (`Effects::summary`).
     pub effects: String,
+    /// Each `[[body]]` (empty without).
+    #[serde(default)]
+    pub bodies: Vec<BodySummary>,
+}
+
+/// One `[[body]]` of a finished run.
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
+pub struct BodySummary {
+    pub group: String,
+    #[serde(rename = "E")]
+    pub e: f64,
+    pub nu: f64,
+    pub rho: f64,
+    /// The mass treatment its cells got: consistent, lumped, modified0, modified1 (a modified
+    /// kind without a contact group on the body gives the consistent mass: `consistent`).
+    pub mass_kind: String,
+    pub cells: usize,
+    /// `1_B^T M 1` per component, `1_B` one on the body's nodes: the body's mass when it shares
+    /// no node with another body.
+    pub total_mass: Vec<f64>,
+    /// `1_B^T M v` per component at the start and the end: the body's momentum.
+    pub momentum_initial: Vec<f64>,
+    pub momentum_final: Vec<f64>,
+    /// The mass-free layer's contact nodes and cells on the body.
+    pub layer_contact_nodes: usize,
+    pub layer_cells: usize,
 }
 
 /// Mesh the scene's geometry (gmsh on rank 0, others wait) and read it on every rank.
@@ -180,6 +207,8 @@ pub struct Simulation<'a> {
     agree: &'a SimpleCommunicator,
     console: &'a Console,
     pub scene: Scene,
+    /// The cells of each `[[body]]`: material and mass treatment per cell, the layer's groups.
+    pub bodies: Bodies,
     opts: RunOptions,
     /// Shared with the loads the integrator assembles (`LoadsAt`).
     pub mesh: Rc<Mesh>,
@@ -189,6 +218,8 @@ pub struct Simulation<'a> {
     pub timings: Timings,
     /// Contact nodes and cells of the mass-free layer (once assembled).
     layer_summary: Option<(usize, usize)>,
+    /// Per body: contact nodes and cells of the mass-free layer on it.
+    body_layers: Vec<(usize, usize)>,
     mass_check: MassCheck,
     /// Scatter to this rank's block of natural (gmsh) node order, built on first use.
     natural: Option<(Scatter, Vector)>,
@@ -246,6 +277,8 @@ struct Record {
     contact_ksp_iterations: usize,
     /// Wall time spent writing output inside the loop.
     output_seconds: f64,
+    /// Momentum of each body at the start, per component.
+    body_p0: Vec<Vec<f64>>,
 }
 
 impl Record {
@@ -275,6 +308,9 @@ pub struct MassCheck {
     /// M r for r_i = sin(i + 1) (natural DOF order), this rank's natural block.
     #[serde(skip)]
     pub probe: Vec<f64>,
+    /// Per body, `1_B^T M 1` per component (reported in `RunSummary::bodies`).
+    #[serde(skip)]
+    pub body_mass: Vec<Vec<f64>>,
 }
 
 fn max_over_ranks(world: &SimpleCommunicator, x: f64) -> f64 {
@@ -332,6 +368,7 @@ impl<'a> Simulation<'a> {
             let t0 = Instant::now();
             let mesh = load_mesh(world, &scene)?;
             scene.check_dim(mesh.dim)?;
+            let bodies = Bodies::resolve(&scene, &mesh)?;
             let t_mesh = t0.elapsed().as_secs_f64();
             phase::check_signal(world)?;
             phase::enter(Phase::Partitioning);
@@ -344,10 +381,10 @@ impl<'a> Simulation<'a> {
                 partition: max_over_ranks(world, t_part),
                 ..Default::default()
             };
-            Ok((mesh, part, timings))
+            Ok((mesh, part, timings, bodies))
         });
-        let (mesh, part, timings) = match parts {
-            Ok((mesh, part, timings)) => (Rc::new(mesh), Rc::new(part), timings),
+        let (mesh, part, timings, bodies) = match parts {
+            Ok((mesh, part, timings, bodies)) => (Rc::new(mesh), Rc::new(part), timings, bodies),
             Err(e) => {
                 end_with_error(world, agree, output, &e);
                 return Err(e);
@@ -358,6 +395,7 @@ impl<'a> Simulation<'a> {
             agree,
             console,
             scene,
+            bodies,
             opts,
             mesh,
             part,
@@ -365,6 +403,7 @@ impl<'a> Simulation<'a> {
             size,
             timings,
             layer_summary: None,
+            body_layers: Vec::new(),
             mass_check: MassCheck::default(),
             natural: None,
             local_view: None,
@@ -460,22 +499,24 @@ impl<'a> Simulation<'a> {
             self.part.n_global_dofs(),
             self.size
         ));
-        self.console.say(self.scene.effects().summary());
+        self.console.say(self.effects());
         phase::enter(Phase::Assembling);
         let t0 = Instant::now();
         let mesh = &self.mesh;
         let part = &self.part;
-        let mat = fem::Material::from_young_poisson(
-            self.scene.material.e,
-            self.scene.material.nu,
-            self.scene.material.rho,
-        );
+        let bodies = &self.bodies;
         let a = assembly::assemble_matrix(mesh, part, |c, xy, out| {
-            kernels::stiffness(mesh.cells[c].kind, xy, &mat, out)
+            kernels::stiffness(mesh.cells[c].kind, xy, bodies.material(c), out)
                 .map_err(|e| Error::Mesh(format!("{e} (gmsh element tag {})", mesh.cells[c].tag)))
         })?;
-        let layer = build_layer(mesh, self.scene.mass.kind, &self.scene.mass.layer_groups())?;
-        let m = mass_matrix(mesh, part, mat.rho, self.scene.mass.kind, layer.as_ref())?;
+        let layer = match &bodies.layer {
+            Some((kind, groups)) => {
+                let groups: Vec<&str> = groups.iter().map(String::as_str).collect();
+                build_layer(mesh, *kind, &groups)?
+            }
+            None => None,
+        };
+        let m = mass_matrix(mesh, part, |c| bodies.cell_mass(c), layer.as_ref())?;
         let neumann: Vec<(String, crate::scene::expr::VecExpr)> =
             self.scene.neumann.iter().map(|n| (n.group.clone(), n.traction.clone())).collect();
         let loads = Loads::new(mesh, part, self.scene.body_force.as_ref(), &neumann)?;
@@ -518,13 +559,7 @@ impl<'a> Simulation<'a> {
         let Physics { a, m, dirichlet, layer, mass_check, mut contact } = physics;
         let null_space = self.near_null_space()?;
         // The step solver's defaults follow the regime (scene and command line still win).
-        let regime = Regime::new(
-            self.scene.material.e,
-            self.scene.material.nu,
-            self.scene.material.rho,
-            self.scene.tau,
-            self.min_edge(),
-        );
+        let regime = self.bodies.regime(self.scene.tau, &self.min_edges());
         let (mut defaults, why) = StepSolverDefaults::for_regime(&regime, contact.is_some());
         if let Some(k) = &self.scene.solver.ksp_type {
             defaults.ksp_type = k.clone();
@@ -633,11 +668,18 @@ impl<'a> Simulation<'a> {
             contact_seconds: 0.0,
             contact_ksp_iterations: 0,
             output_seconds: 0.0,
+            body_p0: self.body_momenta(midpoint.mv())?,
         };
         if let Some(c) = contact.as_deref() {
             record.history.start(c);
         }
         self.layer_summary = layer.as_ref().map(|l| (l.n_contact_nodes(), l.n_layer_cells()));
+        self.body_layers = (0..self.bodies.n_bodies())
+            .map(|i| match layer.as_ref() {
+                Some(l) => self.body_layer(l, i),
+                None => (0, 0),
+            })
+            .collect();
         self.mass_check = mass_check;
         self.write_step(start, &midpoint, &record)?;
         if self.opts.verbose {
@@ -803,6 +845,7 @@ impl<'a> Simulation<'a> {
             self.time_matmult(&midpoint.operator().k, midpoint.v(), &mut scratch)?;
         let peak_memory_mib = sum_over_ranks(self.world, peak_rss_mib());
         let p1 = self.momentum(midpoint.mv())?;
+        let body_p1 = self.body_momenta(midpoint.mv())?;
         let e = midpoint.energy();
         let contact_summary = contact.map(|c| {
             let mut s = record.history.summary(
@@ -842,6 +885,24 @@ impl<'a> Simulation<'a> {
         }
         let ksp = &midpoint.operator().ksp;
         let (layer_contact_nodes, layer_cells) = self.layer_summary.unwrap_or((0, 0));
+        let bodies = (0..self.bodies.n_bodies())
+            .map(|i| {
+                let reg = &self.bodies.regions[i + 1];
+                BodySummary {
+                    group: reg.group.clone().unwrap_or_default(),
+                    e: reg.spec.e,
+                    nu: reg.spec.nu,
+                    rho: reg.spec.rho,
+                    mass_kind: self.bodies.mass_of(i + 1).name().to_string(),
+                    cells: reg.n_cells,
+                    total_mass: self.mass_check.body_mass[i].clone(),
+                    momentum_initial: record.body_p0[i].clone(),
+                    momentum_final: body_p1[i].clone(),
+                    layer_contact_nodes: self.body_layers[i].0,
+                    layer_cells: self.body_layers[i].1,
+                }
+            })
+            .collect();
         Ok(RunSummary {
             n_nodes: self.mesh.n_nodes(),
             n_dofs: self.part.n_global_dofs(),
@@ -868,7 +929,8 @@ impl<'a> Simulation<'a> {
             momentum_final: p1[..self.part.dim].to_vec(),
             contact: contact_summary,
             pictures,
-            effects: self.scene.effects().summary(),
+            effects: self.effects(),
+            bodies,
         })
     }
 
@@ -932,6 +994,11 @@ impl<'a> Simulation<'a> {
             })?;
             m.mult(&one, &mut y)?;
             check.total_mass.push(one.dot(&y)?);
+            let per_body = self.body_sums(&y, c)?;
+            check.body_mass.resize(per_body.len(), Vec::new());
+            for (b, m) in per_body.into_iter().enumerate() {
+                check.body_mass[b].push(m);
+            }
             check.first_moment.push(x.dot(&y)?);
             let contact_max = match layer.map(|l| &l.contact_nodes) {
                 Some(nodes) => {
@@ -967,22 +1034,72 @@ impl<'a> Simulation<'a> {
     }
 
     /// The shortest cell edge (any two nodes of a cell: for simplices the edges, for quads and
-    /// hexes their diagonals too, which are longer), over the cells of all ranks.
-    fn min_edge(&self) -> f64 {
-        let mut h = f64::MAX;
+    /// hexes their diagonals too, which are longer) of each region (`Bodies`), over the cells
+    /// of all ranks (`f64::MAX` for a region without cells).
+    fn min_edges(&self) -> Vec<f64> {
+        let mut h = vec![f64::MAX; self.bodies.regions.len()];
         for &c in &self.part.local_cells {
+            let r = self.bodies.region_of(c);
             let nodes = self.mesh.cells[c].nodes();
             for (i, &a) in nodes.iter().enumerate() {
                 for &b in &nodes[i + 1..] {
                     let (x, y) = (self.mesh.coords[a], self.mesh.coords[b]);
                     let d2: f64 = (0..3).map(|k| (x[k] - y[k]).powi(2)).sum();
-                    h = h.min(d2.sqrt());
+                    h[r] = h[r].min(d2.sqrt());
                 }
             }
         }
-        let mut global = 0.0;
-        self.world.all_reduce_into(&h, &mut global, SystemOperation::min());
+        let mut global = vec![0.0; h.len()];
+        self.world.all_reduce_into(&h[..], &mut global[..], SystemOperation::min());
         global
+    }
+
+    /// Per body, the sum of component `c` of `x` over the body's nodes (all ranks).
+    fn body_sums(&self, x: &Vector, c: usize) -> Result<Vec<f64>> {
+        let n = self.bodies.n_bodies();
+        if n == 0 {
+            return Ok(Vec::new());
+        }
+        let lo = self.part.first_dof();
+        let mut sums = vec![0.0; n];
+        x.with_local_slice(|s| {
+            for (b, sum) in sums.iter_mut().enumerate() {
+                for &v in self.bodies.body_nodes(b) {
+                    if self.part.owns(v) {
+                        *sum += s[self.part.dof(v, c) - lo];
+                    }
+                }
+            }
+        })?;
+        let mut out = vec![0.0; n];
+        self.world.all_reduce_into(&sums[..], &mut out[..], SystemOperation::sum());
+        Ok(out)
+    }
+
+    /// The momentum `1_B^T M v` of each body, per component, from `M v`.
+    fn body_momenta(&self, mv: &Vector) -> Result<Vec<Vec<f64>>> {
+        let mut p = vec![Vec::new(); self.bodies.n_bodies()];
+        for c in 0..self.part.dim {
+            for (b, x) in self.body_sums(mv, c)?.into_iter().enumerate() {
+                p[b].push(x);
+            }
+        }
+        Ok(p)
+    }
+
+    /// The contact nodes and the cells of the layer on `body[i]`.
+    fn body_layer(&self, layer: &MassFreeLayer, i: usize) -> (usize, usize) {
+        let nodes = self.bodies.body_nodes(i);
+        let contact = layer.contact_nodes.iter().filter(|v| nodes.binary_search(v).is_ok()).count();
+        let cells =
+            layer.layer_cells.iter().filter(|&&c| self.bodies.region_of(c) == i + 1).count();
+        (contact, cells)
+    }
+
+    /// The effects line, with the mass treatment as the mesh resolved it.
+    pub fn effects(&self) -> String {
+        let layer = self.bodies.layer.as_ref().map(|(k, g)| (*k, g.as_slice()));
+        self.scene.effects().resolve(self.bodies.standard_masses(), layer).summary()
     }
 
     /// Rigid-body modes from the owned nodes' coordinates (for algebraic multigrid).
@@ -1132,7 +1249,8 @@ impl<'a> Simulation<'a> {
     }
 
     fn settings(&self, op: &StepOperator, layer: &Option<MassFreeLayer>) -> Vec<(String, String)> {
-        vec![
+        let bodies = self.scene.effects().bodies;
+        let mut settings = vec![
             ("ranks".into(), self.size.to_string()),
             ("dim".into(), self.mesh.dim.to_string()),
             ("nodes".into(), self.mesh.n_nodes().to_string()),
@@ -1170,7 +1288,11 @@ impl<'a> Simulation<'a> {
             ("pc_type".into(), op.ksp.pc_type().unwrap_or_default()),
             ("partition".into(), format!("{:?}", self.opts.partition)),
             ("metis_seed".into(), crate::partition::METIS_SEED.to_string()),
-        ]
+        ];
+        if !bodies.is_empty() {
+            settings.insert(5, ("bodies".into(), bodies.join("; ")));
+        }
+        settings
     }
 
     /// Total momentum `1^T M v` per component (from the product `M v` the step keeps).
@@ -1214,6 +1336,8 @@ impl<'a> Simulation<'a> {
         let solver_options =
             settings.iter().find(|(k, _)| k == "petsc_options").map_or("", |(_, v)| v.as_str());
         let mut meta = vec![
+            // The effects as the mesh resolved them (the file was created with the scene's).
+            Meta::text("effects", self.effects()),
             Meta::text("settings", settings_text),
             Meta::text("solver_options", solver_options),
         ];
@@ -1337,13 +1461,13 @@ pub fn summary_lines(sim: &Simulation, s: &RunSummary) -> Vec<String> {
             s.n_dofs,
             sim.mesh.cells.len(),
             sim.size,
-            sim.scene.mass.kind.name(),
-            match sim.layer_summary {
-                Some((nodes, cells)) => format!(
-                    " (mass-free layer along \"{}\": {nodes} contact nodes, {cells} layer cells)",
-                    sim.scene.mass.contact_boundary.as_deref().unwrap_or(""),
+            mass_kinds(&sim.bodies),
+            match (sim.layer_summary, &sim.bodies.layer) {
+                (Some((nodes, cells)), Some((_, groups))) => format!(
+                    " (mass-free layer along {}: {nodes} contact nodes, {cells} layer cells)",
+                    crate::scene::effects::quoted(groups),
                 ),
-                None => String::new(),
+                _ => String::new(),
             }
         ),
         format!(
@@ -1364,6 +1488,29 @@ pub fn summary_lines(sim: &Simulation, s: &RunSummary) -> Vec<String> {
             s.energy_initial, s.energy_final, s.external_work, s.energy_balance
         ),
     ];
+    for b in &s.bodies {
+        let vec = |v: &[f64]| {
+            let x: Vec<String> = v.iter().map(|x| format!("{x:.6e}")).collect();
+            format!("({})", x.join(", "))
+        };
+        let layer = if b.layer_cells > 0 {
+            format!(" (layer: {} contact nodes, {} cells)", b.layer_contact_nodes, b.layer_cells)
+        } else {
+            String::new()
+        };
+        lines.push(format!(
+            "body \"{}\": E = {}, nu = {}, rho = {}, {} mass{layer}; {} cells, total mass {:.10e}, momentum {} -> {}",
+            b.group,
+            b.e,
+            b.nu,
+            b.rho,
+            b.mass_kind,
+            b.cells,
+            b.total_mass.first().copied().unwrap_or(0.0),
+            vec(&b.momentum_initial),
+            vec(&b.momentum_final)
+        ));
+    }
     for e in &s.errors {
         lines.push(format!(
             "error at step {} (t = {:.6e}): L2 {:.6e}, H1-seminorm {:.6e}",
@@ -1397,4 +1544,17 @@ pub fn summary_lines(sim: &Simulation, s: &RunSummary) -> Vec<String> {
         lines.push(format!("pictures: {}", list.join(", ")));
     }
     lines
+}
+
+/// The mass kinds the run's cells got: `modified1`, or with bodies of several kinds
+/// `consistent + modified1`.
+fn mass_kinds(bodies: &Bodies) -> String {
+    let mut kinds: Vec<&str> = Vec::new();
+    for (r, _) in bodies.in_use() {
+        let k = bodies.mass_of(r).name();
+        if !kinds.contains(&k) {
+            kinds.push(k);
+        }
+    }
+    kinds.join(" + ")
 }

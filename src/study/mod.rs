@@ -787,6 +787,7 @@ mod tests {
             }),
             pictures: vec![],
             effects: String::new(),
+            bodies: Vec::new(),
         };
         // The text `massfree run --summary` writes, read back.
         let s = parse_summary(&toml::to_string(&run).unwrap()).unwrap();
