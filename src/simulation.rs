@@ -30,6 +30,7 @@ use crate::partition::Partition;
 use crate::petsc::{Matrix, NullSpace, Scatter, Vector};
 use crate::phase::{self, HangTimeout, Phase, Watchdog};
 use crate::post::{picture_paths, write_pictures, RunCurves};
+use crate::scene::effects::short_number;
 use crate::scene::{Field, MeshSource, Scene};
 use crate::time::{Dirichlet, Energy, Forces, Midpoint, StepOperator, StepSolverDefaults};
 
@@ -132,7 +133,8 @@ pub struct BodySummary {
     /// `1_B^T M 1` per component, `1_B` one on the body's nodes: the body's mass when it shares
     /// no node with another body.
     pub total_mass: Vec<f64>,
-    /// `1_B^T M v` per component at the start and the end: the body's momentum.
+    /// `1_B^T M v` per component at the start and the end: the body's momentum (a restarted
+    /// run starts at its checkpoint).
     pub momentum_initial: Vec<f64>,
     pub momentum_final: Vec<f64>,
     /// The mass-free layer's contact nodes and cells on the body.
@@ -1501,9 +1503,9 @@ pub fn summary_lines(sim: &Simulation, s: &RunSummary) -> Vec<String> {
         lines.push(format!(
             "body \"{}\": E = {}, nu = {}, rho = {}, {} mass{layer}; {} cells, total mass {:.10e}, momentum {} -> {}",
             b.group,
-            b.e,
-            b.nu,
-            b.rho,
+            short_number(b.e),
+            short_number(b.nu),
+            short_number(b.rho),
             b.mass_kind,
             b.cells,
             b.total_mass.first().copied().unwrap_or(0.0),

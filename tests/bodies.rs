@@ -114,7 +114,7 @@ fn the_layer_is_built_only_on_the_body_with_a_modified_mass() {
     let args = ["--steps", "5", "--no-output"];
     let b = run_scene(1, &both, &args);
     let s = run_scene(2, &one, &args);
-    assert!(b.layer_contact_nodes > 0 && b.layer_contact_nodes % 2 == 0);
+    assert!(b.layer_contact_nodes > 0 && b.layer_contact_nodes.is_multiple_of(2));
     assert_eq!(s.layer_contact_nodes * 2, b.layer_contact_nodes);
     assert_eq!(s.layer_cells * 2, b.layer_cells);
     let (lower, upper) = (body(&s, "lower"), body(&s, "upper"));

@@ -191,7 +191,7 @@ fn body_brief(b: &BodySpec) -> String {
 }
 
 /// `200`, `0.3`, `2e-8`: the shorter of the plain and the exponent form.
-fn short_number(x: f64) -> String {
+pub fn short_number(x: f64) -> String {
     let (plain, exp) = (format!("{x}"), format!("{x:e}"));
     if plain.len() <= exp.len() {
         plain
