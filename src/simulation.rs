@@ -5,7 +5,6 @@
 //! the summary. The physics (here) is separate from the time integrator (`time::Midpoint`)
 //! and from the contact solver (`contact::ContactSolver`).
 
-use crate::bodies::{Bodies, BodySummary};
 use std::path::{Path, PathBuf};
 use std::rc::Rc;
 use std::time::Instant;
@@ -15,11 +14,12 @@ use mpi::topology::SimpleCommunicator;
 use mpi::traits::*;
 
 use crate::assembly::{self, Loads};
+use crate::bodies::Bodies;
 use crate::console::{Console, Progress};
 use crate::contact::history::{ContactSummary, History as ContactHistory};
 use crate::contact::{self, ContactBoundary, ContactSolver, Obstacles};
 use crate::error::{Error, Result};
-use crate::fem::{self, kernels};
+use crate::fem::kernels;
 use crate::io::{
     group_key, natural_range, read_checkpoint, Checkpoint, Meta, Output, OutputPlan, PlannedField,
     RunFile,
@@ -30,8 +30,9 @@ use crate::partition::Partition;
 use crate::petsc::{Matrix, NullSpace, Scatter, Vector};
 use crate::phase::{self, HangTimeout, Phase, Watchdog};
 use crate::post::{picture_paths, write_pictures, RunCurves};
+use crate::scene::effects::short_number;
 use crate::scene::{Field, MeshSource, Scene};
-use crate::time::{Dirichlet, Energy, Forces, Midpoint, Regime, StepOperator, StepSolverDefaults};
+use crate::time::{Dirichlet, Energy, Forces, Midpoint, StepOperator, StepSolverDefaults};
 
 /// What the command line adds to a scene.
 #[derive(Debug, Clone, Default)]
@@ -107,15 +108,43 @@ pub struct RunSummary {
     /// Total momentum `1^T M v` at the start and the end, per component.
     pub momentum_initial: Vec<f64>,
     pub momentum_final: Vec<f64>,
-    /// Momentum and contact impulse of every body (physical group of the mesh's dimension),
-    /// over this run (from the checkpoint on for a restart).
-    #[serde(default)]
-    pub bodies: Vec<BodySummary>,
     pub contact: Option<ContactSummary>,
     /// PNG pictures written (rank 0's list).
     pub pictures: Vec<PathBuf>,
     /// What the run simulated and what it did not build (`Effects::summary`).
     pub effects: String,
+    /// Each `[[body]]` (empty without).
+    #[serde(default)]
+    pub bodies: Vec<BodySummary>,
+}
+
+/// One `[[body]]` of a finished run.
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
+pub struct BodySummary {
+    pub group: String,
+    #[serde(rename = "E")]
+    pub e: f64,
+    pub nu: f64,
+    pub rho: f64,
+    /// The mass treatment its cells got: consistent, lumped, modified0, modified1 (a modified
+    /// kind without a contact group on the body gives the consistent mass: `consistent`).
+    pub mass_kind: String,
+    pub cells: usize,
+    /// `1_B^T M 1` per component, `1_B` one on the body's nodes: the body's mass when it shares
+    /// no node with another body.
+    pub total_mass: Vec<f64>,
+    /// `1_B^T M v` per component at the start and the end: the body's momentum (a restarted
+    /// run starts at its checkpoint).
+    pub momentum_initial: Vec<f64>,
+    pub momentum_final: Vec<f64>,
+    /// The mass-free layer's contact nodes and cells on the body.
+    pub layer_contact_nodes: usize,
+    pub layer_cells: usize,
+    /// The impulse the contact gave the body, `tau sum_n` of the contact forces on its nodes
+    /// (a pair's slave: `D lambda`; its master: `-M^T lambda`; zero off the contact): with no
+    /// other load it equals the momentum change.
+    #[serde(default)]
+    pub contact_impulse: Vec<f64>,
 }
 
 /// Mesh the scene's geometry (gmsh on rank 0, others wait) and read it on every rank.
@@ -185,6 +214,8 @@ pub struct Simulation<'a> {
     agree: &'a SimpleCommunicator,
     console: &'a Console,
     pub scene: Scene,
+    /// The cells of each `[[body]]`: material and mass treatment per cell, the layer's groups.
+    pub bodies: Bodies,
     opts: RunOptions,
     /// Shared with the loads the integrator assembles (`LoadsAt`).
     pub mesh: Rc<Mesh>,
@@ -194,8 +225,9 @@ pub struct Simulation<'a> {
     pub timings: Timings,
     /// Contact nodes and cells of the mass-free layer (once assembled).
     layer_summary: Option<(usize, usize)>,
+    /// Per body: contact nodes and cells of the mass-free layer on it.
+    body_layers: Vec<(usize, usize)>,
     mass_check: MassCheck,
-    bodies: Bodies,
     /// Scatter to this rank's block of natural (gmsh) node order, built on first use.
     natural: Option<(Scatter, Vector)>,
     /// Values at the nodes of this rank's cells, built on first use (exact errors).
@@ -238,8 +270,6 @@ struct Record {
     /// Reference of the energy balance (the initial energy, or the restarted run's).
     e0: f64,
     p0: [f64; 3],
-    /// Every body's momentum at the start of this run (a restart's: at the checkpoint).
-    p0_bodies: Vec<[f64; 3]>,
     e_max: f64,
     /// max_n |E^n - E^0 - W^n| / max_n E^n
     balance: f64,
@@ -254,6 +284,8 @@ struct Record {
     contact_ksp_iterations: usize,
     /// Wall time spent writing output inside the loop.
     output_seconds: f64,
+    /// Momentum of each body at the start, per component.
+    body_p0: Vec<Vec<f64>>,
 }
 
 impl Record {
@@ -283,6 +315,9 @@ pub struct MassCheck {
     /// M r for r_i = sin(i + 1) (natural DOF order), this rank's natural block.
     #[serde(skip)]
     pub probe: Vec<f64>,
+    /// Per body, `1_B^T M 1` per component (reported in `RunSummary::bodies`).
+    #[serde(skip)]
+    pub body_mass: Vec<Vec<f64>>,
 }
 
 fn max_over_ranks(world: &SimpleCommunicator, x: f64) -> f64 {
@@ -340,6 +375,7 @@ impl<'a> Simulation<'a> {
             let t0 = Instant::now();
             let mesh = load_mesh(world, &scene)?;
             scene.check_dim(mesh.dim)?;
+            let bodies = Bodies::resolve(&scene, &mesh)?;
             let t_mesh = t0.elapsed().as_secs_f64();
             phase::check_signal(world)?;
             phase::enter(Phase::Partitioning);
@@ -352,17 +388,10 @@ impl<'a> Simulation<'a> {
                 partition: max_over_ranks(world, t_part),
                 ..Default::default()
             };
-            Ok((mesh, part, timings))
+            Ok((mesh, part, timings, bodies))
         });
-        let (mesh, part, timings) = match parts {
-            Ok((mesh, part, timings)) => (Rc::new(mesh), Rc::new(part), timings),
-            Err(e) => {
-                end_with_error(world, agree, output, &e);
-                return Err(e);
-            }
-        };
-        let bodies = match Bodies::new(&mesh, &part) {
-            Ok(b) => b,
+        let (mesh, part, timings, bodies) = match parts {
+            Ok((mesh, part, timings, bodies)) => (Rc::new(mesh), Rc::new(part), timings, bodies),
             Err(e) => {
                 end_with_error(world, agree, output, &e);
                 return Err(e);
@@ -373,6 +402,7 @@ impl<'a> Simulation<'a> {
             agree,
             console,
             scene,
+            bodies,
             opts,
             mesh,
             part,
@@ -380,8 +410,8 @@ impl<'a> Simulation<'a> {
             size,
             timings,
             layer_summary: None,
+            body_layers: Vec::new(),
             mass_check: MassCheck::default(),
-            bodies,
             natural: None,
             local_view: None,
             output,
@@ -476,22 +506,24 @@ impl<'a> Simulation<'a> {
             self.part.n_global_dofs(),
             self.size
         ));
-        self.console.say(self.scene.effects().summary());
+        self.console.say(self.effects());
         phase::enter(Phase::Assembling);
         let t0 = Instant::now();
         let mesh = &self.mesh;
         let part = &self.part;
-        let mat = fem::Material::from_young_poisson(
-            self.scene.material.e,
-            self.scene.material.nu,
-            self.scene.material.rho,
-        );
+        let bodies = &self.bodies;
         let a = assembly::assemble_matrix(mesh, part, |c, xy, out| {
-            kernels::stiffness(mesh.cells[c].kind, xy, &mat, out)
+            kernels::stiffness(mesh.cells[c].kind, xy, bodies.material(c), out)
                 .map_err(|e| Error::Mesh(format!("{e} (gmsh element tag {})", mesh.cells[c].tag)))
         })?;
-        let layer = build_layer(mesh, self.scene.mass.kind, &self.scene.mass.layer_groups())?;
-        let m = mass_matrix(mesh, part, mat.rho, self.scene.mass.kind, layer.as_ref())?;
+        let layer = match &bodies.layer {
+            Some((kind, groups)) => {
+                let groups: Vec<&str> = groups.iter().map(String::as_str).collect();
+                build_layer(mesh, *kind, &groups)?
+            }
+            None => None,
+        };
+        let m = mass_matrix(mesh, part, |c| bodies.cell_mass(c), layer.as_ref())?;
         let neumann: Vec<(String, crate::scene::expr::VecExpr)> =
             self.scene.neumann.iter().map(|n| (n.group.clone(), n.traction.clone())).collect();
         let loads = Loads::new(mesh, part, self.scene.body_force.as_ref(), &neumann)?;
@@ -534,13 +566,7 @@ impl<'a> Simulation<'a> {
         let Physics { a, m, dirichlet, layer, mass_check, mut contact } = physics;
         let null_space = self.near_null_space()?;
         // The step solver's defaults follow the regime (scene and command line still win).
-        let regime = Regime::new(
-            self.scene.material.e,
-            self.scene.material.nu,
-            self.scene.material.rho,
-            self.scene.tau,
-            self.min_edge(),
-        );
+        let regime = self.bodies.regime(self.scene.tau, &self.min_edges());
         let (mut defaults, why) = StepSolverDefaults::for_regime(&regime, contact.is_some());
         if let Some(k) = &self.scene.solver.ksp_type {
             defaults.ksp_type = k.clone();
@@ -626,11 +652,9 @@ impl<'a> Simulation<'a> {
         };
         let t_start = start as f64 * self.scene.tau;
         let n_steps = self.n_steps();
-        let p0_bodies = self.bodies.momenta(self.world, midpoint.mv())?;
         let mut record = Record {
             e0,
             p0,
-            p0_bodies,
             e_max: e0.abs(),
             balance: 0.0,
             drift: 0.0,
@@ -651,11 +675,18 @@ impl<'a> Simulation<'a> {
             contact_seconds: 0.0,
             contact_ksp_iterations: 0,
             output_seconds: 0.0,
+            body_p0: self.body_momenta(midpoint.mv())?,
         };
         if let Some(c) = contact.as_deref() {
             record.history.start(c);
         }
         self.layer_summary = layer.as_ref().map(|l| (l.n_contact_nodes(), l.n_layer_cells()));
+        self.body_layers = (0..self.bodies.n_bodies())
+            .map(|i| match layer.as_ref() {
+                Some(l) => self.body_layer(l, i),
+                None => (0, 0),
+            })
+            .collect();
         self.mass_check = mass_check;
         self.write_step(start, &midpoint, &record)?;
         if self.opts.verbose {
@@ -821,7 +852,7 @@ impl<'a> Simulation<'a> {
             self.time_matmult(&midpoint.operator().k, midpoint.v(), &mut scratch)?;
         let peak_memory_mib = sum_over_ranks(self.world, peak_rss_mib());
         let p1 = self.momentum(midpoint.mv())?;
-        let p1_bodies = self.bodies.momenta(self.world, midpoint.mv())?;
+        let body_p1 = self.body_momenta(midpoint.mv())?;
         let e = midpoint.energy();
         let contact_summary = contact.map(|c| {
             let mut s = record.history.summary(
@@ -862,9 +893,28 @@ impl<'a> Simulation<'a> {
                 pictures.clear();
             }
         }
-        let bodies = self.body_summaries(&record.p0_bodies, &p1_bodies, &contact_summary)?;
+        let impulses = self.contact_impulses(&contact_summary);
         let ksp = &midpoint.operator().ksp;
         let (layer_contact_nodes, layer_cells) = self.layer_summary.unwrap_or((0, 0));
+        let bodies = (0..self.bodies.n_bodies())
+            .map(|i| {
+                let reg = &self.bodies.regions[i + 1];
+                BodySummary {
+                    group: reg.group.clone().unwrap_or_default(),
+                    e: reg.spec.e,
+                    nu: reg.spec.nu,
+                    rho: reg.spec.rho,
+                    mass_kind: self.bodies.mass_of(i + 1).name().to_string(),
+                    cells: reg.n_cells,
+                    total_mass: self.mass_check.body_mass[i].clone(),
+                    momentum_initial: record.body_p0[i].clone(),
+                    momentum_final: body_p1[i].clone(),
+                    layer_contact_nodes: self.body_layers[i].0,
+                    layer_cells: self.body_layers[i].1,
+                    contact_impulse: impulses[i].clone(),
+                }
+            })
+            .collect();
         Ok(RunSummary {
             n_nodes: self.mesh.n_nodes(),
             n_dofs: self.part.n_global_dofs(),
@@ -889,10 +939,10 @@ impl<'a> Simulation<'a> {
             mass: self.mass_check.clone(),
             momentum_initial: record.p0[..self.part.dim].to_vec(),
             momentum_final: p1[..self.part.dim].to_vec(),
-            bodies,
             contact: contact_summary,
             pictures,
-            effects: self.scene.effects().summary(),
+            effects: self.effects(),
+            bodies,
         })
     }
 
@@ -956,6 +1006,11 @@ impl<'a> Simulation<'a> {
             })?;
             m.mult(&one, &mut y)?;
             check.total_mass.push(one.dot(&y)?);
+            let per_body = self.body_sums(&y, c)?;
+            check.body_mass.resize(per_body.len(), Vec::new());
+            for (b, m) in per_body.into_iter().enumerate() {
+                check.body_mass[b].push(m);
+            }
             check.first_moment.push(x.dot(&y)?);
             let contact_max = match layer.map(|l| &l.contact_nodes) {
                 Some(nodes) => {
@@ -991,22 +1046,72 @@ impl<'a> Simulation<'a> {
     }
 
     /// The shortest cell edge (any two nodes of a cell: for simplices the edges, for quads and
-    /// hexes their diagonals too, which are longer), over the cells of all ranks.
-    fn min_edge(&self) -> f64 {
-        let mut h = f64::MAX;
+    /// hexes their diagonals too, which are longer) of each region (`Bodies`), over the cells
+    /// of all ranks (`f64::MAX` for a region without cells).
+    fn min_edges(&self) -> Vec<f64> {
+        let mut h = vec![f64::MAX; self.bodies.regions.len()];
         for &c in &self.part.local_cells {
+            let r = self.bodies.region_of(c);
             let nodes = self.mesh.cells[c].nodes();
             for (i, &a) in nodes.iter().enumerate() {
                 for &b in &nodes[i + 1..] {
                     let (x, y) = (self.mesh.coords[a], self.mesh.coords[b]);
                     let d2: f64 = (0..3).map(|k| (x[k] - y[k]).powi(2)).sum();
-                    h = h.min(d2.sqrt());
+                    h[r] = h[r].min(d2.sqrt());
                 }
             }
         }
-        let mut global = 0.0;
-        self.world.all_reduce_into(&h, &mut global, SystemOperation::min());
+        let mut global = vec![0.0; h.len()];
+        self.world.all_reduce_into(&h[..], &mut global[..], SystemOperation::min());
         global
+    }
+
+    /// Per body, the sum of component `c` of `x` over the body's nodes (all ranks).
+    fn body_sums(&self, x: &Vector, c: usize) -> Result<Vec<f64>> {
+        let n = self.bodies.n_bodies();
+        if n == 0 {
+            return Ok(Vec::new());
+        }
+        let lo = self.part.first_dof();
+        let mut sums = vec![0.0; n];
+        x.with_local_slice(|s| {
+            for (b, sum) in sums.iter_mut().enumerate() {
+                for &v in self.bodies.body_nodes(b) {
+                    if self.part.owns(v) {
+                        *sum += s[self.part.dof(v, c) - lo];
+                    }
+                }
+            }
+        })?;
+        let mut out = vec![0.0; n];
+        self.world.all_reduce_into(&sums[..], &mut out[..], SystemOperation::sum());
+        Ok(out)
+    }
+
+    /// The momentum `1_B^T M v` of each body, per component, from `M v`.
+    fn body_momenta(&self, mv: &Vector) -> Result<Vec<Vec<f64>>> {
+        let mut p = vec![Vec::new(); self.bodies.n_bodies()];
+        for c in 0..self.part.dim {
+            for (b, x) in self.body_sums(mv, c)?.into_iter().enumerate() {
+                p[b].push(x);
+            }
+        }
+        Ok(p)
+    }
+
+    /// The contact nodes and the cells of the layer on `body[i]`.
+    fn body_layer(&self, layer: &MassFreeLayer, i: usize) -> (usize, usize) {
+        let nodes = self.bodies.body_nodes(i);
+        let contact = layer.contact_nodes.iter().filter(|v| nodes.binary_search(v).is_ok()).count();
+        let cells =
+            layer.layer_cells.iter().filter(|&&c| self.bodies.region_of(c) == i + 1).count();
+        (contact, cells)
+    }
+
+    /// The effects line, with the mass treatment as the mesh resolved it.
+    pub fn effects(&self) -> String {
+        let layer = self.bodies.layer.as_ref().map(|(k, g)| (*k, g.as_slice()));
+        self.scene.effects().resolve(self.bodies.standard_masses(), layer).summary()
     }
 
     /// Rigid-body modes from the owned nodes' coordinates (for algebraic multigrid).
@@ -1156,7 +1261,8 @@ impl<'a> Simulation<'a> {
     }
 
     fn settings(&self, op: &StepOperator, layer: &Option<MassFreeLayer>) -> Vec<(String, String)> {
-        vec![
+        let bodies = self.scene.effects().bodies;
+        let mut settings = vec![
             ("ranks".into(), self.size.to_string()),
             ("dim".into(), self.mesh.dim.to_string()),
             ("nodes".into(), self.mesh.n_nodes().to_string()),
@@ -1194,43 +1300,35 @@ impl<'a> Simulation<'a> {
             ("pc_type".into(), op.ksp.pc_type().unwrap_or_default()),
             ("partition".into(), format!("{:?}", self.opts.partition)),
             ("metis_seed".into(), crate::partition::METIS_SEED.to_string()),
-        ]
+        ];
+        if !bodies.is_empty() {
+            settings.insert(5, ("bodies".into(), bodies.join("; ")));
+        }
+        settings
     }
 
-    /// Every body's momenta and the impulse the contact gave it: the contact boundary's body
-    /// (a pair's slave) gets the contact impulse, a pair's master body the master impulse.
-    fn body_summaries(
-        &self,
-        p0: &[[f64; 3]],
-        p1: &[[f64; 3]],
-        contact: &Option<ContactSummary>,
-    ) -> Result<Vec<BodySummary>> {
+    /// The impulse the contact gave each `[[body]]`: the contact boundary's body (a pair's
+    /// slave) gets the contact impulse, a pair's master body the master impulse. A body holds a
+    /// group when every node of the group is one of its nodes.
+    fn contact_impulses(&self, contact: &Option<ContactSummary>) -> Vec<Vec<f64>> {
         let dim = self.part.dim;
-        let mut out: Vec<BodySummary> = self
-            .bodies
-            .names
-            .iter()
-            .enumerate()
-            .map(|(b, name)| BodySummary {
-                name: name.clone(),
-                momentum_initial: p0[b][..dim].to_vec(),
-                momentum_final: p1[b][..dim].to_vec(),
-                contact_impulse: vec![0.0; dim],
-            })
-            .collect();
-        if let (Some(spec), Some(c)) = (&self.scene.contact, contact) {
-            let sides =
-                [(Some(&spec.boundary), &c.impulse), (spec.master.as_ref(), &c.master_impulse)];
-            for (group, impulse) in sides {
-                let Some(group) = group else { continue };
-                if let Some(b) = self.bodies.holding(self.world, &self.mesh, group)? {
-                    for i in 0..dim {
-                        out[b].contact_impulse[i] += impulse[i];
-                    }
+        let n = self.bodies.n_bodies();
+        let mut out = vec![vec![0.0; dim]; n];
+        let (Some(spec), Some(c)) = (&self.scene.contact, contact) else { return out };
+        let sides = [(Some(&spec.boundary), &c.impulse), (spec.master.as_ref(), &c.master_impulse)];
+        for (group, impulse) in sides {
+            let Some(nodes) = group.and_then(|g| self.mesh.group_nodes(g).ok()) else { continue };
+            let holds = |b: usize| {
+                let body = self.bodies.body_nodes(b);
+                !nodes.is_empty() && nodes.iter().all(|v| body.binary_search(v).is_ok())
+            };
+            if let Some(b) = (0..n).find(|&b| holds(b)) {
+                for i in 0..dim {
+                    out[b][i] += impulse[i];
                 }
             }
         }
-        Ok(out)
+        out
     }
 
     /// Total momentum `1^T M v` per component (from the product `M v` the step keeps).
@@ -1274,6 +1372,8 @@ impl<'a> Simulation<'a> {
         let solver_options =
             settings.iter().find(|(k, _)| k == "petsc_options").map_or("", |(_, v)| v.as_str());
         let mut meta = vec![
+            // The effects as the mesh resolved them (the file was created with the scene's).
+            Meta::text("effects", self.effects()),
             Meta::text("settings", settings_text),
             Meta::text("solver_options", solver_options),
         ];
@@ -1410,19 +1510,13 @@ pub fn summary_lines(sim: &Simulation, s: &RunSummary) -> Vec<String> {
             s.n_dofs,
             sim.mesh.cells.len(),
             sim.size,
-            sim.scene.mass.kind.name(),
-            match sim.layer_summary {
-                Some((nodes, cells)) => format!(
+            mass_kinds(&sim.bodies),
+            match (sim.layer_summary, &sim.bodies.layer) {
+                (Some((nodes, cells)), Some((_, groups))) => format!(
                     " (mass-free layer along {}: {nodes} contact nodes, {cells} layer cells)",
-                    sim.scene
-                        .mass
-                        .layer_groups()
-                        .iter()
-                        .map(|g| format!("\"{g}\""))
-                        .collect::<Vec<_>>()
-                        .join(" and "),
+                    crate::scene::effects::quoted(groups),
                 ),
-                None => String::new(),
+                _ => String::new(),
             }
         ),
         format!(
@@ -1443,6 +1537,34 @@ pub fn summary_lines(sim: &Simulation, s: &RunSummary) -> Vec<String> {
             s.energy_initial, s.energy_final, s.external_work, s.energy_balance
         ),
     ];
+    for b in &s.bodies {
+        let vec = |v: &[f64]| {
+            let x: Vec<String> = v.iter().map(|x| format!("{x:.6e}")).collect();
+            format!("({})", x.join(", "))
+        };
+        let layer = if b.layer_cells > 0 {
+            format!(" (layer: {} contact nodes, {} cells)", b.layer_contact_nodes, b.layer_cells)
+        } else {
+            String::new()
+        };
+        lines.push(format!(
+            "body \"{}\": E = {}, nu = {}, rho = {}, {} mass{layer}; {} cells, total mass {:.10e}, momentum {} -> {}{}",
+            b.group,
+            short_number(b.e),
+            short_number(b.nu),
+            short_number(b.rho),
+            b.mass_kind,
+            b.cells,
+            b.total_mass.first().copied().unwrap_or(0.0),
+            vec(&b.momentum_initial),
+            vec(&b.momentum_final),
+            if b.contact_impulse.iter().any(|&x| x != 0.0) {
+                format!(", contact impulse {}", vec(&b.contact_impulse))
+            } else {
+                String::new()
+            }
+        ));
+    }
     for e in &s.errors {
         lines.push(format!(
             "error at step {} (t = {:.6e}): L2 {:.6e}, H1-seminorm {:.6e}",
@@ -1488,4 +1610,17 @@ pub fn summary_lines(sim: &Simulation, s: &RunSummary) -> Vec<String> {
         lines.push(format!("pictures: {}", list.join(", ")));
     }
     lines
+}
+
+/// The mass kinds the run's cells got: `modified1`, or with bodies of several kinds
+/// `consistent + modified1`.
+fn mass_kinds(bodies: &Bodies) -> String {
+    let mut kinds: Vec<&str> = Vec::new();
+    for (r, _) in bodies.in_use() {
+        let k = bodies.mass_of(r).name();
+        if !kinds.contains(&k) {
+            kinds.push(k);
+        }
+    }
+    kinds.join(" + ")
 }

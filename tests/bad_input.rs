@@ -130,3 +130,35 @@ fn obstacle_errors_name_the_key() {
         expect_error(&["run", &scene, "--no-output"], culprit);
     }
 }
+
+/// `[[body]]` errors found against the mesh, through the binary: one line naming
+/// the key, no panic, and the output file says the run failed.
+#[test]
+fn body_errors_name_the_key() {
+    let dir = scratch("bad-body");
+    let base = "[mesh]\ngeo = \"../meshes/two_bars.geo\"\nparams = { n = 4, ny = 1 }\n[material]\nE = 1.0\nnu = 0.3\nrho = 1.0\n[time]\ntau = 0.01\nsteps = 1\n";
+    let cases = [
+        ("[[body]]\ngroup = \"left\"\n[[body]]\ngroup = \"middle\"\n", "body[1].group = \"middle\": no such physical group of dimension 2"),
+        ("[[body]]\ngroup = \"left_contact\"\nE = 2\n", "body[0].group = \"left_contact\": no such physical group of dimension 2 (\"left_contact\" has dimension 1"),
+        (
+            "[[body]]\ngroup = \"right\"\nmass = \"modified1\"\n[mass]\ncontact_boundary = \"left_contact\"\n",
+            "body[0].mass = modified1 needs a contact group on the body \"right\"",
+        ),
+        (
+            "[[body]]\ngroup = \"right\"\nmass = \"modified0\"\n[mass]\nkind = \"modified1\"\n[contact]\nslave = \"left_contact\"\nmaster = \"right_contact\"\n",
+            "one run builds one variant",
+        ),
+    ];
+    for (i, (rest, culprit)) in cases.iter().enumerate() {
+        let scene = scene_text(&dir, &format!("bars{i}.toml"), &format!("{base}{rest}"));
+        let out = dir.join(format!("bars{i}.h5"));
+        let o = massfree(0, &["run", scene.to_str().unwrap(), "-o", out.to_str().unwrap()]);
+        let stderr = String::from_utf8_lossy(&o.stderr);
+        assert!(!o.status.success() && !stderr.contains("panicked"), "{stderr}");
+        let lines: Vec<&str> = stderr.lines().filter(|l| !l.trim().is_empty()).collect();
+        assert_eq!(lines.len(), 1, "not one line: {stderr}");
+        assert!(lines[0].contains(culprit), "{:?} does not name {culprit:?}", lines[0]);
+        let status = reader(&out).text("status");
+        assert!(status.starts_with("failed: ") && status.contains(culprit), "{status}");
+    }
+}

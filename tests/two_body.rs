@@ -52,11 +52,11 @@ fn two_discs_as_two_bodies_match_the_disc_on_a_plane() {
     for body in &b.bodies {
         let p0 = body.momentum_initial[1].abs();
         let back = -body.contact_impulse[1] * body.momentum_initial[1].signum();
-        assert!(back > 0.1 * p0, "{}: impulse {:?}", body.name, body);
+        assert!(back > 0.1 * p0, "{}: impulse {:?}", body.group, body);
         for c in 0..2 {
             let dp = body.momentum_final[c] - body.momentum_initial[c];
             let d = (dp - body.contact_impulse[c]).abs();
-            assert!(d < 1e-8 * p0, "{}: momentum change {dp} vs impulse {:?}", body.name, body);
+            assert!(d < 1e-8 * p0, "{}: momentum change {dp} vs impulse {:?}", body.group, body);
         }
     }
     let total = |h5: &std::path::Path| -> Vec<f64> {

@@ -34,37 +34,35 @@ pub fn build_layer(
     MassFreeLayer::build_along(mesh, contact_boundaries, variant).map(Some)
 }
 
-/// Assemble the mass matrix of the requested kind; `layer` must be `build_layer`'s result.
-pub fn mass_matrix(
+/// Assemble the mass matrix, cell by cell: `cell_mass(c)` gives the density and the mass
+/// treatment of cell `c` (`crate::bodies::Bodies::cell_mass`; one kind for the whole mesh
+/// without `[[body]]`). Consistent cells get `M_K`, lumped cells its row-sum diagonal, modified
+/// cells `E_K^T M_K E_K` where they are in `layer` (`build_layer`'s result) and `M_K` elsewhere.
+pub fn mass_matrix<F>(
     mesh: &Mesh,
     part: &Partition,
-    rho: f64,
-    kind: MassKind,
+    cell_mass: F,
     layer: Option<&MassFreeLayer>,
-) -> Result<Matrix> {
+) -> Result<Matrix>
+where
+    F: Fn(usize) -> (f64, MassKind),
+{
     let dim = part.dim;
-    match (kind, layer) {
-        (MassKind::Consistent, _) => assemble_blocks(mesh, part, |c, xy, _, out| {
-            out.resize((xy.len() * dim).pow(2), 0.0);
-            kernels::mass(mesh.cells[c].kind, xy, rho, out);
-            Ok(())
-        }),
-        (MassKind::Lumped, _) => assemble_blocks(mesh, part, |c, xy, _, out| {
-            out.resize((xy.len() * dim).pow(2), 0.0);
-            kernels::mass_lumped(mesh.cells[c].kind, xy, rho, out);
-            Ok(())
-        }),
-        (_, Some(layer)) => assemble_blocks(mesh, part, |c, xy, nodes, out| {
-            // Layer cells: E_K^T M_K E_K on the source nodes; others: the standard M_K.
-            if layer.element_matrix(mesh, c, rho, nodes, out).is_none() {
-                out.resize((xy.len() * dim).pow(2), 0.0);
-                kernels::mass(mesh.cells[c].kind, xy, rho, out);
+    assemble_blocks(mesh, part, |c, xy, nodes, out| {
+        let (rho, kind) = cell_mass(c);
+        let kernel = match kind {
+            MassKind::Lumped => kernels::mass_lumped,
+            MassKind::Consistent => kernels::mass,
+            MassKind::Modified0 | MassKind::Modified1 => {
+                // Layer cells: E_K^T M_K E_K on the source nodes; others: the standard M_K.
+                if layer.and_then(|l| l.element_matrix(mesh, c, rho, nodes, out)).is_some() {
+                    return Ok(());
+                }
+                kernels::mass
             }
-            Ok(())
-        }),
-        (_, None) => Err(Error::Solver(format!(
-            "mass.kind = {}: the mass-free layer was not built",
-            kind.name()
-        ))),
-    }
+        };
+        out.resize((xy.len() * dim).pow(2), 0.0);
+        kernel(mesh.cells[c].kind, xy, rho, out);
+        Ok(())
+    })
 }

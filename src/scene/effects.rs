@@ -8,7 +8,7 @@
 //! effects: elasticity, mass-free layer (modified1 along "contact"), Dirichlet (zero values), contact (plane obstacle); not built: initial displacement, initial velocity, body force, tractions, Dirichlet lifting, exact errors
 //! ```
 
-use super::{MassKind, Obstacle, Scene, Shape};
+use super::{BodySpec, MassKind, Obstacle, Scene, Shape};
 use crate::scene::expr::VecExpr;
 
 /// How a load or prescribed value varies in time.
@@ -87,10 +87,16 @@ impl ObstacleEffect {
 /// Elasticity (the stiffness operator) is always built and has no field.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct Effects {
-    /// The mass treatment (always built).
+    /// `mass.kind`: the mass treatment of the cells outside every `[[body]]` with its own.
     pub mass: MassKind,
-    /// The group the mass-free layer is built along: `Some` exactly for the modified kinds.
-    pub layer_boundary: Option<String>,
+    /// The standard mass matrices built (consistent, lumped), in that order: without
+    /// `[[body]]` the one of `mass.kind`, or none for a modified kind.
+    pub standard_masses: Vec<MassKind>,
+    /// The mass-free layer: its kind and the groups it is built along (`"a" and "b"`);
+    /// `Some` exactly when a layer is built.
+    pub layer: Option<(MassKind, String)>,
+    /// `[[body]]`, each briefly: `"lower": E = 400, mass consistent` (the values it sets).
+    pub bodies: Vec<String>,
     /// A non-zero initial displacement / velocity is interpolated (else the body starts at rest
     /// in its reference configuration).
     pub initial_displacement: bool,
@@ -114,15 +120,32 @@ pub struct Effects {
 
 impl Scene {
     /// What must be built: only what the scene asks for.
+    ///
+    /// With `[[body]]` of different mass kinds, which contact group lies on which body is known
+    /// only with the mesh: the layer then reads `KIND along "a" and "b", on the bodies with that
+    /// mass` until [`Effects::resolve`] states it.
     pub fn effects(&self) -> Effects {
-        let groups: Vec<String> =
-            self.mass.layer_groups().iter().map(|g| format!("\"{g}\"")).collect();
-        let layer_boundary = Some(groups.join(" and "))
-            .filter(|_| self.mass.kind.is_modified() && !groups.is_empty());
+        let groups = self.mass.layer_groups();
+        // The kinds of the cells outside every body and of the bodies (all in use, as far as
+        // the scene tells).
+        let mut kinds = vec![self.mass.kind];
+        kinds.extend((0..self.bodies.len()).map(|i| self.body_mass(i)));
+        let standard_masses =
+            MassKind::ALL.into_iter().filter(|k| !k.is_modified() && kinds.contains(k)).collect();
+        let modified: Vec<MassKind> =
+            MassKind::ALL.into_iter().filter(|k| k.is_modified() && kinds.contains(k)).collect();
+        let layer = match modified.as_slice() {
+            [] => None,
+            _ if groups.is_empty() => None,
+            [k] if kinds.iter().all(|c| c == k) => Some((*k, quoted(&groups))),
+            [k, ..] => Some((*k, format!("{}, on the bodies with that mass", quoted(&groups)))),
+        };
         let nonzero = |f: &Option<VecExpr>| f.as_ref().is_some_and(|f| !f.is_zero());
         Effects {
             mass: self.mass.kind,
-            layer_boundary,
+            standard_masses,
+            layer,
+            bodies: self.bodies.iter().map(body_brief).collect(),
             initial_displacement: nonzero(&self.initial_displacement),
             initial_velocity: nonzero(&self.initial_velocity),
             body_force: Variation::of(&self.body_force),
@@ -144,13 +167,59 @@ impl Scene {
     }
 }
 
+/// `"a" and "b"`.
+pub fn quoted<S: AsRef<str>>(groups: &[S]) -> String {
+    groups.iter().map(|g| format!("\"{}\"", g.as_ref())).collect::<Vec<_>>().join(" and ")
+}
+
+/// `"lower": E = 400, rho = 2e-8, mass consistent`: a body's group and what it sets.
+fn body_brief(b: &BodySpec) -> String {
+    let names = ["E", "nu", "rho"];
+    let values = [b.material.e, b.material.nu, b.material.rho];
+    let mut items: Vec<String> = (0..3)
+        .filter(|&k| b.sets[k])
+        .map(|k| format!("{} = {}", names[k], short_number(values[k])))
+        .collect();
+    if let Some(m) = b.mass {
+        items.push(format!("mass {}", m.name()));
+    }
+    if items.is_empty() {
+        format!("\"{}\"", b.group)
+    } else {
+        format!("\"{}\": {}", b.group, items.join(", "))
+    }
+}
+
+/// `200`, `0.3`, `2e-8`: the shorter of the plain and the exponent form.
+pub fn short_number(x: f64) -> String {
+    let (plain, exp) = (format!("{x}"), format!("{x:e}"));
+    if plain.len() <= exp.len() {
+        plain
+    } else {
+        exp
+    }
+}
+
 impl Effects {
+    /// The mass treatment as the mesh resolved it (`crate::bodies::Bodies`): the standard
+    /// mass kinds with cells, and the layer's kind and groups.
+    pub fn resolve(
+        mut self,
+        standard: Vec<MassKind>,
+        layer: Option<(MassKind, &[String])>,
+    ) -> Self {
+        self.standard_masses = standard;
+        self.layer = layer.map(|(k, groups)| (k, quoted(groups)));
+        self
+    }
+
     /// One line: `effects: A, B, C; not built: X, Y` (`not built: none` when nothing is left).
     ///
     /// The items, always in this order:
-    /// 1. `elasticity` (always built);
-    /// 2. the mass (always built): `consistent mass`, `lumped mass`, or
-    ///    `mass-free layer (KIND along "GROUP")`;
+    /// 1. `elasticity` (always built), then with `[[body]]` `bodies (BODY; BODY; ...)`, each
+    ///    `"GROUP": E = .., nu = .., rho = .., mass KIND` with what it sets;
+    /// 2. the mass (always built): `consistent mass`, `lumped mass` and/or
+    ///    `mass-free layer (KIND along "GROUP" and "GROUP")`;
     /// 3. `initial displacement`, 4. `initial velocity`;
     /// 5. `body force (steady | time-dependent)`, 6. `tractions (steady | time-dependent)`;
     /// 7. `Dirichlet (zero values | non-zero values)`,
@@ -161,7 +230,7 @@ impl Effects {
     ///
     /// `not built:` lists, in the same order and by the names before the parentheses, the
     /// optional items 3 to 10 the scene does not ask for, preceded by `mass-free layer` when
-    /// the mass is consistent or lumped.
+    /// there is none (`bodies` is never listed there).
     pub fn summary(&self) -> String {
         let with = |name: &str, what: Option<&str>| what.map(|w| format!("{name} ({w})"));
         let flag = |name: &str, on: bool| on.then(|| name.to_string());
@@ -176,7 +245,7 @@ impl Effects {
             1 => Some(format!("{} obstacle", names[0])),
             n => Some(format!("{n} obstacles: {}", names.join(", "))),
         };
-        let layer = self.layer_boundary.as_ref().map(|g| format!("{} along {g}", self.mass.name()));
+        let layer = self.layer.as_ref().map(|(k, g)| format!("{} along {g}", k.name()));
         let optional: [(&str, Option<String>); 9] = [
             ("mass-free layer", with("mass-free layer", layer.as_deref())),
             ("initial displacement", flag("initial displacement", self.initial_displacement)),
@@ -192,9 +261,10 @@ impl Effects {
             ("exact errors", flag("exact errors", self.exact_errors)),
         ];
         let mut built = vec!["elasticity".to_string()];
-        if self.layer_boundary.is_none() {
-            built.push(format!("{} mass", self.mass.name()));
+        if !self.bodies.is_empty() {
+            built.push(format!("bodies ({})", self.bodies.join("; ")));
         }
+        built.extend(self.standard_masses.iter().map(|k| format!("{} mass", k.name())));
         let mut skipped = Vec::new();
         for (name, item) in optional {
             match item {

@@ -16,10 +16,14 @@
 //! geo = "../meshes/beam_quad.geo"     # or msh = "file.msh"; exactly one
 //! params = { h = 0.25 }               # geo only: gmsh -setnumber
 //! binary = false                      # geo only
-//! [material]
+//! [material]                          # every cell outside the [[body]] groups
 //! E = 200.0
 //! nu = 0.3
 //! rho = 1.0
+//! [[body]]                            # optional, any number: a body with its own values
+//! group = "lower"                     # a physical group of the mesh's dimension
+//! E = 400.0                           # any of E, nu, rho; the others from [material]
+//! mass = "consistent"                 # optional, default mass.kind
 //! [[dirichlet]]
 //! group = "left"
 //! value = ["0", "0"]                  # optional, default zero
@@ -65,6 +69,16 @@
 //! ```
 //!
 //! Numbers are accepted wherever an expression is (`value = [0, -1.5]`).
+//!
+//! Bodies (`[[body]]`): each cell takes the material and mass treatment of the body whose group
+//! holds it, else `[material]` and `mass.kind`; body groups must not overlap. The mass-free
+//! layer (modified0/modified1) runs along those of the layer groups (`mass.contact_boundary`,
+//! or the contact boundary / both sides of a pair) that lie on cells with a modified mass;
+//! a consistent or lumped body gets none. A contact group must touch cells of one mass kind
+//! only, one run builds one layer variant, and a body whose own `mass` is modified must have
+//! a contact group on it (a body that only inherits a modified `mass.kind` and has no contact
+//! group gets the consistent mass: `M_H` with an empty layer is `M`). These checks need the
+//! mesh: `crate::bodies::Bodies::resolve` makes them, with errors naming the key as here.
 
 pub mod effects;
 pub mod expr;
@@ -94,7 +108,10 @@ pub struct Scene {
     /// The scene file (for [`parse`]: `base_dir/name`).
     pub source: PathBuf,
     pub mesh: MeshSource,
+    /// `[material]`: the material of every cell outside the `[[body]]` groups.
     pub material: MaterialSpec,
+    /// `[[body]]`, in the order given: groups of cells with their own material or mass.
+    pub bodies: Vec<BodySpec>,
     pub dirichlet: Vec<DirichletSpec>,
     pub neumann: Vec<NeumannSpec>,
     /// `None` when absent; present but all-zero is kept (see [`Effects::body_force`]).
@@ -129,6 +146,21 @@ pub struct MaterialSpec {
     pub nu: f64,
     /// Density, > 0.
     pub rho: f64,
+}
+
+/// One `[[body]]`: a physical group of cells (of the mesh's dimension) with its own material
+/// and/or mass treatment. Which cells it holds is known once the mesh is read
+/// (`crate::bodies::Bodies`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct BodySpec {
+    /// Physical group name (the mesh's dimension; checked against the mesh).
+    pub group: String,
+    /// `[material]` with the body's own `E`, `nu`, `rho` where given.
+    pub material: MaterialSpec,
+    /// Which of `E`, `nu`, `rho` the body sets (in that order).
+    pub sets: [bool; 3],
+    /// `body[i].mass`; None: `[mass].kind` (see [`Scene::body_mass`]).
+    pub mass: Option<MassKind>,
 }
 
 #[derive(Debug, Clone)]
@@ -361,7 +393,8 @@ impl Scene {
     }
 
     /// Override the mass treatment from the command line (`--mass modified1`); the same rule
-    /// as in the scene: a modified mass needs `mass.contact_boundary`.
+    /// as in the scene: a modified mass needs `mass.contact_boundary`. It replaces `mass.kind`,
+    /// the default: a `[[body]]` with its own `mass` keeps it.
     pub fn set_mass_kind(&mut self, name: &str) -> Result<()> {
         let kind = MassKind::from_name(name).ok_or_else(|| {
             Error::Usage(format!(
@@ -376,6 +409,11 @@ impl Scene {
         }
         self.mass.kind = kind;
         Ok(())
+    }
+
+    /// The mass treatment of `body[i]`: its own `mass`, else `mass.kind`.
+    pub fn body_mass(&self, i: usize) -> MassKind {
+        self.bodies[i].mass.unwrap_or(self.mass.kind)
     }
 
     /// The end time `steps * tau`.
@@ -460,7 +498,8 @@ impl Scene {
         Ok(())
     }
 
-    fn display_name(&self) -> String {
+    /// The scene file's name, as error messages start.
+    pub(crate) fn display_name(&self) -> String {
         self.source
             .file_name()
             .map(|f| f.to_string_lossy().into_owned())
@@ -549,6 +588,8 @@ struct RawScene {
     mesh: RawMesh,
     material: RawMaterial,
     #[serde(default)]
+    body: Vec<RawBody>,
+    #[serde(default)]
     dirichlet: Vec<RawDirichlet>,
     #[serde(default)]
     neumann: Vec<RawNeumann>,
@@ -578,6 +619,17 @@ struct RawMaterial {
     e: f64,
     nu: f64,
     rho: f64,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawBody {
+    group: String,
+    #[serde(rename = "E")]
+    e: Option<f64>,
+    nu: Option<f64>,
+    rho: Option<f64>,
+    mass: Option<MassKind>,
 }
 
 #[derive(Deserialize, Clone, Copy, PartialEq)]
@@ -713,6 +765,20 @@ fn compile_vec(v: &[ExprSrc], key: &str) -> VResult<VecExpr> {
         .map(|(i, s)| compile(s, &format!("{key}[{i}]")))
         .collect::<VResult<Vec<_>>>()?;
     Ok(VecExpr(exprs))
+}
+
+/// A material checked value by value (`key` is `material` or `body[i]`).
+fn material_spec(key: &str, e: f64, nu: f64, rho: f64) -> VResult<MaterialSpec> {
+    if !(e > 0.0 && e.is_finite()) {
+        return Err(format!("{key}.E = {e} is impossible: Young's modulus must be > 0"));
+    }
+    if !(nu > -1.0 && nu < 0.5) {
+        return Err(format!("{key}.nu = {nu} is impossible: Poisson's ratio must be in (-1, 0.5)"));
+    }
+    if !(rho > 0.0 && rho.is_finite()) {
+        return Err(format!("{key}.rho = {rho} is impossible: the density must be > 0"));
+    }
+    Ok(MaterialSpec { e, nu, rho })
 }
 
 fn group_name(g: String, key: &str) -> VResult<String> {
@@ -946,21 +1012,27 @@ fn build(raw: RawScene, stem: &str, base_dir: &Path) -> VResult<Scene> {
         }
     };
 
-    // --- material
+    // --- material: [material], then each [[body]]'s own values over it
     let mat = raw.material;
-    if !(mat.e > 0.0 && mat.e.is_finite()) {
-        return Err(format!("material.E = {} is impossible: Young's modulus must be > 0", mat.e));
+    let material = material_spec("material", mat.e, mat.nu, mat.rho)?;
+    let mut bodies: Vec<BodySpec> = Vec::new();
+    for (i, b) in raw.body.into_iter().enumerate() {
+        let key = format!("body[{i}]");
+        let group = group_name(b.group, &format!("{key}.group"))?;
+        if let Some(j) = bodies.iter().position(|o| o.group == group) {
+            return Err(format!(
+                "{key}.group = \"{group}\" is also body[{j}].group: give each body once"
+            ));
+        }
+        let m = material_spec(
+            &key,
+            b.e.unwrap_or(material.e),
+            b.nu.unwrap_or(material.nu),
+            b.rho.unwrap_or(material.rho),
+        )?;
+        let sets = [b.e.is_some(), b.nu.is_some(), b.rho.is_some()];
+        bodies.push(BodySpec { group, material: m, sets, mass: b.mass });
     }
-    if !(mat.nu > -1.0 && mat.nu < 0.5) {
-        return Err(format!(
-            "material.nu = {} is impossible: Poisson's ratio must be in (-1, 0.5)",
-            mat.nu
-        ));
-    }
-    if !(mat.rho > 0.0 && mat.rho.is_finite()) {
-        return Err(format!("material.rho = {} is impossible: the density must be > 0", mat.rho));
-    }
-    let material = MaterialSpec { e: mat.e, nu: mat.nu, rho: mat.rho };
 
     // --- boundary conditions and loads
     let mut dirichlet = Vec::new();
@@ -1231,6 +1303,17 @@ fn build(raw: RawScene, stem: &str, base_dir: &Path) -> VResult<Scene> {
             kind.name()
         ));
     }
+    for (i, b) in bodies.iter().enumerate() {
+        match b.mass {
+            Some(k) if k.is_modified() && contact_boundary.is_none() => {
+                return Err(format!(
+                    "body[{i}].mass = {} needs mass.contact_boundary (or a [contact] section): the mass-free layer is built along the potential contact boundary",
+                    k.name()
+                ));
+            }
+            _ => {}
+        }
+    }
     let mass = MassSpec { kind, contact_boundary, also_along };
 
     Ok(Scene {
@@ -1239,6 +1322,7 @@ fn build(raw: RawScene, stem: &str, base_dir: &Path) -> VResult<Scene> {
         source: PathBuf::new(),
         mesh,
         material,
+        bodies,
         dirichlet,
         neumann,
         body_force,

@@ -409,7 +409,7 @@ fn obstacle_errors_name_the_key() {
 fn unknown_keys() {
     assert_err(
         &format!("materail = 3\n{MINIMAL}"),
-        &["unknown key \"materail\"", "allowed: name, mesh, material, dirichlet"],
+        &["unknown key \"materail\"", "allowed: name, mesh, material, body, dirichlet"],
     );
     let m = err_of(&minimal_with("[material]", "[materail]\nE=1\n[material]"));
     assert!(m.contains("unknown key \"materail\""), "{m}");
@@ -651,7 +651,9 @@ fn effects_follow_the_scene() {
         s.effects(),
         Effects {
             mass: MassKind::Modified1,
-            layer_boundary: Some("\"bottom\"".into()),
+            standard_masses: vec![],
+            layer: Some((MassKind::Modified1, "\"bottom\"".into())),
+            bodies: vec![],
             initial_displacement: false,
             initial_velocity: true,
             body_force: varying,
@@ -672,7 +674,9 @@ fn effects_follow_the_scene() {
         s.effects(),
         Effects {
             mass: MassKind::Lumped,
-            layer_boundary: None, // no layer for a lumped mass, though a boundary is named
+            standard_masses: vec![MassKind::Lumped],
+            layer: None, // no layer for a lumped mass, though a boundary is named
+            bodies: vec![],
             initial_displacement: false,
             initial_velocity: false,
             body_force: None,
@@ -830,4 +834,122 @@ fn contact_pairs_of_two_bodies() {
     for (text, needle) in &cases {
         assert_err(text, &[needle]);
     }
+}
+
+/// MINIMAL with `[[body]]` tables (and whatever else `rest` holds) appended.
+fn with_bodies(rest: &str) -> String {
+    format!("{MINIMAL}\n{rest}\n")
+}
+
+#[test]
+fn bodies_take_their_own_values_over_the_material() {
+    let dir = workspace();
+    let text = with_bodies(
+        "[[body]]\ngroup = \"lower\"\nE = 400\nmass = \"consistent\"\n[[body]]\ngroup = \"upper\"\nrho = 3e-8\nnu = 0.1\n[[body]]\ngroup = \"plain\"\n[mass]\nkind = \"modified1\"\ncontact_boundary = \"c\"\n",
+    );
+    let mut s = parse_in(&dir, &text).unwrap();
+    assert_eq!(s.bodies.len(), 3);
+    let (lower, upper) = (&s.bodies[0], &s.bodies[1]);
+    assert_eq!(lower.group, "lower");
+    assert_eq!(lower.material, MaterialSpec { e: 400.0, nu: 0.25, rho: 2.0 });
+    assert_eq!(lower.sets, [true, false, false]);
+    assert_eq!(upper.material, MaterialSpec { e: 1.0, nu: 0.1, rho: 3e-8 });
+    assert_eq!(upper.sets, [false, true, true]);
+    assert_eq!(s.bodies[2].material, s.material);
+    // The body's own mass, else mass.kind, which --mass replaces.
+    assert_eq!(s.body_mass(0), MassKind::Consistent);
+    assert_eq!(s.body_mass(1), MassKind::Modified1);
+    s.set_mass_kind("lumped").unwrap();
+    assert_eq!((s.body_mass(0), s.body_mass(1)), (MassKind::Consistent, MassKind::Lumped));
+    // A scene without bodies has none.
+    assert!(parse_in(&dir, MINIMAL).unwrap().bodies.is_empty());
+}
+
+#[test]
+fn body_errors_name_the_key() {
+    let body = |rest: &str| with_bodies(&format!("[[body]]\ngroup = \"a\"\n[[body]]\n{rest}"));
+    let cases: Vec<(String, Vec<&str>)> = vec![
+        (
+            body("group = \"b\"\nE = -1"),
+            vec!["body[1].E = -1 is impossible: Young's modulus must be > 0"],
+        ),
+        (body("group = \"b\"\nnu = 0.5"), vec!["body[1].nu = 0.5 is impossible"]),
+        (
+            body("group = \"b\"\nrho = 0"),
+            vec!["body[1].rho = 0 is impossible: the density must be > 0"],
+        ),
+        (body("group = \"\""), vec!["body[1].group is empty"]),
+        (body("group = \"a\""), vec!["body[1].group = \"a\" is also body[0].group"]),
+        (body("E = 3"), vec!["missing key \"body[1].group\""]),
+        (
+            body("group = \"b\"\ndensity = 3"),
+            vec!["unknown key \"body[1].density\"", "allowed: group, E, nu, rho, mass"],
+        ),
+        (
+            body("group = \"b\"\nmass = \"heavy\""),
+            vec!["body[1].mass = \"heavy\" is not allowed", "consistent"],
+        ),
+        (body("group = \"b\"\nE = \"big\""), vec!["body[1].E has the wrong type"]),
+        // A modified mass needs a group to build the layer along.
+        (
+            body("group = \"b\"\nmass = \"modified1\""),
+            vec!["body[1].mass = modified1 needs mass.contact_boundary (or a [contact] section)"],
+        ),
+    ];
+    for (text, needles) in &cases {
+        assert_err(text, needles);
+    }
+    // With a contact boundary, a modified body is fine; [material] is still checked alone.
+    let dir = workspace();
+    let ok = format!(
+        "{}\n[mass]\ncontact_boundary = \"c\"\n",
+        body("group = \"b\"\nmass = \"modified0\"")
+    );
+    assert_eq!(parse_in(&dir, &ok).unwrap().body_mass(1), MassKind::Modified0);
+    assert_err(
+        &minimal_with("E = 1", "E = 0").replace("[time]", "[[body]]\ngroup = \"a\"\nE = 5\n[time]"),
+        &["material.E = 0 is impossible"],
+    );
+}
+
+#[test]
+fn effects_name_the_bodies() {
+    let dir = workspace();
+    let pair = "[contact]\nslave = \"a\"\nmaster = \"b\"\n";
+    // Same mass everywhere: the layer is known without the mesh.
+    let text = with_bodies(&format!(
+        "[[body]]\ngroup = \"lower\"\nE = 400\n[[body]]\ngroup = \"upper\"\nrho = 2e-8\n[mass]\nkind = \"modified1\"\n{pair}"
+    ));
+    let line = parse_in(&dir, &text).unwrap().effects().summary();
+    assert!(
+        line.starts_with("effects: elasticity, bodies (\"lower\": E = 400; \"upper\": rho = 2e-8), mass-free layer (modified1 along \"a\" and \"b\"), contact"),
+        "{line}"
+    );
+    assert!(!line.contains("not built: bodies") && !line.contains(", bodies,"), "{line}");
+    // Mixed kinds: which group is on which body needs the mesh; resolved, the line states it.
+    let text = with_bodies(&format!(
+        "[[body]]\ngroup = \"lower\"\nmass = \"consistent\"\n[mass]\nkind = \"modified1\"\n{pair}"
+    ));
+    let e = parse_in(&dir, &text).unwrap().effects();
+    assert_eq!(e.bodies, vec!["\"lower\": mass consistent".to_string()]);
+    assert!(
+        e.summary().contains(
+            "consistent mass, mass-free layer (modified1 along \"a\" and \"b\", on the bodies with that mass)"
+        ),
+        "{}",
+        e.summary()
+    );
+    let b = ["b".to_string()];
+    let resolved = e.resolve(vec![MassKind::Consistent], Some((MassKind::Modified1, &b[..])));
+    assert!(
+        resolved.summary().starts_with(
+            "effects: elasticity, bodies (\"lower\": mass consistent), consistent mass, mass-free layer (modified1 along \"b\"), contact"
+        ),
+        "{}",
+        resolved.summary()
+    );
+    // A lumped body beside consistent cells: both standard masses, no layer.
+    let text = with_bodies("[[body]]\ngroup = \"x\"\nmass = \"lumped\"\n");
+    let line = parse_in(&dir, &text).unwrap().effects().summary();
+    assert!(line.contains("consistent mass, lumped mass; not built: mass-free layer"), "{line}");
 }

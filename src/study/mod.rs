@@ -780,7 +780,6 @@ mod tests {
             mass: MassCheck::default(),
             momentum_initial: vec![0.0, 0.0],
             momentum_final: vec![0.0, 0.0],
-            bodies: vec![],
             contact: Some(ContactSummary {
                 max_pressure: 2.5,
                 episodes_max: 1,
@@ -788,6 +787,7 @@ mod tests {
             }),
             pictures: vec![],
             effects: String::new(),
+            bodies: Vec::new(),
         };
         // The text `massfree run --summary` writes, read back.
         let s = parse_summary(&toml::to_string(&run).unwrap()).unwrap();
