@@ -109,7 +109,7 @@ fn the_layer_is_built_only_on_the_body_with_a_modified_mass() {
     let one = scene_variant(
         "two_discs.toml",
         &dir,
-        &[("[initial]", "[[body]]\ngroup = \"lower\"\nmass = \"consistent\"\n[[body]]\ngroup = \"upper\"\n\n[initial]")],
+        &[("group = \"lower\"\n", "group = \"lower\"\nmass = \"consistent\"\n")],
     );
     let args = ["--steps", "5", "--no-output"];
     let b = run_scene(1, &both, &args);
@@ -146,10 +146,8 @@ fn two_materials_do_not_depend_on_the_number_of_ranks() {
         &[
             ("steps = 1000", "steps = 120"),
             ("every = 10", "every = 40"),
-            (
-                "[initial]",
-                "[[body]]\ngroup = \"upper\"\nrho = 4e-8\n[[body]]\ngroup = \"lower\"\nE = 200.0\nmass = \"consistent\"\n\n[initial]",
-            ),
+            ("group = \"upper\"\n", "group = \"upper\"\nrho = 4e-8\n"),
+            ("group = \"lower\"\n", "group = \"lower\"\nE = 200.0\nmass = \"consistent\"\n"),
         ],
     );
     let args = ["--partition", "x-slabs", "--", "-ksp_rtol", "1e-13"];

@@ -123,6 +123,348 @@ fn two_body_contact_does_not_depend_on_the_number_of_ranks() {
     }
 }
 
+/// Per step (row 0 = the start): the total contact force on the slave side (the sum of the
+/// nodal forces `D lambda`) and whether any slave node is active.
+fn force_history(h5: &std::path::Path) -> (Vec<f64>, Vec<bool>) {
+    let run = reader(h5);
+    let nc = run.file.dataset(&layout::contact("force")).unwrap().shape()[1];
+    let force = run.series(&layout::contact("force")).unwrap();
+    let active = run.series(&layout::contact("active")).unwrap();
+    let total = force.chunks(nc).map(|r| r.iter().sum()).collect();
+    let any = active.chunks(nc).map(|r| r.iter().any(|&a| a != 0.0)).collect();
+    (total, any)
+}
+
+fn peak(f: &[f64]) -> f64 {
+    f.iter().cloned().fold(0.0, f64::max)
+}
+
+/// The mean of `field`'s x-component over the cells whose nodes all satisfy `inside`, by cell
+/// area (exact for bilinear fields on the bars' rectangles).
+fn mean_x(h5: &std::path::Path, field: &str, time: f64, inside: &dyn Fn(f64) -> bool) -> f64 {
+    let run = reader(h5);
+    let x = run.coordinates().unwrap();
+    let (v, comps) = run.field_at(field, time).unwrap();
+    let (mut int, mut area) = (0.0, 0.0);
+    for (_, c) in run.cells().unwrap() {
+        if !c.iter().all(|&k| inside(x[k][0])) {
+            continue;
+        }
+        let xs: Vec<f64> = c.iter().map(|&k| x[k][0]).collect();
+        let ys: Vec<f64> = c.iter().map(|&k| x[k][1]).collect();
+        let a = (xs.iter().cloned().fold(f64::MIN, f64::max)
+            - xs.iter().cloned().fold(f64::MAX, f64::min))
+            * (ys.iter().cloned().fold(f64::MIN, f64::max)
+                - ys.iter().cloned().fold(f64::MAX, f64::min));
+        int += a * c.iter().map(|&k| v[k * comps]).sum::<f64>() / c.len() as f64;
+        area += a;
+    }
+    int / area
+}
+
+/// Two identical bars (`scenes/two_bars.toml`: length L = 1, height H = 0.1, E = 100, nu = 0,
+/// rho = 1, so c = sqrt(E/rho) = 10) hit each other head-on, each at v0 = 0.1. With nu = 0 a
+/// uniform strip in plane strain is exactly 1D (the y-equations decouple), and 1D theory says:
+/// at impact both ends stop, the interface stress is `rho c v0` (= 1) until the compression
+/// wave has run to the far end and back, `2L/c` (= 0.2 = 1600 steps), then each bar leaves
+/// with `-v0`, stress free. The gap closes at `t_a = gap/(2 v0)` = 10.5 steps, between two
+/// steps (METHOD.md 7: an arrival on a step boundary would make the contact node chatter with
+/// `M`). Asserted for `M_H^1` (the project's default) and the consistent `M`:
+/// * the plateau: on `[t_a + L/(2c), t_a + 1.4 L/c]` the pressure (total force / H) is
+///   `rho c v0` within 1%. The window starts 100 element transits `h/c` after the impact,
+///   whose transient (the smeared front and, with `M_H^1`, a damped ringing of the layer with a
+///   period of about 7 `h/c`) lives on the mesh time scale; it ends before the fastest discrete
+///   wave can bring the release front's precursor back: the consistent Q1 mass under the
+///   midpoint rule at `c tau/h = 1/4` has group velocities up to 1.30 c (max over kh of
+///   `d omega/dk` of `omega = 2/tau atan(tau/2 c/h sqrt(6(1 - cos kh)/(2 + cos kh)))`), which
+///   come back no earlier than `t_a + 2L/(1.30 c) = t_a + 1.54 L/c`;
+/// * the contact period (steps with an active node) is `2L/(c tau)` within 2 steps (where the
+///   discrete start and end fall between steps) plus one element transit `h/(c tau)` = 4 steps
+///   (the release front is resolved to an element);
+/// * after release each bar's mean velocity (over the bar without its end element column,
+///   whose massless contact nodes keep the undamped period-2 mode of METHOD.md 7) is `-v0`
+///   within 2%: the impulse differs from the continuum's `2 m v0` only within the release
+///   front, smeared by dispersion over `w = (2L h^2)^(1/3)` (Airy scaling after a path of 2L)
+///   = 0.037, at most `w/(4L)` of the impulse, i.e. `w/(2L)` = 1.9% of the velocity;
+/// * energy: the balance below 1e-8; the final energy below the initial one (the contact work
+///   at activation `lambda g^n >= 0` is the only loss) by less than `h/L` = 0.5%: activation
+///   stops at most the end element column of each bar abruptly; the total momentum is kept
+///   (the contact forces are internal).
+#[test]
+fn two_bars_impact_follows_1d_wave_theory() {
+    let dir = scratch("two-bars");
+    let scene = scene_variant("two_bars.toml", &dir, &[]);
+    let h5 = dir.join("two_bars-2.h5");
+    let (l, hh, c, v0, rho): (f64, f64, f64, f64, f64) = (1.0, 0.1, 10.0, 0.1, 1.0);
+    let (n, tau, gap, steps): (f64, f64, f64, usize) = (200.0, 1.25e-4, 2.625e-4, 1700);
+    let h = l / n;
+    let t_a = gap / (2.0 * v0);
+    let sigma = rho * c * v0;
+    for mass in ["modified1", "consistent"] {
+        let s = run_scene(2, &scene, &["--mass", mass, "--", "-ksp_rtol", "1e-12"]);
+        assert_eq!(s.mass_kind, mass);
+        let cs = contact(&s);
+        let (force, any) = force_history(&h5);
+        // The contact period: one, through the run.
+        let first = any.iter().position(|&a| a).expect("no contact");
+        let last = any.iter().rposition(|&a| a).unwrap();
+        assert!(any[first..=last].iter().all(|&a| a), "{mass}: contact interrupted");
+        assert_eq!((first, last), (cs.first_contact_step, cs.last_contact_step));
+        assert_eq!(first, (t_a / tau).ceil() as usize, "{mass}: contact starts at {first}");
+        let duration = (last + 1 - first) as f64;
+        let expect = 2.0 * l / (c * tau);
+        eprintln!(
+            "{mass}: contact steps {first}..{last}: {duration} steps vs 2L/(c tau) = {expect}"
+        );
+        assert!(
+            (duration - expect).abs() <= 2.0 + h / (c * tau),
+            "{mass}: contact lasts {duration} steps, 2L/c is {expect}"
+        );
+        assert!(last < steps, "{mass}: the bars must have separated");
+        // The plateau.
+        let from = ((t_a + 0.5 * l / c) / tau).ceil() as usize;
+        let to = ((t_a + 1.4 * l / c) / tau).floor() as usize;
+        let p: Vec<f64> = force[from..=to].iter().map(|f| f / hh).collect();
+        let dev = p.iter().map(|x| (x / sigma - 1.0).abs()).fold(0.0, f64::max);
+        let mean = p.iter().sum::<f64>() / p.len() as f64;
+        eprintln!("{mass}: plateau steps {from}..{to}: mean {mean}, largest deviation {dev:.2e} of rho c v0 = {sigma}");
+        assert!(dev < 0.01, "{mass}: plateau deviates by {dev} from rho c v0 = {sigma}");
+        // Velocities after release, from the last step's field.
+        let t_end = steps as f64 * tau;
+        let vl = mean_x(&h5, "velocity", t_end, &|x| x <= l - h + 1e-9);
+        let vr = mean_x(&h5, "velocity", t_end, &|x| x >= l + gap + h - 1e-9);
+        eprintln!("{mass}: mean velocities after release {vl}, {vr} (v0 = {v0})");
+        assert!((vl / -v0 - 1.0).abs() < 0.02, "{mass}: left bar leaves at {vl}, not -v0");
+        assert!((vr / v0 - 1.0).abs() < 0.02, "{mass}: right bar leaves at {vr}, not +v0");
+        // Energy and momentum.
+        assert!(s.energy_balance < 1e-8, "{mass}: energy balance {}", s.energy_balance);
+        let loss = (s.energy_initial - s.energy_final) / s.energy_initial;
+        eprintln!(
+            "{mass}: energy loss {loss:.2e} of the initial energy (contact work {})",
+            cs.contact_work
+        );
+        assert!((-1e-8..h / l).contains(&loss), "{mass}: relative energy loss {loss}");
+        let p_bar = rho * l * hh * v0;
+        let dp = (s.momentum_final[0] - s.momentum_initial[0]).abs();
+        assert!(dp < 1e-8 * p_bar, "{mass}: momentum changed by {dp}");
+    }
+}
+
+/// Two bars with matching, straight contact ends are by symmetry one bar against a rigid wall
+/// at the middle plane: the dual mortar then has `M = D`, the slave normals are exact and the
+/// weighted gap is the nodal one, so the discrete problems coincide and the contact force
+/// histories must agree to the solver tolerance (the mortar path against the obstacle path).
+/// The impact transient (the first 300 steps) is the demanding part; the other bar moves away.
+#[test]
+fn two_bars_are_one_bar_against_a_wall() {
+    let dir = scratch("two-bars-wall");
+    let two = scene_variant("two_bars.toml", &dir, &[]);
+    let wall = scene_text(
+        &dir,
+        "wall.toml",
+        &std::fs::read_to_string(&two)
+            .unwrap()
+            .replace("name = \"two_bars\"", "name = \"wall\"")
+            .replace("0.1 * (1.00013125 - x) / abs(1.00013125 - x)", "0.1")
+            .replace("slave = \"left_contact\"", "boundary = \"left_contact\"")
+            .replace(
+                "master = \"right_contact\"",
+                "obstacle = { type = \"plane\", point = [1.00013125, 0.0], normal = [-1.0, 0.0] }",
+            ),
+    );
+    let args = ["--steps", "300", "--", "-ksp_rtol", "1e-13"];
+    let b = run_scene(2, &two, &args);
+    let w = run_scene(2, &wall, &args);
+    let (fb, ab) = force_history(&dir.join("two_bars-2.h5"));
+    let (fw, aw) = force_history(&dir.join("wall-2.h5"));
+    assert!(ab.iter().any(|&a| a), "no contact");
+    assert_eq!(ab, aw, "the contact periods differ");
+    let fmax = peak(&fw);
+    let dmax = fb.iter().zip(&fw).map(|(x, y)| (x - y).abs()).fold(0.0, f64::max);
+    eprintln!("two bars against the wall: forces differ by {dmax:.2e} (peak {fmax})");
+    assert!(dmax < 1e-8 * fmax, "forces differ by {dmax} (peak {fmax})");
+    // Both bars carry the energy in both runs; the pair does the contact work of two walls.
+    assert!(rel_diff(b.energy_initial, w.energy_initial) < 1e-12);
+    let (cb, cw) = (contact(&b), contact(&w));
+    assert!(rel_diff(cb.contact_work, 2.0 * cw.contact_work) < 1e-6, "contact work");
+}
+
+/// Two identical balls (`scenes/two_spheres.toml`: R = 1, E = 100, nu = 0.3, rho = 1, each at
+/// v = 0.0167 towards the other, tau = 0.02) against Hertz's quasi-static impact theory for two spheres:
+/// `1/R* = 1/R1 + 1/R2`, `1/E* = (1 - nu1^2)/E1 + (1 - nu2^2)/E2`, `m* = m1 m2/(m1 + m2)`
+/// (m the discrete mass of each ball), approach speed `v_rel = 2v`;
+/// `delta_max = (15 m* v_rel^2 / (16 E* sqrt(R*)))^(2/5)`,
+/// `F_max = 4/3 E* sqrt(R*) delta_max^(3/2)`, `t_c = 2.9432 delta_max / v_rel` (the factor is
+/// `2 int_0^1 dx / sqrt(1 - x^(5/2))`; in the form `C (m*^2 / (R* E*^2 v_rel))^(1/5)` it is
+/// C = 2.9432 (15/16)^(2/5) = 2.868). Quasi-static: v/c_p = 1.4e-3 and t_c is about 10 wave
+/// transits of a ball. Asserted within 10%: the contact radius `a = sqrt(R* delta_max)` = 0.1
+/// spans only 2.5 elements of the contact mesh (hc = 0.04), so the discrete contact area grows
+/// and shrinks by rings of nodes (the same bound as the ball on a plane in tests/contact3d.rs).
+/// Also: one contact period and one episode per node, the balls separate; the impulse is
+/// `2 m v` within 1% (by energy the balls cannot leave faster than they came; Hunter's estimate
+/// of the energy radiated as waves, about 1.04 (v/c_p)^(3/5) = 2% for a half-space, bounds
+/// the deficit by about 1%); the energy balance below 1e-8 and the total momentum kept.
+#[test]
+fn two_balls_collide_as_hertz_says() {
+    let dir = scratch("two-spheres");
+    let scene = scene_variant("two_spheres.toml", &dir, &[]);
+    let s = run_scene(2, &scene, &[]);
+    let c = contact(&s);
+    let (e, nu, r, v, tau) = (100.0f64, 0.3f64, 1.0f64, 0.0167f64, 0.02f64);
+    // Two bodies of the same mass: m is half the total.
+    let m = 0.5 * s.mass.total_mass[2];
+    let r_star = 1.0 / (1.0 / r + 1.0 / r);
+    let e_star = 1.0 / (2.0 * (1.0 - nu * nu) / e);
+    let m_star = m * m / (m + m);
+    let v_rel = 2.0 * v;
+    let delta = (15.0 * m_star * v_rel * v_rel / (16.0 * e_star * r_star.sqrt())).powf(0.4);
+    let f_max = 4.0 / 3.0 * e_star * r_star.sqrt() * delta.powf(1.5);
+    let t_c = 2.9432 * delta / v_rel;
+    assert!((delta / r - 0.02).abs() < 0.002, "the scene is meant for delta_max/R = 2% ({delta})");
+    let (force, any) = force_history(&dir.join("two_spheres-2.h5"));
+    let steps = any.iter().filter(|&&a| a).count();
+    let duration = steps as f64 * tau;
+    let fpeak = peak(&force);
+    eprintln!(
+        "t_c {duration} vs Hertz {t_c} ({:+.1}%); F_max {fpeak} vs Hertz {f_max} ({:+.1}%)",
+        100.0 * (duration / t_c - 1.0),
+        100.0 * (fpeak / f_max - 1.0)
+    );
+    assert!((duration / t_c - 1.0).abs() < 0.10, "contact time {duration} vs Hertz {t_c}");
+    assert!((fpeak / f_max - 1.0).abs() < 0.10, "peak force {fpeak} vs Hertz {f_max}");
+    assert_eq!(c.contact_steps, c.last_contact_step - c.first_contact_step + 1);
+    assert_eq!(c.episodes_max, 1, "a node touched more than once");
+    assert!(c.last_contact_step < s.steps, "the balls must have separated");
+    let impulse = c.impulse[2];
+    eprintln!("impulse {impulse} vs 2 m v = {}", 2.0 * m * v);
+    assert!((impulse / (2.0 * m * v) - 1.0).abs() < 0.01, "impulse {impulse} vs 2 m v");
+    assert!(s.energy_balance < 1e-8, "energy balance {}", s.energy_balance);
+    let loss = (s.energy_initial - s.energy_final) / s.energy_initial;
+    assert!((-1e-8..1e-3).contains(&loss), "relative energy loss {loss}");
+    let dp = (s.momentum_final[2] - s.momentum_initial[2]).abs();
+    assert!(dp < 1e-8 * m * v, "momentum changed by {dp}");
+}
+
+/// Write `dir/NAME.toml`: the shipped scene `base` renamed `name`, with replacements.
+fn renamed_variant(
+    base: &str,
+    dir: &std::path::Path,
+    name: &str,
+    replace: &[(&str, &str)],
+) -> std::path::PathBuf {
+    let text = std::fs::read_to_string(repo().join("scenes").join(base)).unwrap();
+    let stem = base.trim_end_matches(".toml");
+    let mut text = text.replace(&format!("name = \"{stem}\""), &format!("name = \"{name}\""));
+    for (a, b) in replace {
+        assert!(text.contains(a), "scene {base} has no {a:?}");
+        text = text.replace(a, b);
+    }
+    scene_text(dir, &format!("{name}.toml"), &text)
+}
+
+/// Two discs on non-matching meshes against the disc on the plane (the symmetric model of
+/// METHOD.md 5, as in `two_discs_as_two_bodies_match_the_disc_on_a_plane`), through the whole
+/// contact (it ends near step 848 of the paper's set-up; 870 steps are run). Each variant of
+/// the lower (master) disc's contact mesh, `hc_lower`, against the slave's `hc` = 0.1, must
+/// give the plane's contact history (issue 12): the same first contact step (the gap of 0.05
+/// per disc closes at 62.5 steps, and the weighted gap of the lowest slave node differs from
+/// the plane's nodal gap by O(hc^2/R) ~ 1e-4, far below the half step of approach, 8e-4, that
+/// separates the arrival from a step), the last contact step within 3 steps (0.4% of the 785
+/// steps of contact: the mortar model keeps the slave normals of the touch-down (small
+/// sliding), tilted by up to a/R = 0.12 at the edge of the contact zone (half-width a ~ 0.95),
+/// while the plane's forces are vertical and the true interface is the flat symmetry line; the
+/// contact forces get horizontal parts of relative size theta, which changes the contact
+/// stiffness at O(theta^2), about 1% at the edge and a few 0.1% on average; the mirrored
+/// matching mesh ends 2 steps after the plane, so the shift is the model, not the non-matching
+/// meshes; the issue hoped for a step or two), the peak of the total contact force and the largest nodal
+/// pressure within 3%, and the total force within 5% of its peak at every step (the bound of
+/// the matching test: the models differ in the gap at O(h^2/R), which the mesh-scale waves of
+/// the pressure amplify to a few %). Also: one episode per slave node (M_H, METHOD.md 7), the
+/// energy balance below 1e-8, the energy after release below the initial one by less than
+/// 1e-3 (METHOD.md 7), and the pair's momentum kept.
+fn discs_on_non_matching_meshes(disc: &str, two: &str, geo: &str, hc_lower: &[f64]) {
+    let dir = scratch("two-discs-non-matching");
+    let args = ["--steps", "870", "--", "-ksp_rtol", "1e-12"];
+    let plane = scene_variant(disc, &dir, &[]);
+    let p = run_scene(2, &plane, &args);
+    let cp = contact(&p);
+    let plane_stem = disc.trim_end_matches(".toml");
+    let (fp, _) = force_history(&dir.join(format!("{plane_stem}-2.h5")));
+    let fp_peak = peak(&fp);
+    assert!(cp.last_contact_step < 870, "{disc}: the contact must end within the run");
+    for &hl in hc_lower {
+        let name = format!("two_discs_{}", (hl * 100.0).round());
+        let scene = renamed_variant(
+            two,
+            &dir,
+            &name,
+            &[
+                ("two_discs_quad.geo", geo),
+                ("hc = 0.1 }", &format!("hc = 0.1, hc_lower = {hl} }}")),
+            ],
+        );
+        let b = run_scene(2, &scene, &args);
+        let cb = contact(&b);
+        let (fb, _) = force_history(&dir.join(format!("{name}-2.h5")));
+        let fb_peak = peak(&fb);
+        let dmax = fb.iter().zip(&fp).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
+        eprintln!(
+            "{geo}, hc_lower {hl}: contact {}..{} vs plane {}..{}; peak total force {fb_peak} vs {fp_peak} ({:+.2}%); \
+             max pressure {} vs {} ({:+.2}%); largest difference {:.2}% of the peak",
+            cb.first_contact_step,
+            cb.last_contact_step,
+            cp.first_contact_step,
+            cp.last_contact_step,
+            100.0 * (fb_peak / fp_peak - 1.0),
+            cb.max_pressure,
+            cp.max_pressure,
+            100.0 * (cb.max_pressure / cp.max_pressure - 1.0),
+            100.0 * dmax / fp_peak
+        );
+        assert!(cb.max_active_nodes > 5, "hc_lower {hl}: hardly any contact");
+        assert_eq!(cb.first_contact_step, cp.first_contact_step, "hc_lower {hl}: contact start");
+        let d_end = cb.last_contact_step.abs_diff(cp.last_contact_step);
+        assert!(d_end <= 3, "hc_lower {hl}: contact ends {d_end} steps apart");
+        assert!(
+            rel_diff(fb_peak, fp_peak) < 0.03,
+            "hc_lower {hl}: peak force {fb_peak} vs {fp_peak}"
+        );
+        assert!(
+            rel_diff(cb.max_pressure, cp.max_pressure) < 0.03,
+            "hc_lower {hl}: peak pressure {} vs {}",
+            cb.max_pressure,
+            cp.max_pressure
+        );
+        assert!(dmax < 0.05 * fp_peak, "hc_lower {hl}: total force differs by {dmax}");
+        assert_eq!(cb.episodes_max, 1, "hc_lower {hl}: a slave node touched more than once");
+        for s in [&b, &p] {
+            assert!(s.energy_balance < 1e-8, "energy balance {}", s.energy_balance);
+            let loss = (s.energy_initial - s.energy_final) / s.energy_initial;
+            assert!((-1e-8..1e-3).contains(&loss), "relative energy loss {loss}");
+        }
+        let one_disc = p.momentum_initial[1].abs();
+        let dp = (b.momentum_final[1] - b.momentum_initial[1]).abs();
+        assert!(dp < 1e-8 * one_disc, "hc_lower {hl}: momentum changed by {dp}");
+    }
+}
+
+/// Quadrilaterals: a finer (0.07) and a coarser (0.13) master contact mesh.
+#[test]
+fn two_discs_on_non_matching_quad_meshes_match_the_disc_on_a_plane() {
+    discs_on_non_matching_meshes(
+        "disc.toml",
+        "two_discs.toml",
+        "two_discs_quad.geo",
+        &[0.07, 0.13],
+    );
+}
+
+/// Triangles: a finer (0.07) master contact mesh.
+#[test]
+fn two_discs_on_non_matching_triangle_meshes_match_the_disc_on_a_plane() {
+    discs_on_non_matching_meshes("disc_tri.toml", "two_discs.toml", "two_discs_tri.geo", &[0.07]);
+}
+
 /// Updated geometry (`-mortar_update_in_contact`, re-evaluated at every step): with the
 /// standard mass the interface of `t_n` used at `t_{n+1}` keeps the energy balance to solver
 /// tolerance, energy can only be lost at activation (METHOD.md 7), and for this small-sliding
