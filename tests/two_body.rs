@@ -11,6 +11,23 @@ fn contact(s: &RunSummary) -> &massfree::contact::history::ContactSummary {
     s.contact.as_ref().expect("a [contact] summary")
 }
 
+/// Each of the two declared bodies: its momentum change equals the impulse the contact gave it
+/// (no other load; `M` and `A` block diagonal by body, METHOD.md 7), to `tol` of its initial
+/// momentum, and the impulse is not negligible (at least `min` of the initial momentum).
+fn assert_impulse_is_momentum_change(s: &RunSummary, tol: f64, min: f64) {
+    assert_eq!(s.bodies.len(), 2, "bodies {:?}", s.bodies);
+    for body in &s.bodies {
+        let p0 = body.momentum_initial.iter().fold(0.0f64, |a, x| a.max(x.abs()));
+        let j = body.contact_impulse.iter().fold(0.0f64, |a, x| a.max(x.abs()));
+        assert!(j > min * p0, "{}: impulse {:?}", body.group, body);
+        for c in 0..body.momentum_initial.len() {
+            let dp = body.momentum_final[c] - body.momentum_initial[c];
+            let d = (dp - body.contact_impulse[c]).abs();
+            assert!(d < tol * p0, "{}: momentum change {dp} vs impulse {:?}", body.group, body);
+        }
+    }
+}
+
 /// Two discs at distance 0.1 moving towards each other at 800 are, by symmetry, one disc at
 /// 0.05 from a rigid plane moving at 800 (METHOD.md 5), and the two-disc mesh is the disc's
 /// mirrored. The two discretizations differ only in the gap: the mortar gap is the dual-weighted
@@ -203,6 +220,8 @@ fn two_bars_impact_follows_1d_wave_theory() {
     for mass in ["modified1", "consistent"] {
         let s = run_scene(2, &scene, &["--mass", mass, "--", "-ksp_rtol", "1e-12"]);
         assert_eq!(s.mass_kind, mass);
+        // Both bars turned round: impulse about 2 m v0, and = momentum change per bar.
+        assert_impulse_is_momentum_change(&s, 1e-8, 1.9);
         let cs = contact(&s);
         let (force, any) = force_history(&h5);
         // The contact period: one, through the run.
@@ -310,6 +329,7 @@ fn two_balls_collide_as_hertz_says() {
     let scene = scene_variant("two_spheres.toml", &dir, &[]);
     let s = run_scene(2, &scene, &[]);
     let c = contact(&s);
+    assert_impulse_is_momentum_change(&s, 1e-8, 1.9);
     let (e, nu, r, v, tau) = (100.0f64, 0.3f64, 1.0f64, 0.0167f64, 0.02f64);
     // Two bodies of the same mass: m is half the total.
     let m = 0.5 * s.mass.total_mass[2];
