@@ -10,17 +10,6 @@ fn contact(s: &RunSummary) -> &massfree::contact::history::ContactSummary {
     s.contact.as_ref().expect("a [contact] summary")
 }
 
-/// Per step: the total contact force and whether any node is active.
-fn force_history(h5: &std::path::Path) -> (Vec<f64>, Vec<bool>) {
-    let run = reader(h5);
-    let nc = run.file.dataset(&layout::contact("force")).unwrap().shape()[1];
-    let force = run.series(&layout::contact("force")).unwrap();
-    let active = run.series(&layout::contact("active")).unwrap();
-    let total = force.chunks(nc).map(|r| r.iter().sum()).collect();
-    let any = active.chunks(nc).map(|r| r.iter().any(|&a| a != 0.0)).collect();
-    (total, any)
-}
-
 /// Hertz's impact of a ball (radius R, mass m, speed v) on a rigid plane, quasi-static:
 /// `E* = E / (1 - nu^2)`, `delta_max = (15 m v^2 / (16 E* sqrt(R)))^(2/5)`,
 /// `F_max = 4/3 E* sqrt(R) delta_max^(3/2)`, `t_c = 2.87 (m^2 / (R E*^2 v))^(1/5)`.

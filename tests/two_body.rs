@@ -76,12 +76,7 @@ fn two_discs_as_two_bodies_match_the_disc_on_a_plane() {
             assert!(d < 1e-8 * p0, "{}: momentum change {dp} vs impulse {:?}", body.group, body);
         }
     }
-    let total = |h5: &std::path::Path| -> Vec<f64> {
-        let run = reader(h5);
-        let nc = run.file.dataset(&layout::contact("force")).unwrap().shape()[1];
-        let f = run.series(&layout::contact("force")).unwrap();
-        f.chunks(nc).map(|r| r.iter().sum()).collect()
-    };
+    let total = |h5: &std::path::Path| force_history(h5).0;
     let fb = total(&dir.join("two_discs-2.h5"));
     let fp = total(&dir.join("disc-2.h5"));
     let peak = fp.iter().cloned().fold(0.0, f64::max);
@@ -138,18 +133,6 @@ fn two_body_contact_does_not_depend_on_the_number_of_ranks() {
         assert!(dmax <= 1e-8 * fmax, "{label}: forces differ by {dmax}");
         assert!(rel_diff(s1.energy_final, s.energy_final) < 1e-8, "{label}: energy");
     }
-}
-
-/// Per step (row 0 = the start): the total contact force on the slave side (the sum of the
-/// nodal forces `D lambda`) and whether any slave node is active.
-fn force_history(h5: &std::path::Path) -> (Vec<f64>, Vec<bool>) {
-    let run = reader(h5);
-    let nc = run.file.dataset(&layout::contact("force")).unwrap().shape()[1];
-    let force = run.series(&layout::contact("force")).unwrap();
-    let active = run.series(&layout::contact("active")).unwrap();
-    let total = force.chunks(nc).map(|r| r.iter().sum()).collect();
-    let any = active.chunks(nc).map(|r| r.iter().any(|&a| a != 0.0)).collect();
-    (total, any)
 }
 
 fn peak(f: &[f64]) -> f64 {
@@ -510,12 +493,7 @@ fn two_discs_with_the_interface_updated_at_every_step() {
     assert!(u.energy_balance < 1e-8, "energy balance {}", u.energy_balance);
     let loss = (u.energy_initial - u.energy_final) / u.energy_initial;
     assert!((0.0..1e-3).contains(&loss), "relative energy loss {loss}");
-    let total = |h5: &std::path::Path| -> Vec<f64> {
-        let run = reader(h5);
-        let nc = run.file.dataset(&layout::contact("force")).unwrap().shape()[1];
-        let f = run.series(&layout::contact("force")).unwrap();
-        f.chunks(nc).map(|r| r.iter().sum()).collect()
-    };
+    let total = |h5: &std::path::Path| force_history(h5).0;
     let (a, b) = (total(&frozen), total(&updated));
     let peak = a.iter().cloned().fold(0.0, f64::max);
     let dmax = a.iter().zip(&b).map(|(x, y)| (x - y).abs()).fold(0.0, f64::max);

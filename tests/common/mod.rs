@@ -146,3 +146,15 @@ contact_boundary = "bottom"
 [output]
 every = 100
 "#;
+
+/// Per step (row 0 = the start): the total contact force (the sum of the nodal forces; for a
+/// two-body pair the slave side's `D lambda`) and whether any contact node is active.
+pub fn force_history(h5: &Path) -> (Vec<f64>, Vec<bool>) {
+    let run = reader(h5);
+    let nc = run.file.dataset(&layout::contact("force")).unwrap().shape()[1];
+    let force = run.series(&layout::contact("force")).unwrap();
+    let active = run.series(&layout::contact("active")).unwrap();
+    let total = force.chunks(nc).map(|r| r.iter().sum()).collect();
+    let any = active.chunks(nc).map(|r| r.iter().any(|&a| a != 0.0)).collect();
+    (total, any)
+}
