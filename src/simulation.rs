@@ -535,6 +535,9 @@ impl<'a> Simulation<'a> {
                 Rc::clone(&self.part),
                 &spec.boundary,
                 spec.master.as_deref().unwrap_or_default(),
+                spec.obstacle_boundary
+                    .as_deref()
+                    .map(|g| (g, Obstacles::from_scene(&spec.obstacles))),
                 Midpoint::CONTACT_FORCE_FACTOR,
             )?),
             Some(spec) => Some(contact::solver(
@@ -631,9 +634,14 @@ impl<'a> Simulation<'a> {
                     hits.iter().filter(|&&(_, o)| o == first).map(|&(v, _)| v).collect();
                 let tags: Vec<String> =
                     bad.iter().take(10).map(|&v| self.mesh.node_tags[v].to_string()).collect();
+                // Past the obstacles: a slave node's plane (the master body).
+                let what = if first < spec.obstacles.len() {
+                    spec.obstacle_key(first)
+                } else {
+                    "the master body (contact.master)".to_string()
+                };
                 return Err(Error::Scene(format!(
-                    "{} already intersects the body at t = 0: {} contact node(s) penetrate it (gmsh nodes {}{})",
-                    spec.obstacle_key(first),
+                    "{what} already intersects the body at t = 0: {} contact node(s) penetrate it (gmsh nodes {}{})",
                     bad.len(),
                     tags.join(", "),
                     if bad.len() > 10 { ", ..." } else { "" }
@@ -1308,14 +1316,19 @@ impl<'a> Simulation<'a> {
     }
 
     /// The impulse the contact gave each `[[body]]`: the contact boundary's body (a pair's
-    /// slave) gets the contact impulse, a pair's master body the master impulse. A body holds a
+    /// slave) gets the contact impulse, a pair's master body the master impulse, and the body
+    /// holding the group that meets obstacles beside a pair their impulse. A body holds a
     /// group when every node of the group is one of its nodes.
     fn contact_impulses(&self, contact: &Option<ContactSummary>) -> Vec<Vec<f64>> {
         let dim = self.part.dim;
         let n = self.bodies.n_bodies();
         let mut out = vec![vec![0.0; dim]; n];
         let (Some(spec), Some(c)) = (&self.scene.contact, contact) else { return out };
-        let sides = [(Some(&spec.boundary), &c.impulse), (spec.master.as_ref(), &c.master_impulse)];
+        let sides = [
+            (Some(&spec.boundary), &c.impulse),
+            (spec.master.as_ref(), &c.master_impulse),
+            (spec.obstacle_boundary.as_ref(), &c.obstacle_impulse),
+        ];
         for (group, impulse) in sides {
             let Some(nodes) = group.and_then(|g| self.mesh.group_nodes(g).ok()) else { continue };
             let holds = |b: usize| {
@@ -1392,6 +1405,9 @@ impl<'a> Simulation<'a> {
             if let Some(m) = &master {
                 meta.push(Meta::text_on(layout::CONTACT, layout::CONTACT_SLAVE_GROUP_ATTR, group));
                 meta.push(Meta::text_on(layout::CONTACT, layout::CONTACT_MASTER_GROUP_ATTR, m));
+            }
+            if let Some(g) = self.scene.contact.as_ref().and_then(|s| s.obstacle_boundary.clone()) {
+                meta.push(Meta::text_on(layout::CONTACT, layout::CONTACT_OBSTACLE_GROUP_ATTR, g));
             }
         }
         file.write_meta(self.world, &meta)?;

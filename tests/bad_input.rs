@@ -162,3 +162,26 @@ fn body_errors_name_the_key() {
         assert!(status.starts_with("failed: ") && status.contains(culprit), "{status}");
     }
 }
+
+/// Obstacles beside a slave/master pair: the group meeting them is required and must share no
+/// node with the slave group (found against the mesh); one line naming the keys, no panic.
+#[test]
+fn obstacles_beside_a_pair_name_the_key() {
+    let dir = scratch("bad-pair-obstacles");
+    let base = "[mesh]\ngeo = \"../meshes/two_bars.geo\"\nparams = { n = 4, ny = 1 }\n[material]\nE = 1.0\nnu = 0.3\nrho = 1.0\n[time]\ntau = 0.01\nsteps = 1\n[contact]\nslave = \"left_contact\"\nmaster = \"right_contact\"\nobstacle = { type = \"plane\", point = [3.0, 0.0], normal = [-1.0, 0.0] }\n";
+    let cases = [
+        ("", "obstacles beside a slave/master pair need contact.boundary"),
+        (
+            "boundary = \"right_contact\"\n",
+            "contact.boundary = \"right_contact\" is also contact.master",
+        ),
+        (
+            "boundary = \"left_free\"\n",
+            "contact.boundary = \"left_free\" and contact.slave = \"left_contact\" share gmsh node",
+        ),
+    ];
+    for (i, (rest, culprit)) in cases.iter().enumerate() {
+        let scene = scene_text(&dir, &format!("pair{i}.toml"), &format!("{base}{rest}"));
+        expect_error(&["run", scene.to_str().unwrap(), "--no-output"], culprit);
+    }
+}

@@ -500,3 +500,88 @@ fn two_discs_with_the_interface_updated_at_every_step() {
     eprintln!("updated interface: total force differs by {dmax} (peak {peak})");
     assert!(dmax < 0.05 * peak, "total force differs by {dmax} (peak {peak})");
 }
+
+/// A pair and a rigid obstacle in one scene (`contact.slave`/`master` with `contact.boundary`
+/// and `contact.obstacle`): the two bars of `scenes/two_bars.toml`, coarser (50 elements along
+/// each bar, tau = h/(4c)), the left one moving at v0 = 0.1 into the right one at rest, and a
+/// rigid wall (normal (-1, 0)) at `d` = 1e-4 beyond the right bar's far end `right_end`. 1D
+/// theory: the compression wave crosses the right bar in L/c (200 steps), its free far end then
+/// moves at v0 and reaches the wall 2 steps later, so both contacts carry force within the run.
+/// Asserted from theory (METHOD.md 7): the energy balance below 1e-8, the energy lost (only at
+/// activation) in [0, 1e-3] of the energy; no contact node penetrates (every gap in the file
+/// above -1e-9 of the initial gap); the wall is touched (its impulse on the right bar pushes it
+/// back, more than 1% of the left bar's momentum); per body, the momentum change equals the
+/// contact impulse (the pair's, plus the wall's on the right bar) to 1e-8 of the left bar's
+/// momentum; 1 and 2 ranks give the same forces to 1e-8 of the peak.
+#[test]
+fn two_bars_against_a_wall_beside_the_pair() {
+    let dir = scratch("two-bars-beside-wall");
+    let (l, hh, v0, gap, d): (f64, f64, f64, f64, f64) = (1.0, 0.1, 0.1, 1.075e-3, 1e-4);
+    let wall = 2.0 * l + gap + d;
+    let obstacle =
+        format!("obstacle = {{ type = \"plane\", point = [{wall}, 0.0], normal = [-1.0, 0.0] }}");
+    let scene = scene_variant(
+        "two_bars.toml",
+        &dir,
+        &[
+            ("gap = 2.625e-4, n = 200", "gap = 1.075e-3, n = 50"),
+            // +v0 left of the middle x = L + gap/2 (the gap closes at 21.5 steps), 0 right of it.
+            (
+                "0.1 * (1.00013125 - x) / abs(1.00013125 - x)",
+                "0.05 + 0.05 * (1.0005375 - x) / abs(1.0005375 - x)",
+            ),
+            ("tau = 1.25e-4", "tau = 5e-4"),
+            ("steps = 1700", "steps = 260"),
+            (
+                "master = \"right_contact\"",
+                &format!("master = \"right_contact\"\nboundary = \"right_end\"\n{obstacle}"),
+            ),
+            ("every = 100", "every = 10"),
+        ],
+    );
+    let args = ["--", "-ksp_rtol", "1e-12"];
+    let s2 = run_scene(2, &scene, &args);
+    let s1 = run_scene(1, &scene, &args);
+    let cs = contact(&s2);
+    // Energy: balanced, and lost only at activation.
+    assert!(s2.energy_balance < 1e-8, "energy balance {}", s2.energy_balance);
+    let loss = (s2.energy_initial - s2.energy_final) / s2.energy_initial;
+    eprintln!("pair + wall: energy loss {loss:.3e}, contact work {}", cs.contact_work);
+    assert!((0.0..1e-3).contains(&loss), "relative energy loss {loss}");
+    // No contact node (slave nodes and the wall's) penetrates.
+    let run = reader(&dir.join("two_bars-2.h5"));
+    let gaps = run.series(&massfree::io::layout::contact("gap")).unwrap();
+    let low = gaps.iter().filter(|g| g.is_finite()).fold(f64::MAX, |a, &g| a.min(g));
+    eprintln!("pair + wall: smallest gap {low:.3e}");
+    assert!(low > -1e-9 * gap, "a contact node penetrates: gap {low}");
+    // The wall is touched: it pushes the right bar back.
+    let p_bar = l * hh * v0;
+    eprintln!(
+        "pair + wall: wall impulse {:?}, pair impulses {:?} {:?}",
+        cs.obstacle_impulse, cs.impulse, cs.master_impulse
+    );
+    assert_eq!(cs.obstacle_impulse.len(), 2, "no obstacle impulse");
+    assert!(-cs.obstacle_impulse[0] > 0.01 * p_bar, "wall impulse {:?}", cs.obstacle_impulse);
+    // Per body: momentum change = contact impulse (pair + wall).
+    assert_eq!(s2.bodies.len(), 2, "bodies {:?}", s2.bodies);
+    for body in &s2.bodies {
+        for c in 0..2 {
+            let dp = body.momentum_final[c] - body.momentum_initial[c];
+            let e = (dp - body.contact_impulse[c]).abs();
+            eprintln!(
+                "pair + wall: {} momentum change {dp:.6e} vs impulse {:.6e}",
+                body.group, body.contact_impulse[c]
+            );
+            assert!(e < 1e-8 * p_bar, "{}: momentum change {dp} vs impulse {:?}", body.group, body);
+        }
+    }
+    // Ranks: the same forces.
+    let (f2, a2) = force_history(&dir.join("two_bars-2.h5"));
+    let (f1, a1) = force_history(&dir.join("two_bars-1.h5"));
+    assert_eq!(a1, a2, "the contact periods differ");
+    let fmax = peak(&f2);
+    let dmax = f1.iter().zip(&f2).map(|(x, y)| (x - y).abs()).fold(0.0, f64::max);
+    eprintln!("pair + wall: 1 vs 2 ranks: forces differ by {dmax:.2e} (peak {fmax})");
+    assert!(dmax < 1e-8 * fmax, "forces differ by {dmax} (peak {fmax})");
+    assert!(rel_diff(s1.energy_final, s2.energy_final) < 1e-8);
+}

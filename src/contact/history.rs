@@ -14,6 +14,8 @@ pub struct History {
     impulse: [f64; 3],
     /// The master body's impulse `tau sum_n master_force` (two-body pairs).
     master_impulse: [f64; 3],
+    /// The obstacles' impulse beside a pair, `tau sum_n obstacle_force`.
+    obstacle_impulse: [f64; 3],
     weights: Vec<f64>,
 }
 
@@ -48,6 +50,11 @@ pub struct ContactSummary {
     /// Impulse the contact gave the master body of a pair (empty against obstacles).
     #[serde(default)]
     pub master_impulse: Vec<f64>,
+    /// Impulse the obstacles beside a pair gave the body of the group meeting them,
+    /// `-tau sum_n sum_q lambda_q n_q` over its nodes (empty without a pair, or a pair alone;
+    /// `impulse` is then the slave nodes' part only).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub obstacle_impulse: Vec<f64>,
     /// Solves with the step operator beyond one per step: active-set iterations after the
     /// first (pdas), or the Schur complement's column solves (columns).
     pub extra_solves: usize,
@@ -81,6 +88,7 @@ impl History {
         for i in 0..3 {
             self.impulse[i] += tau * c.resultant[i];
             self.master_impulse[i] += tau * c.master_force[i];
+            self.obstacle_impulse[i] += tau * c.obstacle_force[i];
         }
     }
 
@@ -158,6 +166,11 @@ impl History {
             impulse: (0..dim).map(|i| -self.impulse[i]).collect(),
             master_impulse: if c.is_pair() {
                 (0..dim).map(|i| self.master_impulse[i]).collect()
+            } else {
+                vec![]
+            },
+            obstacle_impulse: if c.is_pair() && !c.nodes().obstacles.0.is_empty() {
+                (0..dim).map(|i| -self.obstacle_impulse[i]).collect()
             } else {
                 vec![]
             },

@@ -70,6 +70,27 @@ impl ContactBoundary {
         }
         Ok(ContactBoundary { group: group.to_string(), nodes, weights })
     }
+
+    /// The union of two boundaries that share no node (a pair's slave group and the group
+    /// meeting obstacles beside it), each node with its own group's weight; named after
+    /// `self`. An error names both groups when they share a node.
+    pub fn union(self, other: ContactBoundary, mesh: &Mesh) -> Result<ContactBoundary> {
+        let mut all: Vec<(usize, f64)> =
+            self.nodes.iter().copied().zip(self.weights.iter().copied()).collect();
+        all.extend(other.nodes.iter().copied().zip(other.weights.iter().copied()));
+        all.sort_unstable_by_key(|&(v, _)| v);
+        if let Some(w) = all.windows(2).find(|w| w[0].0 == w[1].0) {
+            return Err(Error::Scene(format!(
+                "contact.boundary = \"{}\" and contact.slave = \"{}\" share gmsh node {}: the group that meets the obstacles must be another part of the boundary than the slave side",
+                other.group, self.group, mesh.node_tags[w[0].0]
+            )));
+        }
+        Ok(ContactBoundary {
+            group: self.group,
+            nodes: all.iter().map(|&(v, _)| v).collect(),
+            weights: all.iter().map(|&(_, w)| w).collect(),
+        })
+    }
 }
 
 /// One step on the contact boundary, per contact node in the order of the boundary's nodes:
@@ -221,8 +242,12 @@ pub struct StepContact {
     pub normals: Vec<[f64; 3]>,
     /// Work of the contact forces in this step, `-sum_q lambda_q n_q . du_q` (<= 0).
     pub work: f64,
-    /// `sum_q lambda_q n_q` (the force the obstacle takes; the body gets its negative).
+    /// `sum_q lambda_q n_q` (the force the obstacle takes; the body gets its negative); of a
+    /// pair with obstacles beside it, over the slave nodes only.
     pub resultant: [f64; 3],
+    /// Of a pair with obstacles beside it: `sum_q lambda_q n_q` over the nodes that meet the
+    /// obstacles (the obstacles' force; that body gets its negative). Zero otherwise.
+    pub obstacle_force: [f64; 3],
     /// The force on the master body of a two-body pair, `sum_l (M^T lambda)_l n`, i.e.
     /// `sum_q (sum_l M_ql / D_qq) lambda_q n_q` (zero against rigid obstacles).
     pub master_force: [f64; 3],
@@ -245,9 +270,10 @@ pub struct ContactNodes<'w> {
     pub gap_tol: f64,
     /// The active set of the last step (the next step's first guess).
     pub active: Vec<bool>,
-    /// Instead of the obstacles, one plane per node, `(c_q, n_q)`: node q must keep
+    /// Instead of the obstacles, one plane per slave node, `(c_q, n_q)`: node q must keep
     /// `n_q . y_q <= c_q` (two-body contact in the mortar basis, [`mortar::MortarActiveSet`]).
-    pub node_planes: Option<Vec<(f64, [f64; 3])>>,
+    /// `None` for the nodes that meet the obstacles beside a pair (`u~ = u` there).
+    pub node_planes: Option<Vec<Option<(f64, [f64; 3])>>>,
 }
 
 impl<'w> ContactNodes<'w> {
@@ -317,10 +343,10 @@ impl<'w> ContactNodes<'w> {
                 for c in 0..d {
                     y[c] += u_trace[k * d + c];
                 }
-                match &self.node_planes {
-                    Some(p) => {
-                        let (c, n) = p[k];
-                        (0, c - (0..d).map(|i| n[i] * y[i]).sum::<f64>(), n)
+                match self.node_planes.as_ref().and_then(|p| p[k]) {
+                    // Index past the obstacles (0 for a pair alone): the pair's plane.
+                    Some((c, n)) => {
+                        (self.obstacles.0.len(), c - (0..d).map(|i| n[i] * y[i]).sum::<f64>(), n)
                     }
                     None => obstacle::closest(&placed, y),
                 }
@@ -393,6 +419,7 @@ impl<'w> ContactNodes<'w> {
             normals: frames.iter().map(|f| f.1).collect(),
             work: 0.0,
             resultant: [0.0; 3],
+            obstacle_force: [0.0; 3],
             master_force: [0.0; 3],
         };
         for p in 0..nc {
@@ -400,8 +427,11 @@ impl<'w> ContactNodes<'w> {
                 let lam = lambda[p];
                 out.row.force[p] = lam;
                 out.work -= lam * ndu[p];
+                // Beside a pair, the nodes without a plane meet the obstacles.
+                let on_obstacle = self.node_planes.as_ref().is_some_and(|pl| pl[p].is_none());
+                let sum = if on_obstacle { &mut out.obstacle_force } else { &mut out.resultant };
                 for c in 0..self.dim {
-                    out.resultant[c] += lam * frames[p].1[c];
+                    sum[c] += lam * frames[p].1[c];
                 }
             }
         }

@@ -38,6 +38,9 @@ pub const CONTACT_GROUP_ATTR: &str = "group";
 /// Attributes of `/contact` for a slave/master pair of bodies (absent with obstacles).
 pub const CONTACT_SLAVE_GROUP_ATTR: &str = "slave_group";
 pub const CONTACT_MASTER_GROUP_ATTR: &str = "master_group";
+/// Attribute of `/contact` for obstacles beside a pair: the group meeting them (its nodes are
+/// among `contact/nodes` then, after or between the slave nodes, in mesh order).
+pub const CONTACT_OBSTACLE_GROUP_ATTR: &str = "obstacle_group";
 /// The master side's nodes of a pair (rows of coordinates, like `contact/nodes`, whose rows
 /// are the slave nodes then).
 pub const CONTACT_MASTER_NODES: &str = "contact/master_nodes";

@@ -116,6 +116,8 @@ pub struct Effects {
     pub exact_errors: bool,
     /// Two-body contact: (slave group, master group), dual mortar.
     pub contact_pair: Option<(String, String)>,
+    /// Beside a pair: the group that meets the obstacles of `contact`.
+    pub contact_obstacle_boundary: Option<String>,
 }
 
 impl Scene {
@@ -162,6 +164,10 @@ impl Scene {
                 .contact
                 .as_ref()
                 .and_then(|c| c.master.as_ref().map(|m| (c.boundary.clone(), m.clone()))),
+            contact_obstacle_boundary: self
+                .contact
+                .as_ref()
+                .and_then(|c| c.obstacle_boundary.clone()),
             exact_errors: self.exact.is_some(),
         }
     }
@@ -225,7 +231,9 @@ impl Effects {
     /// 7. `Dirichlet (zero values | non-zero values)`,
     ///    8. `Dirichlet lifting (steady | time-dependent)`;
     /// 9. `contact (OBSTACLE obstacle)` with one obstacle, `contact (N obstacles: OBSTACLE,
-    ///    OBSTACLE, ...)` with several, each `[moving ](plane | sphere | cylinder)`;
+    ///    OBSTACLE, ...)` with several, each `[moving ](plane | sphere | cylinder)`; a pair:
+    ///    `contact (two bodies, slave "S" on master "M", dual mortar)`, with obstacles beside
+    ///    it followed by `; "GROUP" on OBSTACLES` (as above);
     /// 10. `exact errors`.
     ///
     /// `not built:` lists, in the same order and by the names before the parentheses, the
@@ -237,13 +245,21 @@ impl Effects {
         let dirichlet_values =
             if self.dirichlet_lifting.is_some() { "non-zero values" } else { "zero values" };
         let names: Vec<String> = self.contact.iter().map(|o| o.name()).collect();
-        let obstacle = match names.len() {
-            0 => self
-                .contact_pair
-                .as_ref()
-                .map(|(s, m)| format!("two bodies, slave {s:?} on master {m:?}, dual mortar")),
+        let obstacles = match names.len() {
+            0 => None,
             1 => Some(format!("{} obstacle", names[0])),
             n => Some(format!("{n} obstacles: {}", names.join(", "))),
+        };
+        let pair = self
+            .contact_pair
+            .as_ref()
+            .map(|(s, m)| format!("two bodies, slave {s:?} on master {m:?}, dual mortar"));
+        let obstacle = match (pair, obstacles) {
+            (Some(p), Some(o)) => {
+                let g = self.contact_obstacle_boundary.as_deref().unwrap_or_default();
+                Some(format!("{p}; {g:?} on {o}"))
+            }
+            (p, o) => p.or(o),
         };
         let layer = self.layer.as_ref().map(|(k, g)| format!("{} along {g}", k.name()));
         let optional: [(&str, Option<String>); 9] = [

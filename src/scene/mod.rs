@@ -66,6 +66,10 @@
 //! # Two deformable bodies instead of boundary + obstacle (dual mortar, non-matching meshes):
 //! # slave = "upper_contact"
 //! # master = "lower_contact"     # the mass-free layer then runs along both
+//! # ... and rigid obstacles beside the pair: boundary + obstacle/obstacles as above, met by the
+//! # nodes of boundary, another part of the boundary (no node shared with slave):
+//! # boundary = "lower_bottom"    # the layer runs along it too
+//! # obstacle = { type = "plane", point = [0.0, -1.0], normal = [0.0, -1.0] }
 //! ```
 //!
 //! Numbers are accepted wherever an expression is (`value = [0, -1.5]`).
@@ -229,8 +233,8 @@ pub struct MassSpec {
     pub kind: MassKind,
     /// Potential contact boundary (physical group); always `Some` for the modified kinds.
     pub contact_boundary: Option<String>,
-    /// Further groups the layer runs along: the master side of a contact pair, unless the
-    /// scene names `mass.contact_boundary` itself.
+    /// Further groups the layer runs along: the master side of a contact pair and the group
+    /// meeting obstacles beside it, unless the scene names `mass.contact_boundary` itself.
     pub also_along: Vec<String>,
 }
 
@@ -340,9 +344,13 @@ impl Obstacle {
 pub struct ContactSpec {
     /// Physical group of the potential contact boundary (the slave side of a pair).
     pub boundary: String,
-    /// The master side of a two-body pair (`contact.master`; then there are no obstacles).
+    /// The master side of a two-body pair (`contact.master`).
     pub master: Option<String>,
-    /// At least one; each contact node meets the one with the smallest gap.
+    /// Beside a pair: the group whose nodes meet the obstacles (`contact.boundary` given with
+    /// `contact.slave` and `contact.master`); disjoint from the slave group's nodes.
+    pub obstacle_boundary: Option<String>,
+    /// At least one without a pair (and with `obstacle_boundary`); each contact node that is
+    /// not a slave node meets the one with the smallest gap.
     pub obstacles: Vec<Obstacle>,
     /// Given as the list `contact.obstacles` (else as `contact.obstacle`).
     pub listed: bool,
@@ -1241,25 +1249,46 @@ fn build(raw: RawScene, stem: &str, base_dir: &Path) -> VResult<Scene> {
     let contact = match raw.contact {
         None => None,
         Some(c) => {
-            let (boundary, master) = match (c.boundary, c.slave, c.master) {
-                (Some(b), None, None) => (group_name(b, "contact.boundary")?, None),
-                (None, Some(s), Some(m)) => {
-                    if c.obstacle.is_some() || c.obstacles.is_some() {
-                        return Err("contact: a slave/master pair takes no obstacle (two deformable bodies); give contact.boundary with the obstacles instead".into());
-                    }
+            let has_obstacles = c.obstacle.is_some() || c.obstacles.is_some();
+            let (boundary, master, obstacle_boundary) = match (c.boundary, c.slave, c.master) {
+                (Some(b), None, None) => (group_name(b, "contact.boundary")?, None, None),
+                (b, Some(s), Some(m)) => {
                     let (s, m) = (group_name(s, "contact.slave")?, group_name(m, "contact.master")?);
                     if s == m {
                         return Err(format!("contact.slave and contact.master are the same group \"{s}\""));
                     }
-                    (s, Some(m))
+                    // Rigid obstacles beside the pair: met by the nodes of contact.boundary.
+                    let b = match (b, has_obstacles) {
+                        (None, false) => None,
+                        (None, true) => return Err("contact: obstacles beside a slave/master pair need contact.boundary, the group that meets them (another part of the boundary than contact.slave and contact.master)".into()),
+                        (Some(b), false) => {
+                            let b = group_name(b, "contact.boundary")?;
+                            return Err(format!("contact.boundary = \"{b}\" beside a slave/master pair needs the obstacles it meets (contact.obstacle or contact.obstacles)"));
+                        }
+                        (Some(b), true) => {
+                            let b = group_name(b, "contact.boundary")?;
+                            if b == s || b == m {
+                                let key = if b == s { "contact.slave" } else { "contact.master" };
+                                return Err(format!("contact.boundary = \"{b}\" is also {key}: the obstacles need another part of the boundary than the pair's"));
+                            }
+                            Some(b)
+                        }
+                    };
+                    (s, Some(m), b)
                 }
                 (None, Some(_), None) => return Err("contact.slave needs contact.master (the other body's contact boundary)".into()),
                 (None, None, Some(_)) => return Err("contact.master needs contact.slave (this body's contact boundary)".into()),
                 (None, None, None) => return Err("contact: give contact.boundary (with an obstacle) or contact.slave and contact.master (two bodies)".into()),
                 (Some(_), _, _) => return Err("contact: give either contact.boundary (with obstacles) or contact.slave and contact.master, not both".into()),
             };
-            if master.is_some() {
-                Some(ContactSpec { boundary, master, obstacles: Vec::new(), listed: false })
+            if master.is_some() && obstacle_boundary.is_none() {
+                Some(ContactSpec {
+                    boundary,
+                    master,
+                    obstacle_boundary,
+                    obstacles: Vec::new(),
+                    listed: false,
+                })
             } else {
                 let (raws, listed) = match (c.obstacle, c.obstacles) {
                     (Some(_), Some(_)) => {
@@ -1279,7 +1308,7 @@ fn build(raw: RawScene, stem: &str, base_dir: &Path) -> VResult<Scene> {
                     .enumerate()
                     .map(|(i, o)| obstacle(o, &obstacle_key(listed, i)))
                     .collect::<VResult<Vec<_>>>()?;
-                Some(ContactSpec { boundary, master, obstacles, listed })
+                Some(ContactSpec { boundary, master, obstacle_boundary, obstacles, listed })
             }
         }
     };
@@ -1294,7 +1323,10 @@ fn build(raw: RawScene, stem: &str, base_dir: &Path) -> VResult<Scene> {
         Some(g) => (Some(group_name(g, "mass.contact_boundary")?), Vec::new()),
         None => (
             contact.as_ref().map(|c: &ContactSpec| c.boundary.clone()),
-            contact.as_ref().and_then(|c| c.master.clone()).into_iter().collect(),
+            contact
+                .iter()
+                .flat_map(|c: &ContactSpec| c.master.iter().chain(&c.obstacle_boundary).cloned())
+                .collect(),
         ),
     };
     if kind.is_modified() && contact_boundary.is_none() {

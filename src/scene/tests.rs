@@ -663,6 +663,7 @@ fn effects_follow_the_scene() {
             contact: vec![ObstacleEffect { kind: ObstacleKind::Plane, moving: false }],
             exact_errors: true,
             contact_pair: None,
+            contact_obstacle_boundary: None,
         }
     );
     let text = format!(
@@ -686,6 +687,7 @@ fn effects_follow_the_scene() {
             contact: vec![],
             exact_errors: false,
             contact_pair: None,
+            contact_obstacle_boundary: None,
         }
     );
     assert_eq!(
@@ -816,6 +818,19 @@ fn contact_pairs_of_two_bodies() {
         pair("slave = \"a\"\nmaster = \"b\"")
     );
     assert_eq!(parse_in(&dir, &named).unwrap().mass.layer_groups(), vec!["a"]);
+    // Rigid obstacles beside the pair, met by the nodes of contact.boundary.
+    let mixed = format!(
+        "{}[mass]\nkind = \"modified1\"\n",
+        pair("slave = \"a\"\nmaster = \"b\"\nboundary = \"c\"\nobstacle = { type = \"plane\", point = [0, 0], normal = [0, -1] }")
+    );
+    let s = parse_in(&dir, &mixed).unwrap();
+    let c = s.contact.as_ref().unwrap();
+    assert_eq!((c.boundary.as_str(), c.obstacle_boundary.as_deref()), ("a", Some("c")));
+    assert_eq!(c.obstacles.len(), 1);
+    assert_eq!(s.mass.layer_groups(), vec!["a", "b", "c"]);
+    assert!(s.effects().summary().contains(
+        "contact (two bodies, slave \"a\" on master \"b\", dual mortar; \"c\" on plane obstacle)"
+    ), "{}", s.effects().summary());
     let plane = "{ type = \"plane\", point = [0, 0], normal = [0, 1] }";
     let cases: Vec<(String, &str)> = vec![
         (pair("slave = \"a\""), "contact.slave needs contact.master"),
@@ -826,9 +841,27 @@ fn contact_pairs_of_two_bodies() {
         ),
         (
             pair(&format!("slave = \"a\"\nmaster = \"b\"\nobstacle = {plane}")),
-            "a slave/master pair takes no obstacle",
+            "obstacles beside a slave/master pair need contact.boundary",
         ),
-        (pair("boundary = \"c\"\nslave = \"a\"\nmaster = \"b\""), "not both"),
+        (
+            pair("boundary = \"c\"\nslave = \"a\"\nmaster = \"b\""),
+            "contact.boundary = \"c\" beside a slave/master pair needs the obstacles it meets",
+        ),
+        (
+            pair(&format!("boundary = \"a\"\nslave = \"a\"\nmaster = \"b\"\nobstacle = {plane}")),
+            "contact.boundary = \"a\" is also contact.slave",
+        ),
+        (
+            pair(&format!("boundary = \"b\"\nslave = \"a\"\nmaster = \"b\"\nobstacle = {plane}")),
+            "contact.boundary = \"b\" is also contact.master",
+        ),
+        (
+            pair(&format!(
+                "boundary = \"c\"\nslave = \"a\"\nmaster = \"b\"\nobstacle = {plane}\nobstacles = [{plane}]"
+            )),
+            "give exactly one of contact.obstacle and contact.obstacles",
+        ),
+        (pair("boundary = \"c\"\nslave = \"a\""), "not both"),
         (pair(""), "give contact.boundary (with an obstacle) or contact.slave and contact.master"),
     ];
     for (text, needle) in &cases {

@@ -45,8 +45,9 @@ pub struct MortarActiveSet<'w> {
     update_distance: f64,
     /// Re-evaluate in contact too (`-mortar_update_in_contact`; finite sliding).
     update_in_contact: bool,
-    /// `sum_l M_ql / D_qq` per slave node (1 where the master covers the node's support): the
-    /// master body's share of the slave node's force.
+    /// `sum_l M_ql / D_qq` per contact node (1 where the master covers a slave node's support,
+    /// 0 at the nodes meeting obstacles beside the pair): the master body's share of the
+    /// node's force.
     coverage: Vec<f64>,
     /// The interface nodes' displacements at the last evaluation.
     evaluated_at: Vec<f64>,
@@ -158,7 +159,8 @@ struct Hat {
 }
 
 impl<'w> MortarActiveSet<'w> {
-    /// `nodes`: the slave boundary's contact nodes (their boundary weights are `D`).
+    /// `nodes`: the slave boundary's contact nodes (their boundary weights are `D`), and those
+    /// of the group meeting obstacles beside the pair, if any (no plane, `u~ = u` there).
     fn new(
         mut nodes: ContactNodes<'w>,
         pair: Pair,
@@ -169,20 +171,24 @@ impl<'w> MortarActiveSet<'w> {
         let zero = vec![0.0; pair.dofs.len()];
         let mut cost = MortarCost::default();
         let iface = pair.evaluate(nodes.world, &zero, &mut cost)?;
-        if nodes.boundary.nodes != iface.slave {
-            return Err(Error::Solver("mortar: the contact nodes are not the slave nodes".into()));
-        }
-        nodes.node_planes =
-            Some(planes(&iface, &pair, &vec![0.0; iface.slave.len() * pair.part.dim]));
+        let slots = slave_slots(&nodes, &iface)?;
+        nodes.node_planes = Some(planes(
+            &iface,
+            &pair,
+            &vec![0.0; iface.slave.len() * pair.part.dim],
+            &slots,
+            nodes.len(),
+        ));
         let e = transfer(&pair.part, &iface, false)?;
         let t = transfer(&pair.part, &iface, true)?;
+        let nodes_len = nodes.len();
         Ok(MortarActiveSet {
             inner: ActiveSet::new(nodes, factor),
             pair,
             e,
             t,
             hat: None,
-            coverage: coverage(&iface),
+            coverage: coverage(&iface, &slots, nodes_len),
             update_distance,
             update_in_contact,
             evaluated_at: zero,
@@ -194,25 +200,54 @@ impl<'w> MortarActiveSet<'w> {
 /// Node q keeps `n_q . (x_q + u~_q) <= c_q`, `c_q = n_q . (x_q + u~^e_q) + g_q / D_qq` with
 /// `u~^e` the slave nodes' mortar-basis displacement where the interface was evaluated, so that
 /// the gap there is the weighted gap. A slave node with no master facet in reach cannot touch.
-fn planes(iface: &MortarInterface, pair: &Pair, ut_slave: &[f64]) -> Vec<(f64, [f64; 3])> {
+/// Per contact node (`n_nodes` of them; slave node q at `slots[q]`): the slave nodes' planes,
+/// `None` at the nodes that meet obstacles beside the pair.
+fn planes(
+    iface: &MortarInterface,
+    pair: &Pair,
+    ut_slave: &[f64],
+    slots: &[usize],
+    n_nodes: usize,
+) -> Vec<Option<(f64, [f64; 3])>> {
     let dim = pair.part.dim;
     let covered = iface.m_row_sums();
-    (0..iface.slave.len())
-        .map(|q| {
-            let n = iface.normals[q];
-            if covered[q] <= 0.0 {
-                return (f64::MAX, n);
-            }
+    let mut out = vec![None; n_nodes];
+    for q in 0..iface.slave.len() {
+        let n = iface.normals[q];
+        out[slots[q]] = Some(if covered[q] <= 0.0 {
+            (f64::MAX, n)
+        } else {
             let x = pair.mesh.coords[iface.slave[q]];
             let c = (0..dim).map(|i| n[i] * (x[i] + ut_slave[q * dim + i])).sum::<f64>()
                 + iface.gap[q] / iface.d[q];
             (c, n)
-        })
-        .collect()
+        });
+    }
+    out
 }
 
-fn coverage(iface: &MortarInterface) -> Vec<f64> {
-    iface.m_row_sums().iter().zip(&iface.d).map(|(s, d)| s / d).collect()
+/// The master body's share per contact node (0 off the slave nodes).
+fn coverage(iface: &MortarInterface, slots: &[usize], n_nodes: usize) -> Vec<f64> {
+    let mut out = vec![0.0; n_nodes];
+    for (q, (s, d)) in iface.m_row_sums().iter().zip(&iface.d).enumerate() {
+        out[slots[q]] = s / d;
+    }
+    out
+}
+
+/// The index among the contact nodes of every slave node of the interface; an error unless
+/// the contact nodes are the slave nodes and, beside the pair, nodes of no slave facet.
+fn slave_slots(nodes: &ContactNodes<'_>, iface: &MortarInterface) -> Result<Vec<usize>> {
+    let all = &nodes.boundary.nodes;
+    let slots: Vec<usize> = iface.slave.iter().filter_map(|v| all.binary_search(v).ok()).collect();
+    let beside =
+        nodes.node_planes.as_ref().map_or(all.len().saturating_sub(iface.slave.len()), |p| {
+            p.iter().filter(|x| x.is_none()).count()
+        });
+    if slots.len() != iface.slave.len() || all.len() != iface.slave.len() + beside {
+        return Err(Error::Solver("mortar: the contact nodes are not the slave nodes".into()));
+    }
+    Ok(slots)
 }
 
 /// `E` (or `T = I + E` with `identity`), rows owned as the partition says.
@@ -307,10 +342,12 @@ impl MortarActiveSet<'_> {
                 ut[q * dim + c] -= m / iface.d[q] * trace[l * dim + c];
             }
         }
-        self.inner.nodes_mut().node_planes = Some(planes(&iface, &self.pair, &ut));
+        let slots = slave_slots(self.inner.nodes(), &iface)?;
+        let n_nodes = self.inner.nodes().len();
+        self.inner.nodes_mut().node_planes = Some(planes(&iface, &self.pair, &ut, &slots, n_nodes));
         self.e = transfer(&self.pair.part, &iface, false)?;
         self.t = transfer(&self.pair.part, &iface, true)?;
-        self.coverage = coverage(&iface);
+        self.coverage = coverage(&iface, &slots, n_nodes);
         self.rebuild(k)?;
         self.evaluated_at = trace;
         self.cost.operator_seconds += t0.elapsed().as_secs_f64();
@@ -440,13 +477,15 @@ impl ContactSolver for MortarActiveSet<'_> {
 /// on the reference configuration and again, while no node is in contact, whenever an
 /// interface node has moved farther than the update distance since the last evaluation; the
 /// active set on the slave nodes. The
-/// search reaches as far as the largest slave facet.
+/// search reaches as far as the largest slave facet. `beside`: a group of another part of the
+/// boundary and the rigid obstacles its nodes meet (in the same active set: `u~ = u` there).
 pub fn pair_solver<'w>(
     world: &'w mpi::topology::SimpleCommunicator,
     mesh: std::rc::Rc<crate::mesh::Mesh>,
     part: std::rc::Rc<Partition>,
     slave: &str,
     master: &str,
+    beside: Option<(&str, crate::contact::Obstacles)>,
     factor: f64,
 ) -> Result<Box<dyn ContactSolver + 'w>> {
     use super::oriented_facets;
@@ -473,9 +512,16 @@ pub fn pair_solver<'w>(
         .flat_map(|&v| (0..part.dim).map(move |c| (v, c)))
         .map(|(v, c)| (part.dof(v, c) as i32, part.owns(v)))
         .collect();
-    let boundary = crate::contact::ContactBoundary::build(&mesh, slave)?;
-    let contact_nodes =
-        ContactNodes::new(world, &mesh, &part, boundary, crate::contact::Obstacles(Vec::new()));
+    let mut boundary = crate::contact::ContactBoundary::build(&mesh, slave)?;
+    let obstacles = match beside {
+        Some((group, obstacles)) => {
+            let other = crate::contact::ContactBoundary::build(&mesh, group)?;
+            boundary = boundary.union(other, &mesh)?;
+            obstacles
+        }
+        None => crate::contact::Obstacles(Vec::new()),
+    };
+    let contact_nodes = ContactNodes::new(world, &mesh, &part, boundary, obstacles);
     let pair = Pair { mesh, part, slave: sf, master: mf, reach, nodes, dofs };
     Ok(Box::new(MortarActiveSet::new(
         contact_nodes,
