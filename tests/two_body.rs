@@ -554,6 +554,16 @@ fn two_bars_against_a_wall_beside_the_pair() {
     let low = gaps.iter().filter(|g| g.is_finite()).fold(f64::MAX, |a, &g| a.min(g));
     eprintln!("pair + wall: smallest gap {low:.3e}");
     assert!(low > -1e-9 * gap, "a contact node penetrates: gap {low}");
+    // ... and, from the written displacements (every 10 steps), nothing passes the wall.
+    let x = run.coordinates().unwrap();
+    let mut beyond = f64::MIN;
+    for k in (0..=260).step_by(10) {
+        let (u, comps) = run.field_at("displacement", k as f64 * 5e-4).unwrap();
+        let far = (0..x.len()).map(|i| x[i][0] + u[i * comps]).fold(f64::MIN, f64::max);
+        beyond = beyond.max(far - wall);
+    }
+    eprintln!("pair + wall: the right bar's far end at most {beyond:.3e} beyond the wall");
+    assert!(beyond < 1e-9 * gap, "the right bar passes the wall by {beyond}");
     // The wall is touched: it pushes the right bar back.
     let p_bar = l * hh * v0;
     eprintln!(
@@ -564,6 +574,9 @@ fn two_bars_against_a_wall_beside_the_pair() {
     assert!(-cs.obstacle_impulse[0] > 0.01 * p_bar, "wall impulse {:?}", cs.obstacle_impulse);
     // Per body: momentum change = contact impulse (pair + wall).
     assert_eq!(s2.bodies.len(), 2, "bodies {:?}", s2.bodies);
+    // The mass-free layer runs along the wall's group too: ny + 1 = 3 nodes per end.
+    let layer: Vec<usize> = s2.bodies.iter().map(|b| b.layer_contact_nodes).collect();
+    assert_eq!(layer, [3, 6], "layer contact nodes per body");
     for body in &s2.bodies {
         for c in 0..2 {
             let dp = body.momentum_final[c] - body.momentum_initial[c];

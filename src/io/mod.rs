@@ -12,7 +12,8 @@
 //!   step (external work `W^n = sum_k f^{k+1/2} . du^k`, so `total - total[0] - external_work`
 //!   is the integrator's energy balance, zero up to solver tolerance),
 //! - `/mesh/groups/<name>/nodes` (attribute `dim`), `/contact/...` (for a slave/master pair
-//!   also `/contact/master_nodes` and the attributes `slave_group`, `master_group`),
+//!   also `/contact/master_nodes` and the attributes `slave_group`, `master_group`; with
+//!   obstacles beside the pair `obstacle_group`, whose nodes are among `/contact/nodes`),
 //!   `/checkpoint/...`,
 //! - attributes on `/`: `scene`, `settings` (key = value lines), `solver_options`, `ranks`,
 //!   `version`, `status` (`running`, `finished`, `failed: ...`, `interrupted: ...`),

@@ -282,10 +282,19 @@ pub fn post(path: &Path, opts: &PostOptions) -> Result<Vec<String>> {
         let rows = p.nrows().min(n);
         if let Some((slave, master)) = run.contact_pair() {
             let n_master = file.dataset(layout::CONTACT_MASTER_NODES).map_or(0, |d| d.size());
-            let mut line = format!(
-                "contact pair: slave \"{slave}\" ({} nodes), master \"{master}\" ({n_master} nodes)",
-                cn.len()
-            );
+            // Obstacles beside the pair: their group's nodes are among the contact nodes.
+            let beside = run.group_text(layout::CONTACT, layout::CONTACT_OBSTACLE_GROUP_ATTR);
+            let mut line = if beside.is_empty() {
+                format!(
+                    "contact pair: slave \"{slave}\" ({} nodes), master \"{master}\" ({n_master} nodes)",
+                    cn.len()
+                )
+            } else {
+                format!(
+                    "contact pair: slave \"{slave}\", master \"{master}\" ({n_master} nodes), obstacles met by \"{beside}\" ({} contact nodes with the slave's)",
+                    cn.len()
+                )
+            };
             // The node whose pressure `compare` draws: the slave node closest to the master.
             if let Some(c) = run.summary().and_then(|s| s.contact) {
                 let x = &coords[3 * c.lowest_node..3 * c.lowest_node + 3];
@@ -294,10 +303,12 @@ pub fn post(path: &Path, opts: &PostOptions) -> Result<Vec<String>> {
                 } else {
                     format!("({}, {}, {})", x[0], x[1], x[2])
                 };
-                line.push_str(&format!(
-                    "; lowest slave node (closest to the master at t = 0): gmsh node {} at {at}",
-                    c.lowest_node_tag
-                ));
+                let which = if beside.is_empty() {
+                    "lowest slave node (closest to the master at t = 0)"
+                } else {
+                    "lowest contact node (closest to the master or an obstacle at t = 0)"
+                };
+                line.push_str(&format!("; {which}: gmsh node {} at {at}", c.lowest_node_tag));
             }
             lines.push(line);
         }

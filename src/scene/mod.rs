@@ -77,7 +77,8 @@
 //! Bodies (`[[body]]`): each cell takes the material and mass treatment of the body whose group
 //! holds it, else `[material]` and `mass.kind`; body groups must not overlap. The mass-free
 //! layer (modified0/modified1) runs along those of the layer groups (`mass.contact_boundary`,
-//! or the contact boundary / both sides of a pair) that lie on cells with a modified mass;
+//! or the contact boundary / both sides of a pair and the group meeting obstacles beside it)
+//! that lie on cells with a modified mass;
 //! a consistent or lumped body gets none. A contact group must touch cells of one mass kind
 //! only, one run builds one layer variant, and a body whose own `mass` is modified must have
 //! a contact group on it (a body that only inherits a modified `mass.kind` and has no contact
