@@ -253,6 +253,9 @@ pub struct StepContact {
     pub master_force: [f64; 3],
 }
 
+/// A slave node's plane in the mortar basis, `(c_q, n_q)`: `n_q . y_q <= c_q`.
+pub type NodePlane = (f64, [f64; 3]);
+
 /// The contact nodes as every rank sees them: boundary, obstacles, reference positions, gmsh
 /// tags and global DOFs. O(contact nodes) on every rank; no loop over the mesh after `new`.
 pub struct ContactNodes<'w> {
@@ -273,7 +276,7 @@ pub struct ContactNodes<'w> {
     /// Instead of the obstacles, one plane per slave node, `(c_q, n_q)`: node q must keep
     /// `n_q . y_q <= c_q` (two-body contact in the mortar basis, [`mortar::MortarActiveSet`]).
     /// `None` for the nodes that meet the obstacles beside a pair (`u~ = u` there).
-    pub node_planes: Option<Vec<Option<(f64, [f64; 3])>>>,
+    pub node_planes: Option<Vec<Option<NodePlane>>>,
 }
 
 impl<'w> ContactNodes<'w> {
@@ -430,8 +433,8 @@ impl<'w> ContactNodes<'w> {
                 // Beside a pair, the nodes without a plane meet the obstacles.
                 let on_obstacle = self.node_planes.as_ref().is_some_and(|pl| pl[p].is_none());
                 let sum = if on_obstacle { &mut out.obstacle_force } else { &mut out.resultant };
-                for c in 0..self.dim {
-                    sum[c] += lam * frames[p].1[c];
+                for (c, s) in sum.iter_mut().enumerate().take(self.dim) {
+                    *s += lam * frames[p].1[c];
                 }
             }
         }

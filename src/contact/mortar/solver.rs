@@ -208,7 +208,7 @@ fn planes(
     ut_slave: &[f64],
     slots: &[usize],
     n_nodes: usize,
-) -> Vec<Option<(f64, [f64; 3])>> {
+) -> Vec<Option<crate::contact::NodePlane>> {
     let dim = pair.part.dim;
     let covered = iface.m_row_sums();
     let mut out = vec![None; n_nodes];
