@@ -387,9 +387,13 @@ impl<'w> ContactNodes<'w> {
     }
 
     /// The contact node closest to an obstacle in the reference configuration at t = 0.
+    /// Of a pair with obstacles beside it: the slave node closest to the master (the node whose
+    /// pressure the paper plots).
     pub fn lowest(&self) -> usize {
         let gaps = self.closest(&vec![0.0; self.len() * self.dim], 0.0);
+        let slave = |k: &usize| self.node_planes.as_ref().is_none_or(|p| p[*k].is_some());
         (0..gaps.len())
+            .filter(slave)
             .min_by(|&a, &b| {
                 gaps[a]
                     .1

@@ -303,12 +303,10 @@ pub fn post(path: &Path, opts: &PostOptions) -> Result<Vec<String>> {
                 } else {
                     format!("({}, {}, {})", x[0], x[1], x[2])
                 };
-                let which = if beside.is_empty() {
-                    "lowest slave node (closest to the master at t = 0)"
-                } else {
-                    "lowest contact node (closest to the master or an obstacle at t = 0)"
-                };
-                line.push_str(&format!("; {which}: gmsh node {} at {at}", c.lowest_node_tag));
+                line.push_str(&format!(
+                    "; lowest slave node (closest to the master at t = 0): gmsh node {} at {at}",
+                    c.lowest_node_tag
+                ));
             }
             lines.push(line);
         }
