@@ -35,6 +35,13 @@ struct Case {
     mass: &'static str,
 }
 
+impl Case {
+    /// The upper block's bottom as the slave side on the lower block's top.
+    fn upper_on_lower(dim: usize, kind: u32, n: (u32, u32), mass: &'static str) -> Case {
+        Case { dim, kind, n, slave: "upper_contact", master: "lower_contact", mass }
+    }
+}
+
 fn scene(dir: &std::path::Path, c: &Case) -> std::path::PathBuf {
     let (geo, sides) = if c.dim == 2 {
         ("two_blocks_2d.geo", "[\"x\"]")
@@ -134,14 +141,7 @@ fn check(c: &Case, ranks: usize) -> Vec<f64> {
 #[test]
 fn mortar_patch_test_2d_quads_triangles_and_mixed() {
     for kind in [0, 1, 2] {
-        let c = Case {
-            dim: 2,
-            kind,
-            n: (4, 5),
-            slave: "upper_contact",
-            master: "lower_contact",
-            mass: "modified1",
-        };
+        let c = Case::upper_on_lower(2, kind, (4, 5), "modified1");
         check(&c, 2);
     }
     // The coarser side as the slave, and the standard mass.
@@ -159,14 +159,7 @@ fn mortar_patch_test_2d_quads_triangles_and_mixed() {
 #[test]
 fn mortar_patch_test_3d_hexahedra_tetrahedra_and_mixed() {
     for kind in [0, 1, 2] {
-        let c = Case {
-            dim: 3,
-            kind,
-            n: (3, 4),
-            slave: "upper_contact",
-            master: "lower_contact",
-            mass: "consistent",
-        };
+        let c = Case::upper_on_lower(3, kind, (3, 4), "consistent");
         check(&c, 2);
     }
 }
@@ -175,14 +168,7 @@ fn mortar_patch_test_3d_hexahedra_tetrahedra_and_mixed() {
 /// pressures to solver tolerance.
 #[test]
 fn mortar_patch_test_does_not_depend_on_the_number_of_ranks() {
-    let c = Case {
-        dim: 3,
-        kind: 2,
-        n: (3, 4),
-        slave: "upper_contact",
-        master: "lower_contact",
-        mass: "modified1",
-    };
+    let c = Case::upper_on_lower(3, 2, (3, 4), "modified1");
     let one = check(&c, 1);
     let three = check(&c, 3);
     for (a, b) in one.iter().zip(&three) {
