@@ -529,22 +529,19 @@ impl<'a> Simulation<'a> {
         let loads = Loads::new(mesh, part, self.scene.body_force.as_ref(), &neumann)?;
         let dirichlet = Dirichlet::new(mesh, part, &self.scene.dirichlet)?;
         let contact: Option<Box<dyn ContactSolver + 'a>> = match &self.scene.contact {
-            Some(spec) if spec.master.is_some() => Some(contact::mortar::pair_solver(
+            Some(spec) if !spec.pairs.is_empty() => Some(contact::mortar::pair_solver(
                 self.world,
                 Rc::clone(&self.mesh),
                 Rc::clone(&self.part),
-                &spec.boundary,
-                spec.master.as_deref().unwrap_or_default(),
-                spec.obstacle_boundary
-                    .as_deref()
-                    .map(|g| (g, Obstacles::from_scene(&spec.obstacles))),
+                &spec.pairs,
+                spec.obstacle_boundary().map(|g| (g, Obstacles::from_scene(&spec.obstacles))),
                 Midpoint::CONTACT_FORCE_FACTOR,
             )?),
             Some(spec) => Some(contact::solver(
                 self.world,
                 &self.mesh,
                 &self.part,
-                ContactBoundary::build(&self.mesh, &spec.boundary)?,
+                ContactBoundary::build(&self.mesh, spec.boundary.as_deref().unwrap_or_default())?,
                 Obstacles::from_scene(&spec.obstacles),
                 Midpoint::CONTACT_FORCE_FACTOR,
             )?),
@@ -638,7 +635,7 @@ impl<'a> Simulation<'a> {
                 let what = if first < spec.obstacles.len() {
                     spec.obstacle_key(first)
                 } else {
-                    "the master body (contact.master)".to_string()
+                    "a master body (contact.master or contact.pairs)".to_string()
                 };
                 return Err(Error::Scene(format!(
                     "{what} already intersects the body at t = 0: {} contact node(s) penetrate it (gmsh nodes {}{})",
@@ -901,7 +898,7 @@ impl<'a> Simulation<'a> {
                 pictures.clear();
             }
         }
-        let impulses = self.contact_impulses(&contact_summary);
+        let impulses = self.contact_impulses(contact, &record.history);
         let ksp = &midpoint.operator().ksp;
         let (layer_contact_nodes, layer_cells) = self.layer_summary.unwrap_or((0, 0));
         let bodies = (0..self.bodies.n_bodies())
@@ -1315,33 +1312,27 @@ impl<'a> Simulation<'a> {
         settings
     }
 
-    /// The impulse the contact gave each `[[body]]`: the contact boundary's body (a pair's
-    /// slave) gets the contact impulse, a pair's master body the master impulse, and the body
-    /// holding the group that meets obstacles beside a pair their impulse. A body holds a
-    /// group when every node of the group is one of its nodes.
-    fn contact_impulses(&self, contact: &Option<ContactSummary>) -> Vec<Vec<f64>> {
+    /// The impulse the contact gave each `[[body]]`: the sum over its contact nodes (slave
+    /// nodes and nodes meeting obstacles) and its master nodes of what they received. A node
+    /// on two bodies counts for the first.
+    fn contact_impulses(
+        &self,
+        contact: Option<&dyn ContactSolver>,
+        history: &ContactHistory,
+    ) -> Vec<Vec<f64>> {
         let dim = self.part.dim;
         let n = self.bodies.n_bodies();
-        let mut out = vec![vec![0.0; dim]; n];
-        let (Some(spec), Some(c)) = (&self.scene.contact, contact) else { return out };
-        let sides = [
-            (Some(&spec.boundary), &c.impulse),
-            (spec.master.as_ref(), &c.master_impulse),
-            (spec.obstacle_boundary.as_ref(), &c.obstacle_impulse),
-        ];
-        for (group, impulse) in sides {
-            let Some(nodes) = group.and_then(|g| self.mesh.group_nodes(g).ok()) else { continue };
-            let holds = |b: usize| {
-                let body = self.bodies.body_nodes(b);
-                !nodes.is_empty() && nodes.iter().all(|v| body.binary_search(v).is_ok())
-            };
-            if let Some(b) = (0..n).find(|&b| holds(b)) {
-                for i in 0..dim {
-                    out[b][i] += impulse[i];
-                }
-            }
-        }
-        out
+        let Some(c) = contact else { return vec![vec![0.0; dim]; n] };
+        let first_body =
+            |v: usize| (0..n).find(|&b| self.bodies.body_nodes(b).binary_search(&v).is_ok());
+        (0..n)
+            .map(|b| {
+                let imp = history.impulse_on(&c.boundary().nodes, c.master_nodes(), |v| {
+                    first_body(v) == Some(b)
+                });
+                imp[..dim].to_vec()
+            })
+            .collect()
     }
 
     /// Total momentum `1^T M v` per component (from the product `M v` the step keeps).
@@ -1398,16 +1389,27 @@ impl<'a> Simulation<'a> {
         // A slave/master pair: its groups as attributes of /contact (written by rank 0's serial
         // handle, `io::meta`), its master nodes below (created collectively). Every rank holds
         // the whole mesh and the scene, so names and nodes are the same on every rank.
-        let master = self.scene.contact.as_ref().and_then(|s| s.master.clone());
+        // Several pairs: the groups joined by ", " in pair order.
+        let spec = self.scene.contact.as_ref().filter(|s| !s.pairs.is_empty());
         if let Some(c) = contact {
             let group = c.boundary().group.clone();
-            meta.push(Meta::text_on(layout::CONTACT, layout::CONTACT_GROUP_ATTR, group.clone()));
-            if let Some(m) = &master {
-                meta.push(Meta::text_on(layout::CONTACT, layout::CONTACT_SLAVE_GROUP_ATTR, group));
-                meta.push(Meta::text_on(layout::CONTACT, layout::CONTACT_MASTER_GROUP_ATTR, m));
-            }
-            if let Some(g) = self.scene.contact.as_ref().and_then(|s| s.obstacle_boundary.clone()) {
-                meta.push(Meta::text_on(layout::CONTACT, layout::CONTACT_OBSTACLE_GROUP_ATTR, g));
+            meta.push(Meta::text_on(layout::CONTACT, layout::CONTACT_GROUP_ATTR, group));
+            if let Some(spec) = spec {
+                let (slaves, masters) =
+                    (spec.slave_groups().join(", "), spec.master_groups().join(", "));
+                meta.push(Meta::text_on(layout::CONTACT, layout::CONTACT_SLAVE_GROUP_ATTR, slaves));
+                meta.push(Meta::text_on(
+                    layout::CONTACT,
+                    layout::CONTACT_MASTER_GROUP_ATTR,
+                    masters,
+                ));
+                if let Some(g) = spec.obstacle_boundary() {
+                    meta.push(Meta::text_on(
+                        layout::CONTACT,
+                        layout::CONTACT_OBSTACLE_GROUP_ATTR,
+                        g,
+                    ));
+                }
             }
         }
         file.write_meta(self.world, &meta)?;
@@ -1416,8 +1418,14 @@ impl<'a> Simulation<'a> {
         out.write_mass_check(&mc.total_mass, &mc.first_moment, &mc.second_moment, &mc.probe)?;
         if let Some(c) = contact {
             out.create_contact(&c.boundary().nodes, &c.boundary().weights)?;
-            if let Some(m) = &master {
-                out.create_contact_pair(self.world, &self.mesh.group_nodes(m)?)?;
+            if let Some(spec) = spec {
+                let mut nodes = Vec::new();
+                for g in spec.master_groups() {
+                    nodes.extend(self.mesh.group_nodes(g)?);
+                }
+                nodes.sort_unstable();
+                nodes.dedup();
+                out.create_contact_pair(self.world, &nodes)?;
             }
         }
         self.output = RunOutput::Open(out);

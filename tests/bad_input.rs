@@ -185,3 +185,25 @@ fn obstacles_beside_a_pair_name_the_key() {
         expect_error(&["run", scene.to_str().unwrap(), "--no-output"], culprit);
     }
 }
+
+/// Several pairs: the sides of a pair share no node (found against the mesh: "left_free" holds
+/// the corner nodes of "left_contact"); a group that does not exist is named.
+#[test]
+fn contact_pairs_name_the_groups() {
+    let dir = scratch("bad-pairs");
+    let base = "[mesh]\ngeo = \"../meshes/three_bars.geo\"\nparams = { n = 4, ny = 1 }\n[material]\nE = 1.0\nnu = 0.3\nrho = 1.0\n[time]\ntau = 0.01\nsteps = 1\n[contact]\n";
+    let cases = [
+        (
+            "pairs = [{ slave = \"left_contact\", master = \"middle_left\" }, { slave = \"right_contact\", master = \"free\" }]\n",
+            "gmsh node",
+        ),
+        (
+            "pairs = [{ slave = \"left_contact\", master = \"middle_left\" }, { slave = \"right_contact\", master = \"middle_rihgt\" }]\n",
+            "middle_rihgt",
+        ),
+    ];
+    for (i, (rest, culprit)) in cases.iter().enumerate() {
+        let scene = scene_text(&dir, &format!("pairs{i}.toml"), &format!("{base}{rest}"));
+        expect_error(&["run", scene.to_str().unwrap(), "--no-output"], culprit);
+    }
+}

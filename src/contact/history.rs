@@ -16,6 +16,10 @@ pub struct History {
     master_impulse: [f64; 3],
     /// The obstacles' impulse beside a pair, `tau sum_n obstacle_force`.
     obstacle_impulse: [f64; 3],
+    /// Per contact node, the impulse its body got there: `-tau sum_n lambda_q n_q`.
+    node_impulse: Vec<[f64; 3]>,
+    /// Per master node, `tau sum_n (M^T lambda)_l n` (pairs).
+    master_node_impulse: Vec<[f64; 3]>,
     weights: Vec<f64>,
 }
 
@@ -85,11 +89,45 @@ impl History {
 
     pub fn push(&mut self, c: &StepContact, tau: f64) {
         self.rows.push(c.row.clone());
+        let n = c.row.force.len();
+        self.node_impulse.resize(n, [0.0; 3]);
+        for (p, imp) in self.node_impulse.iter_mut().enumerate() {
+            for (i, x) in imp.iter_mut().enumerate() {
+                *x -= tau * c.row.force[p] * c.normals[p][i];
+            }
+        }
+        self.master_node_impulse.resize(c.master_nodal.len(), [0.0; 3]);
+        for (imp, f) in self.master_node_impulse.iter_mut().zip(&c.master_nodal) {
+            for i in 0..3 {
+                imp[i] += tau * f[i];
+            }
+        }
         for i in 0..3 {
             self.impulse[i] += tau * c.resultant[i];
             self.master_impulse[i] += tau * c.master_force[i];
             self.obstacle_impulse[i] += tau * c.obstacle_force[i];
         }
+    }
+
+    /// The impulse the contact gave the nodes `holds` accepts: at the contact nodes (`nodes`,
+    /// the solver's boundary nodes) and the master nodes (`master`, the solver's).
+    pub fn impulse_on(
+        &self,
+        nodes: &[usize],
+        master: &[usize],
+        holds: impl Fn(usize) -> bool,
+    ) -> [f64; 3] {
+        let mut out = [0.0; 3];
+        let all = (nodes.iter().zip(&self.node_impulse))
+            .chain(master.iter().zip(&self.master_node_impulse));
+        for (&v, imp) in all {
+            if holds(v) {
+                for i in 0..3 {
+                    out[i] += imp[i];
+                }
+            }
+        }
+        out
     }
 
     /// The last step's row.

@@ -50,7 +50,24 @@ pub struct ContactBoundary {
 
 impl ContactBoundary {
     pub fn build(mesh: &Mesh, group: &str) -> Result<ContactBoundary> {
-        let elems = crate::mesh::topology::boundary_group(mesh, group)?;
+        Self::build_groups(mesh, &[group])
+    }
+
+    /// The boundary of several groups (several pairs' slave groups), named by them joined
+    /// with ", "; a facet in two groups counts once, a node on facets of two groups sums them.
+    pub fn build_groups(mesh: &Mesh, groups: &[&str]) -> Result<ContactBoundary> {
+        let mut elems = Vec::new();
+        let mut seen = std::collections::HashSet::new();
+        for g in groups {
+            for e in crate::mesh::topology::boundary_group(mesh, g)? {
+                let mut key = e.nodes().to_vec();
+                key.sort_unstable();
+                if seen.insert(key) {
+                    elems.push(e);
+                }
+            }
+        }
+        let group = groups.join(", ");
         let mut nodes: Vec<usize> = elems.iter().flat_map(|e| e.nodes().iter().copied()).collect();
         nodes.sort_unstable();
         nodes.dedup();
@@ -68,7 +85,7 @@ impl ContactBoundary {
                 weights[slot[&v]] += w[i];
             }
         }
-        Ok(ContactBoundary { group: group.to_string(), nodes, weights })
+        Ok(ContactBoundary { group, nodes, weights })
     }
 
     /// The union of two boundaries that share no node (a pair's slave group and the group
@@ -163,6 +180,10 @@ pub trait ContactSolver {
     fn is_pair(&self) -> bool {
         false
     }
+    /// The master nodes of the pairs (mesh indices, ascending; empty against obstacles).
+    fn master_nodes(&self) -> &[usize] {
+        &[]
+    }
     /// What the mortar interface cost so far on this rank (two-body pairs).
     fn mortar_cost(&self) -> Option<mortar::MortarCost> {
         None
@@ -251,6 +272,9 @@ pub struct StepContact {
     /// The force on the master body of a two-body pair, `sum_l (M^T lambda)_l n`, i.e.
     /// `sum_q (sum_l M_ql / D_qq) lambda_q n_q` (zero against rigid obstacles).
     pub master_force: [f64; 3],
+    /// Per master node `l` (of [`ContactSolver::master_nodes`]): its share
+    /// `sum_q (M_ql / D_qq) lambda_q n_q` of `master_force` (empty against rigid obstacles).
+    pub master_nodal: Vec<[f64; 3]>,
 }
 
 /// A slave node's plane in the mortar basis, `(c_q, n_q)`: `n_q . y_q <= c_q`.
@@ -428,6 +452,7 @@ impl<'w> ContactNodes<'w> {
             resultant: [0.0; 3],
             obstacle_force: [0.0; 3],
             master_force: [0.0; 3],
+            master_nodal: Vec::new(),
         };
         for p in 0..nc {
             if out.row.active[p] {

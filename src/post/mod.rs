@@ -284,14 +284,16 @@ pub fn post(path: &Path, opts: &PostOptions) -> Result<Vec<String>> {
             let n_master = file.dataset(layout::CONTACT_MASTER_NODES).map_or(0, |d| d.size());
             // Obstacles beside the pair: their group's nodes are among the contact nodes.
             let beside = run.group_text(layout::CONTACT, layout::CONTACT_OBSTACLE_GROUP_ATTR);
+            // Several pairs: the groups joined by ", " in pair order.
+            let several = slave.contains(", ") || master.contains(", ");
+            let (pair, s, m) =
+                if several { ("contact pairs", "s", "s") } else { ("contact pair", "", "") };
+            let pair = format!("{pair}: slave{s} \"{slave}\"");
             let mut line = if beside.is_empty() {
-                format!(
-                    "contact pair: slave \"{slave}\" ({} nodes), master \"{master}\" ({n_master} nodes)",
-                    cn.len()
-                )
+                format!("{pair} ({} nodes), master{m} \"{master}\" ({n_master} nodes)", cn.len())
             } else {
                 format!(
-                    "contact pair: slave \"{slave}\", master \"{master}\" ({n_master} nodes), obstacles met by \"{beside}\" ({} contact nodes with the slave's)",
+                    "{pair}, master{m} \"{master}\" ({n_master} nodes), obstacles met by \"{beside}\" ({} contact nodes with the slave's)",
                     cn.len()
                 )
             };

@@ -115,7 +115,7 @@ pub struct Effects {
     /// Errors against the exact solution are computed (at `exact.error_steps`).
     pub exact_errors: bool,
     /// Two-body contact: (slave group, master group), dual mortar.
-    pub contact_pair: Option<(String, String)>,
+    pub contact_pairs: Vec<(String, String)>,
     /// Beside a pair: the group that meets the obstacles of `contact`.
     pub contact_obstacle_boundary: Option<String>,
 }
@@ -160,14 +160,12 @@ impl Scene {
                 .flat_map(|c| &c.obstacles)
                 .map(ObstacleEffect::of)
                 .collect(),
-            contact_pair: self
-                .contact
-                .as_ref()
-                .and_then(|c| c.master.as_ref().map(|m| (c.boundary.clone(), m.clone()))),
-            contact_obstacle_boundary: self
-                .contact
-                .as_ref()
-                .and_then(|c| c.obstacle_boundary.clone()),
+            contact_pairs: (self.contact.iter())
+                .flat_map(|c| &c.pairs)
+                .map(|p| (p.slave.clone(), p.master.clone()))
+                .collect(),
+            contact_obstacle_boundary: (self.contact.as_ref())
+                .and_then(|c| c.obstacle_boundary().map(String::from)),
             exact_errors: self.exact.is_some(),
         }
     }
@@ -250,10 +248,16 @@ impl Effects {
             1 => Some(format!("{} obstacle", names[0])),
             n => Some(format!("{n} obstacles: {}", names.join(", "))),
         };
-        let pair = self
-            .contact_pair
-            .as_ref()
-            .map(|(s, m)| format!("two bodies, slave {s:?} on master {m:?}, dual mortar"));
+        let sides: Vec<String> = self
+            .contact_pairs
+            .iter()
+            .map(|(s, m)| format!("slave {s:?} on master {m:?}"))
+            .collect();
+        let pair = match sides.len() {
+            0 => None,
+            1 => Some(format!("two bodies, {}, dual mortar", sides[0])),
+            n => Some(format!("{n} pairs: {}, dual mortar", sides.join(", "))),
+        };
         let obstacle = match (pair, obstacles) {
             (Some(p), Some(o)) => {
                 let g = self.contact_obstacle_boundary.as_deref().unwrap_or_default();

@@ -66,8 +66,10 @@
 //! # Two deformable bodies instead of boundary + obstacle (dual mortar, non-matching meshes):
 //! # slave = "upper_contact"
 //! # master = "lower_contact"     # the mass-free layer then runs along both
-//! # ... and rigid obstacles beside the pair: boundary + obstacle/obstacles as above, met by the
-//! # nodes of boundary, another part of the boundary (no node shared with slave):
+//! # Several pairs instead of slave + master (a slave group must not be a master group):
+//! # pairs = [{ slave = "a_contact", master = "b_left" }, { slave = "c_contact", master = "b_right" }]
+//! # ... and rigid obstacles beside the pair(s): boundary + obstacle/obstacles as above, met by
+//! # the nodes of boundary, another part of the boundary (no node shared with a slave group):
 //! # boundary = "lower_bottom"    # the layer runs along it too
 //! # obstacle = { type = "plane", point = [0.0, -1.0], normal = [0.0, -1.0] }
 //! ```
@@ -341,17 +343,24 @@ impl Obstacle {
     }
 }
 
+/// A slave/master pair of deformable bodies: the slave group's nodes carry the dual mortar
+/// multipliers, the master group's facets are integrated against them.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ContactPair {
+    pub slave: String,
+    pub master: String,
+}
+
 #[derive(Debug, Clone, PartialEq)]
 pub struct ContactSpec {
-    /// Physical group of the potential contact boundary (the slave side of a pair).
-    pub boundary: String,
-    /// The master side of a two-body pair (`contact.master`).
-    pub master: Option<String>,
-    /// Beside a pair: the group whose nodes meet the obstacles (`contact.boundary` given with
-    /// `contact.slave` and `contact.master`); disjoint from the slave group's nodes.
-    pub obstacle_boundary: Option<String>,
-    /// At least one without a pair (and with `obstacle_boundary`); each contact node that is
-    /// not a slave node meets the one with the smallest gap.
+    /// Slave/master pairs (`contact.slave` and `contact.master`, or `contact.pairs`); empty
+    /// for contact with rigid obstacles alone. No slave group is a master group.
+    pub pairs: Vec<ContactPair>,
+    /// `contact.boundary`: the group whose nodes meet the rigid obstacles, alone or beside the
+    /// pairs (then no slave or master group).
+    pub boundary: Option<String>,
+    /// At least one unless there are pairs and no `boundary`; each contact node that is not a
+    /// slave node meets the one with the smallest gap.
     pub obstacles: Vec<Obstacle>,
     /// Given as the list `contact.obstacles` (else as `contact.obstacle`).
     pub listed: bool,
@@ -361,6 +370,51 @@ impl ContactSpec {
     /// The scene key of obstacle `i`: `contact.obstacle` or `contact.obstacles[i]`.
     pub fn obstacle_key(&self, i: usize) -> String {
         obstacle_key(self.listed, i)
+    }
+
+    /// The groups meeting obstacles beside pairs: `boundary` when there are pairs.
+    pub fn obstacle_boundary(&self) -> Option<&str> {
+        if self.pairs.is_empty() {
+            None
+        } else {
+            self.boundary.as_deref()
+        }
+    }
+
+    /// Every contact group once: the slave groups, the master groups, then `boundary`.
+    pub fn groups(&self) -> Vec<&str> {
+        let mut out: Vec<&str> = Vec::new();
+        let all = (self.pairs.iter().map(|p| p.slave.as_str()))
+            .chain(self.pairs.iter().map(|p| p.master.as_str()))
+            .chain(self.boundary.as_deref());
+        for g in all {
+            if !out.contains(&g) {
+                out.push(g);
+            }
+        }
+        out
+    }
+
+    /// The slave groups once each, in pair order.
+    pub fn slave_groups(&self) -> Vec<&str> {
+        let mut out: Vec<&str> = Vec::new();
+        for p in &self.pairs {
+            if !out.contains(&p.slave.as_str()) {
+                out.push(&p.slave);
+            }
+        }
+        out
+    }
+
+    /// The master groups once each, in pair order.
+    pub fn master_groups(&self) -> Vec<&str> {
+        let mut out: Vec<&str> = Vec::new();
+        for p in &self.pairs {
+            if !out.contains(&p.master.as_str()) {
+                out.push(&p.master);
+            }
+        }
+        out
     }
 }
 
@@ -736,8 +790,16 @@ struct RawContact {
     boundary: Option<String>,
     slave: Option<String>,
     master: Option<String>,
+    pairs: Option<Vec<RawPair>>,
     obstacle: Option<RawObstacle>,
     obstacles: Option<Vec<RawObstacle>>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawPair {
+    slave: Option<String>,
+    master: Option<String>,
 }
 
 #[derive(Deserialize)]
@@ -788,6 +850,63 @@ fn material_spec(key: &str, e: f64, nu: f64, rho: f64) -> VResult<MaterialSpec> 
         return Err(format!("{key}.rho = {rho} is impossible: the density must be > 0"));
     }
     Ok(MaterialSpec { e, nu, rho })
+}
+
+/// The slave/master pairs: `contact.slave` with `contact.master` (one pair) or the list
+/// `contact.pairs`. A slave group must not be a master group (the dual mortar basis change
+/// keeps slave and master nodes apart).
+fn contact_pairs(
+    slave: Option<String>,
+    master: Option<String>,
+    listed: Option<Vec<RawPair>>,
+) -> VResult<Vec<ContactPair>> {
+    let list = match (slave, master, listed) {
+        (None, None, None) => return Ok(Vec::new()),
+        (Some(s), Some(m), None) => {
+            let (slave, master) = (group_name(s, "contact.slave")?, group_name(m, "contact.master")?);
+            if slave == master {
+                return Err(format!("contact.slave and contact.master are the same group \"{slave}\""));
+            }
+            return Ok(vec![ContactPair { slave, master }]);
+        }
+        (Some(_), None, None) => return Err("contact.slave needs contact.master (the other body's contact boundary)".into()),
+        (None, Some(_), None) => return Err("contact.master needs contact.slave (this body's contact boundary)".into()),
+        (None, None, Some(list)) => list,
+        (_, _, Some(_)) => return Err("contact: give either contact.slave and contact.master (one pair) or contact.pairs (a list of them), not both".into()),
+    };
+    if list.is_empty() {
+        return Err(
+            "contact.pairs is empty: give at least one { slave = \"...\", master = \"...\" }"
+                .into(),
+        );
+    }
+    let mut pairs: Vec<ContactPair> = Vec::with_capacity(list.len());
+    for (i, p) in list.into_iter().enumerate() {
+        let key = format!("contact.pairs[{i}]");
+        let slave = group_name(
+            p.slave.ok_or(format!("{key} needs slave (this body's contact boundary)"))?,
+            &format!("{key}.slave"),
+        )?;
+        let master = group_name(
+            p.master.ok_or(format!("{key} needs master (the other body's contact boundary)"))?,
+            &format!("{key}.master"),
+        )?;
+        if slave == master {
+            return Err(format!("{key}: slave and master are the same group \"{slave}\""));
+        }
+        if let Some(j) = pairs.iter().position(|q| q.slave == slave && q.master == master) {
+            return Err(format!(
+                "{key} repeats contact.pairs[{j}] (slave \"{slave}\", master \"{master}\")"
+            ));
+        }
+        pairs.push(ContactPair { slave, master });
+    }
+    for (i, p) in pairs.iter().enumerate() {
+        if let Some(j) = pairs.iter().position(|q| q.master == p.slave) {
+            return Err(format!("contact.pairs[{i}].slave = \"{}\" is also contact.pairs[{j}].master: a slave group must not be a master group (swap the sides of one pair)", p.slave));
+        }
+    }
+    Ok(pairs)
 }
 
 fn group_name(g: String, key: &str) -> VResult<String> {
@@ -1251,45 +1370,26 @@ fn build(raw: RawScene, stem: &str, base_dir: &Path) -> VResult<Scene> {
         None => None,
         Some(c) => {
             let has_obstacles = c.obstacle.is_some() || c.obstacles.is_some();
-            let (boundary, master, obstacle_boundary) = match (c.boundary, c.slave, c.master) {
-                (Some(b), None, None) => (group_name(b, "contact.boundary")?, None, None),
-                (b, Some(s), Some(m)) => {
-                    let (s, m) = (group_name(s, "contact.slave")?, group_name(m, "contact.master")?);
-                    if s == m {
-                        return Err(format!("contact.slave and contact.master are the same group \"{s}\""));
+            let pairs_listed = c.pairs.is_some();
+            let pairs = contact_pairs(c.slave, c.master, c.pairs)?;
+            let boundary = c.boundary.map(|b| group_name(b, "contact.boundary")).transpose()?;
+            match (&boundary, pairs.is_empty(), has_obstacles) {
+                (None, true, _) => return Err("contact: give contact.boundary (with an obstacle) or contact.slave and contact.master (two bodies)".into()),
+                (None, false, true) => return Err("contact: obstacles beside a slave/master pair need contact.boundary, the group that meets them (another part of the boundary than contact.slave and contact.master)".into()),
+                (Some(b), false, false) => return Err(format!("contact.boundary = \"{b}\" beside a slave/master pair needs the obstacles it meets (contact.obstacle or contact.obstacles)")),
+                (Some(b), false, true) => {
+                    let key = |side: &str| if pairs_listed { format!("a contact.pairs[].{side}") } else { format!("contact.{side}") };
+                    if pairs.iter().any(|p| &p.slave == b) {
+                        return Err(format!("contact.boundary = \"{b}\" is also {}: the obstacles need another part of the boundary than the pair's", key("slave")));
                     }
-                    // Rigid obstacles beside the pair: met by the nodes of contact.boundary.
-                    let b = match (b, has_obstacles) {
-                        (None, false) => None,
-                        (None, true) => return Err("contact: obstacles beside a slave/master pair need contact.boundary, the group that meets them (another part of the boundary than contact.slave and contact.master)".into()),
-                        (Some(b), false) => {
-                            let b = group_name(b, "contact.boundary")?;
-                            return Err(format!("contact.boundary = \"{b}\" beside a slave/master pair needs the obstacles it meets (contact.obstacle or contact.obstacles)"));
-                        }
-                        (Some(b), true) => {
-                            let b = group_name(b, "contact.boundary")?;
-                            if b == s || b == m {
-                                let key = if b == s { "contact.slave" } else { "contact.master" };
-                                return Err(format!("contact.boundary = \"{b}\" is also {key}: the obstacles need another part of the boundary than the pair's"));
-                            }
-                            Some(b)
-                        }
-                    };
-                    (s, Some(m), b)
+                    if pairs.iter().any(|p| &p.master == b) {
+                        return Err(format!("contact.boundary = \"{b}\" is also {}: the obstacles need another part of the boundary than the pair's", key("master")));
+                    }
                 }
-                (None, Some(_), None) => return Err("contact.slave needs contact.master (the other body's contact boundary)".into()),
-                (None, None, Some(_)) => return Err("contact.master needs contact.slave (this body's contact boundary)".into()),
-                (None, None, None) => return Err("contact: give contact.boundary (with an obstacle) or contact.slave and contact.master (two bodies)".into()),
-                (Some(_), _, _) => return Err("contact: give either contact.boundary (with obstacles) or contact.slave and contact.master, not both".into()),
-            };
-            if master.is_some() && obstacle_boundary.is_none() {
-                Some(ContactSpec {
-                    boundary,
-                    master,
-                    obstacle_boundary,
-                    obstacles: Vec::new(),
-                    listed: false,
-                })
+                _ => {}
+            }
+            if boundary.is_none() {
+                Some(ContactSpec { pairs, boundary, obstacles: Vec::new(), listed: false })
             } else {
                 let (raws, listed) = match (c.obstacle, c.obstacles) {
                     (Some(_), Some(_)) => {
@@ -1309,7 +1409,7 @@ fn build(raw: RawScene, stem: &str, base_dir: &Path) -> VResult<Scene> {
                     .enumerate()
                     .map(|(i, o)| obstacle(o, &obstacle_key(listed, i)))
                     .collect::<VResult<Vec<_>>>()?;
-                Some(ContactSpec { boundary, master, obstacle_boundary, obstacles, listed })
+                Some(ContactSpec { pairs, boundary, obstacles, listed })
             }
         }
     };
@@ -1322,13 +1422,12 @@ fn build(raw: RawScene, stem: &str, base_dir: &Path) -> VResult<Scene> {
     // The mass-free layer sits on the contact boundary unless the scene names another group.
     let (contact_boundary, also_along) = match contact_boundary {
         Some(g) => (Some(group_name(g, "mass.contact_boundary")?), Vec::new()),
-        None => (
-            contact.as_ref().map(|c: &ContactSpec| c.boundary.clone()),
-            contact
-                .iter()
-                .flat_map(|c: &ContactSpec| c.master.iter().chain(&c.obstacle_boundary).cloned())
-                .collect(),
-        ),
+        // The layer runs along every contact group: the first names it, the others follow.
+        None => {
+            let groups: Vec<String> =
+                contact.iter().flat_map(|c: &ContactSpec| c.groups()).map(String::from).collect();
+            (groups.first().cloned(), groups.iter().skip(1).cloned().collect())
+        }
     };
     if kind.is_modified() && contact_boundary.is_none() {
         return Err(format!(

@@ -208,7 +208,8 @@ fn full_scene_round_trips() {
     assert_eq!(g[1].eval([0.0; 3], 7.0), [7.0, 0.0, 0.0]);
     assert_eq!(ex.error_steps, vec![10, 30]);
     let c = s.contact.as_ref().unwrap();
-    assert_eq!(c.boundary, "contact");
+    assert_eq!(c.boundary.as_deref(), Some("contact"));
+    assert!(c.pairs.is_empty());
     let plane = Shape::Plane { point: vec![0.0, -1.0], normal: vec![0.0, 1.0] };
     assert_eq!(c.obstacles, vec![Obstacle { shape: plane, motion: None }]);
     assert!(!c.listed);
@@ -364,7 +365,7 @@ fn obstacle_errors_name_the_key() {
         ),
         (
             "boundary2 = 1",
-            &["unknown key \"contact.boundary2\"", "allowed: boundary, slave, master, obstacle, obstacles"],
+            &["unknown key \"contact.boundary2\"", "allowed: boundary, slave, master, pairs, obstacle, obstacles"],
         ),
         (
             "obstacles = [{ type = \"cone\", point = [0, 0] }]",
@@ -662,7 +663,7 @@ fn effects_follow_the_scene() {
             dirichlet_lifting: varying,
             contact: vec![ObstacleEffect { kind: ObstacleKind::Plane, moving: false }],
             exact_errors: true,
-            contact_pair: None,
+            contact_pairs: Vec::new(),
             contact_obstacle_boundary: None,
         }
     );
@@ -686,7 +687,7 @@ fn effects_follow_the_scene() {
             dirichlet_lifting: Some(Variation::Steady),
             contact: vec![],
             exact_errors: false,
-            contact_pair: None,
+            contact_pairs: Vec::new(),
             contact_obstacle_boundary: None,
         }
     );
@@ -806,7 +807,8 @@ fn contact_pairs_of_two_bodies() {
     )
     .unwrap();
     let c = s.contact.as_ref().unwrap();
-    assert_eq!((c.boundary.as_str(), c.master.as_deref()), ("a", Some("b")));
+    assert_eq!(c.pairs, vec![ContactPair { slave: "a".into(), master: "b".into() }]);
+    assert_eq!(c.boundary, None);
     assert!(c.obstacles.is_empty());
     // The layer runs along both sides unless the scene names its group.
     assert_eq!(s.mass.layer_groups(), vec!["a", "b"]);
@@ -825,7 +827,7 @@ fn contact_pairs_of_two_bodies() {
     );
     let s = parse_in(&dir, &mixed).unwrap();
     let c = s.contact.as_ref().unwrap();
-    assert_eq!((c.boundary.as_str(), c.obstacle_boundary.as_deref()), ("a", Some("c")));
+    assert_eq!((c.pairs[0].slave.as_str(), c.obstacle_boundary()), ("a", Some("c")));
     assert_eq!(c.obstacles.len(), 1);
     assert_eq!(s.mass.layer_groups(), vec!["a", "b", "c"]);
     assert!(s.effects().summary().contains(
@@ -861,8 +863,57 @@ fn contact_pairs_of_two_bodies() {
             )),
             "give exactly one of contact.obstacle and contact.obstacles",
         ),
-        (pair("boundary = \"c\"\nslave = \"a\""), "not both"),
+        (pair("boundary = \"c\"\nslave = \"a\""), "contact.slave needs contact.master"),
         (pair(""), "give contact.boundary (with an obstacle) or contact.slave and contact.master"),
+    ];
+    for (text, needle) in &cases {
+        assert_err(text, &[needle]);
+    }
+}
+
+#[test]
+fn several_contact_pairs() {
+    let dir = workspace();
+    let pairs = |list: &str| format!("{MINIMAL}\n[contact]\npairs = [{list}]\n");
+    let two = pairs("{ slave = \"a\", master = \"m\" }, { slave = \"b\", master = \"m2\" }");
+    let s = parse_in(&dir, &format!("{two}[mass]\nkind = \"modified1\"\n")).unwrap();
+    let c = s.contact.as_ref().unwrap();
+    let p = |a: &str, b: &str| ContactPair { slave: a.into(), master: b.into() };
+    assert_eq!(c.pairs, vec![p("a", "m"), p("b", "m2")]);
+    assert_eq!((c.slave_groups(), c.master_groups()), (vec!["a", "b"], vec!["m", "m2"]));
+    // The layer runs along every contact group.
+    assert_eq!(s.mass.layer_groups(), vec!["a", "b", "m", "m2"]);
+    assert!(s.effects().summary().contains(
+        "contact (2 pairs: slave \"a\" on master \"m\", slave \"b\" on master \"m2\", dual mortar)"
+    ), "{}", s.effects().summary());
+    // One master for two slaves, one slave on two masters.
+    let shared = pairs("{ slave = \"a\", master = \"m\" }, { slave = \"b\", master = \"m\" }, { slave = \"a\", master = \"m2\" }");
+    let c = parse_in(&dir, &shared).unwrap().contact.unwrap();
+    assert_eq!((c.slave_groups(), c.master_groups()), (vec!["a", "b"], vec!["m", "m2"]));
+    let plane = "{ type = \"plane\", point = [0, 0], normal = [0, 1] }";
+    let cases: Vec<(String, &str)> = vec![
+        (pairs(""), "contact.pairs is empty"),
+        (pairs("{ slave = \"a\" }"), "contact.pairs[0] needs master"),
+        (pairs("{ master = \"a\" }"), "contact.pairs[0] needs slave"),
+        (pairs("{ slave = \"a\", master = \"a\" }"), "contact.pairs[0]: slave and master are the same group \"a\""),
+        (pairs("{ slave = \"a\", master = \"\" }"), "contact.pairs[0].master is empty"),
+        (pairs("{ slave = \"a\", master = \"b\", other = \"c\" }"), "unknown key"),
+        (
+            pairs("{ slave = \"a\", master = \"b\" }, { slave = \"a\", master = \"b\" }"),
+            "contact.pairs[1] repeats contact.pairs[0]",
+        ),
+        (
+            pairs("{ slave = \"a\", master = \"b\" }, { slave = \"b\", master = \"c\" }"),
+            "contact.pairs[1].slave = \"b\" is also contact.pairs[0].master",
+        ),
+        (
+            format!("{MINIMAL}\n[contact]\nslave = \"a\"\nmaster = \"b\"\npairs = [{{ slave = \"c\", master = \"d\" }}]\n"),
+            "give either contact.slave and contact.master (one pair) or contact.pairs",
+        ),
+        (
+            format!("{}boundary = \"b\"\nobstacle = {plane}\n", pairs("{ slave = \"a\", master = \"b\" }")),
+            "contact.boundary = \"b\" is also a contact.pairs[].master",
+        ),
     ];
     for (text, needle) in &cases {
         assert_err(text, &[needle]);

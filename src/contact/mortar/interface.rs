@@ -26,11 +26,13 @@ use crate::mesh::Mesh;
 use crate::partition::Partition;
 
 /// One boundary facet of a contact group: its mesh nodes, ordered so that its normal points
-/// out of its body, and the cell it bounds.
+/// out of its body, the cell it bounds, and the pairs it belongs to (bit `i` for pair `i`; a
+/// slave facet is integrated only against master facets of a pair it shares).
 #[derive(Debug, Clone)]
 pub struct SurfaceFacet {
     pub nodes: Vec<usize>,
     pub cell: usize,
+    pub pairs: u64,
 }
 
 /// The facets of a contact boundary group, oriented outwards (gmsh does not promise an
@@ -57,7 +59,7 @@ pub fn oriented_facets(mesh: &Mesh, group: &str) -> Result<Vec<SurfaceFacet>> {
                 nodes[1..].reverse();
             }
         }
-        out.push(SurfaceFacet { nodes, cell });
+        out.push(SurfaceFacet { nodes, cell, pairs: 1 });
     }
     Ok(out)
 }
@@ -111,10 +113,22 @@ impl MortarInterface {
         x: &dyn Fn(usize) -> [f64; 3],
         reach: f64,
     ) -> Result<MortarInterface> {
-        Self::build_timed(world, mesh, part, slave_facets, master_facets, x, reach).map(|r| r.0)
+        Self::build_timed(
+            world,
+            mesh,
+            part,
+            slave_facets,
+            master_facets,
+            x,
+            reach,
+            NormalKind::Slave,
+        )
+        .map(|r| r.0)
     }
 
-    /// [`MortarInterface::build`], and this rank's wall time of the bucket search (seconds).
+    /// [`MortarInterface::build`] with the normal field `normal`, and this rank's wall time of
+    /// the bucket search (seconds).
+    #[allow(clippy::too_many_arguments)]
     pub fn build_timed(
         world: &SimpleCommunicator,
         mesh: &Mesh,
@@ -123,6 +137,7 @@ impl MortarInterface {
         master_facets: &[SurfaceFacet],
         x: &dyn Fn(usize) -> [f64; 3],
         reach: f64,
+        normal: NormalKind,
     ) -> Result<(MortarInterface, f64)> {
         let err = |e: GeomError| Error::Solver(format!("mortar: {e}"));
         let dim = mesh.dim;
@@ -157,6 +172,22 @@ impl MortarInterface {
                 scale3(1.0 / norm3(n), n)
             })
             .collect();
+        let mut search_seconds = 0.0;
+        let normals = match normal {
+            NormalKind::Slave => normals,
+            NormalKind::Average if dim == 2 => {
+                let t0 = std::time::Instant::now();
+                let n = averaged(&slave, &normals, slave_facets, master_facets, &m_of, x, reach)
+                    .map_err(err)?;
+                search_seconds += t0.elapsed().as_secs_f64();
+                n
+            }
+            NormalKind::Average => {
+                return Err(Error::Solver(
+                    "-mortar_normal average is built for 2D meshes only".into(),
+                ))
+            }
+        };
 
         // Candidate pairs by bucket search over the boxes of the facets.
         let boxes = |fs: &[&SurfaceFacet]| -> Result<Vec<Aabb>> {
@@ -175,8 +206,9 @@ impl MortarInterface {
         };
         let t_search = std::time::Instant::now();
         let masters: Vec<&SurfaceFacet> = master_facets.iter().collect();
-        let pairs = candidate_pairs(&boxes(&mine)?, &boxes(&masters)?);
-        let search_seconds = t_search.elapsed().as_secs_f64();
+        let mut pairs = candidate_pairs(&boxes(&mine)?, &boxes(&masters)?);
+        pairs.retain(|&(s, m)| mine[s].pairs & masters[m].pairs != 0);
+        search_seconds += t_search.elapsed().as_secs_f64();
 
         // D per owned slave facet, M and the weighted gaps per overlapping pair.
         let mut d = vec![0.0; ns];
@@ -247,6 +279,62 @@ impl MortarInterface {
         }
         s
     }
+}
+
+/// The averaged normals (2D) of the slave nodes `slave` with slave normals `ns`: each node's
+/// ray is tried against the master lines of its own pairs within `reach` (every rank does every
+/// slave node: the result is the same everywhere, O(slave nodes) work).
+fn averaged(
+    slave: &[usize],
+    ns: &[[f64; 3]],
+    slave_facets: &[SurfaceFacet],
+    master_facets: &[SurfaceFacet],
+    m_of: &HashMap<usize, u32>,
+    x: &dyn Fn(usize) -> [f64; 3],
+    reach: f64,
+) -> std::result::Result<Vec<[f64; 3]>, GeomError> {
+    let p2 = |v: usize| -> Vec2 { [x(v)[0], x(v)[1]] };
+    let mut nm = vec![[0.0; 2]; m_of.len()];
+    let mut lines = Vec::with_capacity(master_facets.len());
+    for f in master_facets {
+        let line = Facet2::from_nodes(&[p2(f.nodes[0]), p2(f.nodes[1])], [0, 1])?;
+        let n = line.normal();
+        let n = scale2(1.0 / norm2(n), n);
+        for v in &f.nodes {
+            let m = &mut nm[m_of[v] as usize];
+            *m = add2(*m, n);
+        }
+        lines.push(line);
+    }
+    let unit = |n: Vec2| scale2(1.0 / norm2(n), n);
+    let lines: Vec<(Facet2, [Vec2; 2])> = (lines.into_iter().zip(master_facets))
+        .map(|(l, f)| {
+            (l, [unit(nm[m_of[&f.nodes[0]] as usize]), unit(nm[m_of[&f.nodes[1]] as usize])])
+        })
+        .collect();
+    // Each slave node's pairs: those of its facets.
+    let s_of: HashMap<usize, usize> = slave.iter().enumerate().map(|(k, &v)| (v, k)).collect();
+    let mut mask = vec![0u64; slave.len()];
+    for f in slave_facets {
+        for v in &f.nodes {
+            mask[s_of[v]] |= f.pairs;
+        }
+    }
+    let points: Vec<Aabb> =
+        slave.iter().map(|&v| Aabb::of_points(std::iter::once(x(v)), reach)).collect();
+    let boxes: Vec<Aabb> = lines.iter().map(|(l, _)| facet_aabb_2d(l, 0.0)).collect();
+    let mut candidates = vec![Vec::new(); slave.len()];
+    for (q, k) in candidate_pairs(&points, &boxes) {
+        if mask[q] & master_facets[k].pairs != 0 {
+            candidates[q].push(k);
+        }
+    }
+    let xs: Vec<Vec2> = slave.iter().map(|&v| p2(v)).collect();
+    let n2: Vec<Vec2> = ns.iter().map(|n| [n[0], n[1]]).collect();
+    Ok(averaged_normals_2d(&xs, &n2, &lines, &candidates)
+        .into_iter()
+        .map(|n| [n[0], n[1], 0.0])
+        .collect())
 }
 
 fn sorted_nodes(facets: &[SurfaceFacet]) -> Vec<usize> {

@@ -49,6 +49,10 @@ pub struct MortarActiveSet<'w> {
     /// 0 at the nodes meeting obstacles beside the pair): the master body's share of the
     /// node's force.
     coverage: Vec<f64>,
+    /// The master nodes (mesh indices, ascending) and `(contact node, master index, M_ql /
+    /// D_qq)` per entry of `M`: where each slave node's force goes on the master side.
+    master: Vec<usize>,
+    couplings: Vec<(usize, usize, f64)>,
     /// The interface nodes' displacements at the last evaluation.
     evaluated_at: Vec<f64>,
     cost: MortarCost,
@@ -99,6 +103,8 @@ struct Pair {
     slave: Vec<super::SurfaceFacet>,
     master: Vec<super::SurfaceFacet>,
     reach: f64,
+    /// The normal field of the gaps (`-mortar_normal`).
+    normal: super::NormalKind,
     /// Slave and master nodes (mesh indices, ascending) and their DOFs (global, owned here).
     nodes: Vec<usize>,
     dofs: Vec<(i32, bool)>,
@@ -141,6 +147,7 @@ impl Pair {
             &self.master,
             &x,
             self.reach,
+            self.normal,
         )?;
         cost.evaluations += 1;
         cost.search_seconds += search;
@@ -189,6 +196,8 @@ impl<'w> MortarActiveSet<'w> {
             t,
             hat: None,
             coverage: coverage(&iface, &slots, nodes_len),
+            couplings: couplings(&iface, &slots),
+            master: iface.master,
             update_distance,
             update_in_contact,
             evaluated_at: zero,
@@ -233,6 +242,13 @@ fn coverage(iface: &MortarInterface, slots: &[usize], n_nodes: usize) -> Vec<f64
         out[slots[q]] = s / d;
     }
     out
+}
+
+/// `(contact node, master index, M_ql / D_qq)` per entry of `M`.
+fn couplings(iface: &MortarInterface, slots: &[usize]) -> Vec<(usize, usize, f64)> {
+    (iface.m.iter())
+        .map(|&(q, l, m)| (slots[q as usize], l as usize, m / iface.d[q as usize]))
+        .collect()
 }
 
 /// The index among the contact nodes of every slave node of the interface; an error unless
@@ -348,6 +364,8 @@ impl MortarActiveSet<'_> {
         self.e = transfer(&self.pair.part, &iface, false)?;
         self.t = transfer(&self.pair.part, &iface, true)?;
         self.coverage = coverage(&iface, &slots, n_nodes);
+        self.couplings = couplings(&iface, &slots);
+        self.master = iface.master;
         self.rebuild(k)?;
         self.evaluated_at = trace;
         self.cost.operator_seconds += t0.elapsed().as_secs_f64();
@@ -439,6 +457,12 @@ impl ContactSolver for MortarActiveSet<'_> {
                 out.master_force[c] += self.coverage[q] * f * out.normals[q][c];
             }
         }
+        out.master_nodal = vec![[0.0; 3]; self.master.len()];
+        for &(p, l, w) in &self.couplings {
+            for c in 0..3 {
+                out.master_nodal[l][c] += w * out.row.force[p] * out.normals[p][c];
+            }
+        }
         Ok((out, its))
     }
 
@@ -453,6 +477,9 @@ impl ContactSolver for MortarActiveSet<'_> {
     }
     fn is_pair(&self) -> bool {
         true
+    }
+    fn master_nodes(&self) -> &[usize] {
+        &self.master
     }
     fn mortar_cost(&self) -> Option<MortarCost> {
         Some(self.cost)
@@ -473,24 +500,47 @@ impl ContactSolver for MortarActiveSet<'_> {
     }
 }
 
-/// The contact solver of a slave/master pair of deformable bodies: the interface evaluated
+/// The contact solver of slave/master pairs of deformable bodies: the interface evaluated
 /// on the reference configuration and again, while no node is in contact, whenever an
 /// interface node has moved farther than the update distance since the last evaluation; the
-/// active set on the slave nodes. The
-/// search reaches as far as the largest slave facet. `beside`: a group of another part of the
-/// boundary and the rigid obstacles its nodes meet (in the same active set: `u~ = u` there).
+/// active set on the slave nodes. Several pairs make one interface: each slave facet is
+/// integrated against the master facets of its own pairs, and a slave node on the facets of
+/// two pairs couples to both masters. The search reaches as far as the largest slave facet.
+/// `beside`: a group of another part of the boundary and the rigid obstacles its nodes meet
+/// (in the same active set: `u~ = u` there). A node of a master group may meet obstacles too
+/// (`T` leaves master DOFs alone); a slave node may not, nor be a master node (`E^2 = 0`).
 pub fn pair_solver<'w>(
     world: &'w mpi::topology::SimpleCommunicator,
     mesh: std::rc::Rc<crate::mesh::Mesh>,
     part: std::rc::Rc<Partition>,
-    slave: &str,
-    master: &str,
+    pairs: &[crate::scene::ContactPair],
     beside: Option<(&str, crate::contact::Obstacles)>,
     factor: f64,
 ) -> Result<Box<dyn ContactSolver + 'w>> {
-    use super::oriented_facets;
-    let sf = oriented_facets(&mesh, slave)?;
-    let mf = oriented_facets(&mesh, master)?;
+    if pairs.len() > 64 {
+        return Err(Error::Scene(format!("contact.pairs has {} pairs: at most 64", pairs.len())));
+    }
+    let sides = |side: fn(&crate::scene::ContactPair) -> &str| -> Result<Vec<super::SurfaceFacet>> {
+        let mut out: Vec<super::SurfaceFacet> = Vec::new();
+        let mut seen: HashMap<Vec<usize>, usize> = HashMap::new();
+        for (i, p) in pairs.iter().enumerate() {
+            for mut f in super::oriented_facets(&mesh, side(p))? {
+                let mut key = f.nodes.clone();
+                key.sort_unstable();
+                match seen.get(&key) {
+                    Some(&k) => out[k].pairs |= 1 << i,
+                    None => {
+                        f.pairs = 1 << i;
+                        seen.insert(key, out.len());
+                        out.push(f);
+                    }
+                }
+            }
+        }
+        Ok(out)
+    };
+    let sf = sides(|p| &p.slave)?;
+    let mf = sides(|p| &p.master)?;
     let size = |f: &super::SurfaceFacet| {
         let x0 = mesh.coords[f.nodes[0]];
         f.nodes
@@ -503,16 +553,55 @@ pub fn pair_solver<'w>(
     let update_distance =
         crate::petsc::Petsc::options_get_real("-mortar_update_distance")?.unwrap_or(0.1 * smallest);
     let update_in_contact = crate::petsc::Petsc::options_has("-mortar_update_in_contact")?;
-    let mut nodes: Vec<usize> =
-        sf.iter().chain(&mf).flat_map(|f| f.nodes.iter().copied()).collect();
+    let normal = match crate::petsc::Petsc::options_get_string("-mortar_normal")? {
+        None => super::NormalKind::Slave,
+        Some(s) => super::NormalKind::parse(&s).ok_or_else(|| {
+            Error::Scene(format!("-mortar_normal {s}: give slave (the default) or average"))
+        })?,
+    };
+    if normal == super::NormalKind::Average && part.dim != 2 {
+        return Err(Error::Scene("-mortar_normal average is built for 2D meshes only".into()));
+    }
+    let node_set = |fs: &[super::SurfaceFacet]| {
+        let mut v: Vec<usize> = fs.iter().flat_map(|f| f.nodes.iter().copied()).collect();
+        v.sort_unstable();
+        v.dedup();
+        v
+    };
+    let (slave_nodes, master_nodes) = (node_set(&sf), node_set(&mf));
+    if let Some(&v) = slave_nodes.iter().find(|v| master_nodes.binary_search(v).is_ok()) {
+        let on = |side: fn(&crate::scene::ContactPair) -> &str| -> Vec<String> {
+            let mut g: Vec<String> = (pairs.iter().map(side))
+                .filter(|g| mesh.group_nodes(g).is_ok_and(|n| n.binary_search(&v).is_ok()))
+                .map(|g| format!("\"{g}\""))
+                .collect();
+            g.dedup();
+            g
+        };
+        return Err(Error::Scene(format!(
+            "contact: gmsh node {} is on the slave group {} and the master group {}: the two sides of a pair must not share nodes",
+            mesh.node_tags[v],
+            on(|p| &p.slave).join(", "),
+            on(|p| &p.master).join(", ")
+        )));
+    }
+    let mut nodes: Vec<usize> = slave_nodes.iter().chain(&master_nodes).copied().collect();
     nodes.sort_unstable();
-    nodes.dedup();
     let dofs = nodes
         .iter()
         .flat_map(|&v| (0..part.dim).map(move |c| (v, c)))
         .map(|(v, c)| (part.dof(v, c) as i32, part.owns(v)))
         .collect();
-    let mut boundary = crate::contact::ContactBoundary::build(&mesh, slave)?;
+    let slave_groups: Vec<&str> = {
+        let mut g: Vec<&str> = Vec::new();
+        for p in pairs {
+            if !g.contains(&p.slave.as_str()) {
+                g.push(&p.slave);
+            }
+        }
+        g
+    };
+    let mut boundary = crate::contact::ContactBoundary::build_groups(&mesh, &slave_groups)?;
     let obstacles = match beside {
         Some((group, obstacles)) => {
             let other = crate::contact::ContactBoundary::build(&mesh, group)?;
@@ -522,7 +611,7 @@ pub fn pair_solver<'w>(
         None => crate::contact::Obstacles(Vec::new()),
     };
     let contact_nodes = ContactNodes::new(world, &mesh, &part, boundary, obstacles);
-    let pair = Pair { mesh, part, slave: sf, master: mf, reach, nodes, dofs };
+    let pair = Pair { mesh, part, slave: sf, master: mf, reach, normal, nodes, dofs };
     Ok(Box::new(MortarActiveSet::new(
         contact_nodes,
         pair,
