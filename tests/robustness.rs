@@ -67,6 +67,23 @@ fn status_by_h5dump(h5: &Path) -> String {
         .unwrap_or_default()
 }
 
+/// The length of `/energy/step` in a file a run is still writing (h5dump without file
+/// locking; `None` while the file or the dataset is not readable yet).
+fn steps_in_growing_file(h5: &Path) -> Option<usize> {
+    if !h5.exists() {
+        return None;
+    }
+    let o = Command::new("h5dump")
+        .args(["-H", "-d", "/energy/step"])
+        .arg(h5)
+        .env("HDF5_USE_FILE_LOCKING", "FALSE")
+        .output()
+        .ok()?;
+    let text = String::from_utf8_lossy(&o.stdout).to_string();
+    let line = text.lines().find(|l| l.contains("DATASPACE"))?;
+    line.split_once("( ")?.1.split_once(' ')?.0.parse().ok()
+}
+
 fn raw(h5: &Path, name: &str) -> Vec<f64> {
     values(h5, name)
 }
@@ -401,10 +418,13 @@ fn a_killed_run_leaves_a_readable_file_that_post_reports_as_unfinished() {
         let args = run_args(disc.to_str().unwrap(), out.to_str().unwrap(), &["--steps", "1000000"]);
         let mut child =
             launch(2, &args).stdout(Stdio::null()).stderr(Stdio::null()).spawn().unwrap();
-        while !out.exists() {
-            std::thread::sleep(Duration::from_millis(5));
+        // Kill it once more than 100 (and, trial by trial, a few more) steps are in the file,
+        // however loaded the machine is: wait for the file, not for a time.
+        let start = std::time::Instant::now();
+        while steps_in_growing_file(&out).is_none_or(|n| n < 120 + 37 * trial) {
+            assert!(start.elapsed() < Duration::from_secs(120), "the run wrote too few steps");
+            std::thread::sleep(Duration::from_millis(20));
         }
-        std::thread::sleep(Duration::from_millis(1200 + 150 * trial));
         // SIGKILL to the ranks (as the kernel's OOM killer would); mpirun then ends the job.
         let _ = Command::new("pkill").args(["-9", "-P", &child.id().to_string()]).status();
         let st = wait_for(&mut child, Duration::from_secs(30), "a killed run");
