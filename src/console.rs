@@ -19,6 +19,12 @@ impl Console {
             println!("{}", msg.as_ref());
         }
     }
+    /// A warning on stderr from rank 0, even when quiet: `massfree: warning: ...`.
+    pub fn warn(&self, msg: impl AsRef<str>) {
+        if self.rank == 0 {
+            eprintln!("massfree: warning: {}", msg.as_ref());
+        }
+    }
     /// A line on stdout from rank 0 even when quiet (results, summaries).
     pub fn result(&self, msg: impl AsRef<str>) {
         if self.rank == 0 {

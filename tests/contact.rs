@@ -228,6 +228,45 @@ every = 500
     assert!(a > 6.0 * hc, "the contact zone must span several elements (a = {a})");
     assert!((half - a).abs() <= 2.0 * hc, "half-width {half} vs Hertz {a}");
     assert!((pmax - p0).abs() <= 0.05 * p0, "peak pressure {pmax} vs Hertz {p0}");
+    // The traction on the disc, -p n with n = (0, -1) towards the plane: (0, p) at every node,
+    // and along the contact zone Hertz's p0 sqrt(1 - x^2/a^2) within a few mesh sizes' error
+    // (the profile is steepest at the edges: compare where |x| < a - 2 hc, within the change
+    // of p over 2 hc there).
+    let (traction, ntr) = read2(&h5, &layout::contact("traction"));
+    assert_eq!((ntr, traction.len()), (nc, force.len() * 2), "traction [steps + 1, nodes, 2]");
+    let hertz = |x: f64| p0 * (1.0 - (x / a).powi(2)).max(0.0).sqrt();
+    let mut worst = 0.0f64;
+    for k in 0..nc {
+        let (tx, ty) = (traction[last * 2 * nc + 2 * k], traction[last * 2 * nc + 2 * k + 1]);
+        let p = pressure[last * nc + k];
+        assert!(tx.abs() <= 1e-12 * p0 && (ty - p).abs() <= 1e-12 * p0, "node {k}: ({tx}, {ty})");
+        let x = coords[nodes[k] * 3];
+        if x.abs() < a - 2.0 * hc {
+            let slack = hertz(x.abs()) - hertz(x.abs() + 2.0 * hc);
+            worst = worst.max((ty - hertz(x)).abs() / p0);
+            assert!((ty - hertz(x)).abs() <= slack.max(0.02 * p0), "x = {x}: {ty} vs {}", hertz(x));
+        }
+    }
+    // The contact area (a length in 2D), the sum of the active nodes' weights: 2a within one
+    // mesh size (the edge of the zone is resolved to a node).
+    eprintln!("traction profile: largest difference from Hertz {worst} p0 (|x| < a - 2 hc)");
+    let area = values(&h5, &layout::contact("area"));
+    let w = values(&h5, layout::CONTACT_WEIGHTS);
+    let active_w: f64 = (0..nc).filter(|&k| active[last * nc + k] == 1).map(|k| w[k]).sum();
+    assert!((area[last] - active_w).abs() <= 1e-12 * active_w);
+    eprintln!("contact length {} vs Hertz 2a = {}", area[last], 2.0 * a);
+    assert!(
+        (area[last] - 2.0 * a).abs() <= 2.0 * hc,
+        "contact length {} vs Hertz 2a = {}",
+        area[last],
+        2.0 * a
+    );
+    // The impulse the summary reports is tau times the written tractions times the weights,
+    // summed over the steps and nodes (the file's traction has the solver's normals and sign).
+    let tau = 1e-6;
+    let from_file: f64 = (0..force.len()).map(|i| tau * w[i % nc] * traction[2 * i + 1]).sum();
+    let impulse = contact(&s).impulse[1];
+    assert!((from_file - impulse).abs() <= 1e-9 * impulse.abs(), "{from_file} vs {impulse}");
 }
 
 #[test]

@@ -555,6 +555,27 @@ fn two_discs_with_the_interface_updated_at_every_step() {
     assert!(dmax < 0.05 * peak, "total force differs by {dmax} (peak {peak})");
 }
 
+/// Finite sliding with the mass-free layer on a pair warns (once, on rank 0) that frequent
+/// in-contact updates can make the energy grow; with the standard mass, or without in-contact
+/// updates, it does not.
+#[test]
+fn finite_sliding_with_the_mass_free_layer_warns() {
+    let dir = scratch("two-discs-warn");
+    let scene = scene_variant("two_discs.toml", &dir, &[("steps = 1000", "steps = 2")]);
+    let stderr = |args: &[&str]| {
+        let mut a = vec!["run", scene.to_str().unwrap(), "--no-output", "--quiet"];
+        a.extend(args);
+        let o = common::massfree(2, &a);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        String::from_utf8_lossy(&o.stderr).to_string()
+    };
+    let warning = "warning: -mortar_update_in_contact with the mass-free layer";
+    let layer = stderr(&["--", "-mortar_update_in_contact"]);
+    assert_eq!(layer.matches(warning).count(), 1, "{layer}");
+    assert!(!stderr(&["--mass", "consistent", "--", "-mortar_update_in_contact"]).contains(warning));
+    assert!(!stderr(&[]).contains(warning));
+}
+
 /// A pair and a rigid obstacle in one scene (`contact.slave`/`master` with `contact.boundary`
 /// and `contact.obstacle`): the two bars of `scenes/two_bars.toml`, coarser (50 elements along
 /// each bar, tau = h/(4c)), the left one moving at v0 = 0.1 into the right one at rest, and a

@@ -21,6 +21,8 @@ pub struct History {
     /// Per master node, `tau sum_n (M^T lambda)_l n` (pairs).
     master_node_impulse: Vec<[f64; 3]>,
     weights: Vec<f64>,
+    /// The contact nodes' normals of the last step (zero before the first).
+    last_normals: Vec<[f64; 3]>,
 }
 
 /// What a contact run reports (written by `--summary` under `[contact]`).
@@ -78,6 +80,7 @@ impl History {
     pub fn start(&mut self, c: &dyn ContactSolver) {
         let nc = c.n_nodes();
         self.weights = c.boundary().weights.clone();
+        self.last_normals = vec![[0.0; 3]; nc];
         // The first row: the set the run starts from (empty, or a restart's checkpoint).
         self.rows.push(ContactRow {
             force: vec![0.0; nc],
@@ -89,6 +92,7 @@ impl History {
 
     pub fn push(&mut self, c: &StepContact, tau: f64) {
         self.rows.push(c.row.clone());
+        self.last_normals.clone_from(&c.normals);
         let n = c.row.force.len();
         self.node_impulse.resize(n, [0.0; 3]);
         for (p, imp) in self.node_impulse.iter_mut().enumerate() {
@@ -133,6 +137,11 @@ impl History {
     /// The last step's row.
     pub fn last_row(&self) -> Option<&ContactRow> {
         self.rows.last()
+    }
+
+    /// The contact nodes' normals of the last step (zero before the first step).
+    pub fn last_normals(&self) -> &[[f64; 3]] {
+        &self.last_normals
     }
 
     /// Pressure history of contact node `k` (index among the contact nodes).

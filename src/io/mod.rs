@@ -124,6 +124,10 @@ struct ContactDatasets {
     active: Dataset,
     active_set_size: Dataset,
     iterations: Dataset,
+    /// `[steps + 1, contact nodes, dim]`: `-p_q n_q`, and `[steps + 1]`: the active weights.
+    traction: Dataset,
+    area: Dataset,
+    dim: usize,
     /// Boundary weights `D_qq`: the pressure written is `force / weight`.
     weights: Vec<f64>,
     n_written: usize,
@@ -591,7 +595,7 @@ impl Output {
     /// Create `/contact`: `nodes` (0-based rows of /mesh/coordinates), `weights` (boundary
     /// weights D_qq), and per step `pressure`, `force`, `gap`, `active` [steps + 1, contact
     /// nodes], `active_set_size`, `iterations` [steps + 1]. Collective.
-    pub fn create_contact(&mut self, nodes: &[usize], weights: &[f64]) -> Result<()> {
+    pub fn create_contact(&mut self, nodes: &[usize], weights: &[f64], dim: usize) -> Result<()> {
         let path = self.path.clone();
         let g = group(&self.file, layout::CONTACT, &path)?;
         let nc = nodes.len();
@@ -636,6 +640,14 @@ impl Output {
                 .map_err(|e| h5err(&path, "create /contact/active", e))?,
             active_set_size: per_step("active_set_size")?,
             iterations: per_step("iterations")?,
+            traction: g
+                .new_dataset::<f64>()
+                .chunk((64, nc.max(1), dim))
+                .shape((0.., nc, dim))
+                .create("traction")
+                .map_err(|e| h5err(&path, "create /contact/traction", e))?,
+            area: per_step("area")?,
+            dim,
             weights: weights.to_vec(),
             n_written: 0,
         });
@@ -668,8 +680,9 @@ impl Output {
         Ok(())
     }
 
-    /// Append one step's contact data. Collective (resizing), rank 0 writes.
-    pub fn write_contact(&mut self, row: &ContactRow) -> Result<()> {
+    /// Append one step's contact data (`normals`: the contact nodes' normals of the step, from
+    /// the body towards the obstacle or master side). Collective (resizing), rank 0 writes.
+    pub fn write_contact(&mut self, row: &ContactRow, normals: &[[f64; 3]]) -> Result<()> {
         let path = self.path.clone();
         let Some(c) = self.contact.as_mut() else { return Ok(()) };
         let k = c.n_written;
@@ -692,10 +705,28 @@ impl Output {
         c.active
             .write_slice(&arr, ndarray::s![k..k + 1, ..])
             .map_err(|e| h5err(&path, "write /contact/active", e))?;
+        // The traction on the body, -p_q n_q (a node's normal is zero before its first step).
+        let dim = c.dim;
+        let mut traction = vec![0.0; nc * dim];
+        for q in 0..nc.min(normals.len()) {
+            for i in 0..dim {
+                traction[q * dim + i] = -pressure[q] * normals[q][i];
+            }
+        }
+        c.traction
+            .resize((k + 1, nc, dim))
+            .map_err(|e| h5err(&path, "resize /contact/traction", e))?;
+        let arr = ndarray::Array3::from_shape_vec((1, nc, dim), traction).expect("shape");
+        c.traction
+            .write_slice(&arr, ndarray::s![k..k + 1, .., ..])
+            .map_err(|e| h5err(&path, "write /contact/traction", e))?;
         let size = row.active.iter().filter(|&&a| a).count() as f64;
+        let area: f64 =
+            (row.active.iter().zip(&c.weights)).filter(|(a, _)| **a).map(|(_, w)| w).sum();
         for (ds, val, name) in [
             (&c.active_set_size, size, "active_set_size"),
             (&c.iterations, row.iterations as f64, "iterations"),
+            (&c.area, area, "area"),
         ] {
             append_replicated(ds, k, val, &path, name)?;
         }
