@@ -232,7 +232,7 @@ every = 500
     // and along the contact zone Hertz's p0 sqrt(1 - x^2/a^2) within a few mesh sizes' error
     // (the profile is steepest at the edges: compare where |x| < a - 2 hc, within the change
     // of p over 2 hc there).
-    let (traction, ntr) = read2(&h5, &layout::contact("traction"));
+    let (traction, ntr) = read2(&h5, layout::CONTACT_TRACTION);
     assert_eq!((ntr, traction.len()), (nc, force.len() * 2), "traction [steps + 1, nodes, 2]");
     let hertz = |x: f64| p0 * (1.0 - (x / a).powi(2)).max(0.0).sqrt();
     let mut worst = 0.0f64;
@@ -250,7 +250,7 @@ every = 500
     // The contact area (a length in 2D), the sum of the active nodes' weights: 2a within one
     // mesh size (the edge of the zone is resolved to a node).
     eprintln!("traction profile: largest difference from Hertz {worst} p0 (|x| < a - 2 hc)");
-    let area = values(&h5, &layout::contact("area"));
+    let area = values(&h5, &layout::contact(layout::CONTACT_PER_STEP[2]));
     let w = values(&h5, layout::CONTACT_WEIGHTS);
     let active_w: f64 = (0..nc).filter(|&k| active[last * nc + k] == 1).map(|k| w[k]).sum();
     assert!((area[last] - active_w).abs() <= 1e-12 * active_w);

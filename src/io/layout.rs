@@ -47,7 +47,9 @@ pub const CONTACT_MASTER_NODES: &str = "contact/master_nodes";
 /// Per contact node and step.
 pub const CONTACT_PER_NODE: [&str; 4] = ["pressure", "force", "gap", "active"];
 /// Per step.
-pub const CONTACT_PER_STEP: [&str; 2] = ["active_set_size", "iterations"];
+pub const CONTACT_PER_STEP: [&str; 3] = ["active_set_size", "iterations", "area"];
+/// Per contact node and step, `dim` components: the traction `-p_q n_q` on the body.
+pub const CONTACT_TRACTION: &str = "contact/traction";
 pub const CHECKPOINT: &str = "checkpoint";
 pub const CHECKPOINT_STATE: [&str; 3] = ["u", "v", "du"];
 pub const CHECKPOINT_SCALARS: &str = "checkpoint/scalars";
