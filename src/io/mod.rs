@@ -777,12 +777,14 @@ impl Output {
             self.fields.iter().map(|f| (f.spec.clone(), f.written)).collect();
         let (rank, n_nodes, dim) = (self.rank, self.n_nodes, self.dim);
         let (cells, steps) = (self.cell_kinds.clone(), self.field_times.clone());
-        let xdmf_path = self.xdmf_path();
+        let (h5_path, xdmf_path) = (self.path.clone(), self.xdmf_path());
         let run_file = self.close()?;
         run_file.write_meta(world, items)?;
         let mut outcome = Ok(());
         if rank == 0 {
+            // Serial, with no parallel handle open (like the metadata): the index's views.
             outcome = xdmf::write_xdmf(
+                &h5_path,
                 &xdmf_path,
                 &xdmf::XdmfLayout {
                     h5_name: &name,
