@@ -36,9 +36,8 @@ impl FieldSpec {
     /// `Tensor6` to the full 9-component tensor row by row (xx xy xz / xy yy yz / xz yz zz),
     /// which is this order; the Xdmf3 readers (`Xdmf3ReaderS`/`T`) pass the 6 components on
     /// as stored, and ParaView then labels them with VTK's symmetric order XX YY ZZ XY YZ XZ:
-    /// there the component labelled "YY" is xy, "ZZ" xz, "XY" yy, "YZ" yz, "XZ" zz, and
-    /// filters that read 6 components as a symmetric tensor see another tensor (use
-    /// `XDMFReader` for those). meshio returns the 6 components as stored.
+    /// there the component labelled "YY" is xy, "ZZ" xz, "XY" yy, "YZ" yz, "XZ" zz
+    /// (`XDMFReader`'s 9 components are unambiguous). meshio returns the 6 as stored.
     pub fn xdmf_type(&self, dim: usize) -> &'static str {
         match self.components {
             1 => "Scalar",
