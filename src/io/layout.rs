@@ -19,6 +19,10 @@ pub const GROUPS: &str = "mesh/groups";
 pub const TIME: &str = "time";
 pub const STEP: &str = "step";
 pub const FIELDS: &str = "fields";
+/// The views the XDMF index reads (`io::xdmf`): `xdmf/<field>/<row>`, a virtual dataset of row
+/// `row` of `fields/<field>`, and for meshes with several cell kinds `xdmf/topology`.
+pub const XDMF: &str = "xdmf";
+pub const XDMF_TOPOLOGY: &str = "xdmf/topology";
 /// The per-step energy series, `energy/<name>`, in the order the writer appends them.
 pub const ENERGY_SERIES: [&str; 8] = [
     "step",

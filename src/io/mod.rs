@@ -4,7 +4,7 @@
 //! Layout (all names documented in README.md):
 //! - `/mesh/coordinates` [n_nodes, 3], `/mesh/node_tags` [n_nodes],
 //!   `/mesh/cells/<kind>` [n, nodes per cell] (0-based indices into coordinates),
-//!   `/mesh/cell_rank` [n_cells] (METIS partition, same order as the cells),
+//!   `/mesh/cell_rank` [n_cells] (METIS partition, in the order of the cells of `/mesh/cells`),
 //! - `/time` [n_out], `/step` [n_out] of the written field steps,
 //! - `/fields/displacement`, `/fields/velocity` [n_out, n_nodes, dim], each with its own
 //!   `/fields/<name>_step`, `/fields/<name>_time` (fields may have their own periods),
@@ -376,7 +376,17 @@ impl Output {
             let arr = ndarray::Array2::from_shape_vec((n, 3), flat).expect("shape");
             coords.write(&arr).map_err(|e| h5err(path, "write /mesh/coordinates", e))?;
             tags.write(&mesh.node_tags).map_err(|e| h5err(path, "write /mesh/node_tags", e))?;
-            let cr_i: Vec<i32> = cell_rank.iter().map(|&r| r as i32).collect();
+            // In the order of /mesh/cells (kind by kind; a mesh's cells may interleave kinds).
+            let cr_i: Vec<i32> = kinds
+                .iter()
+                .flat_map(|k| {
+                    mesh.cells
+                        .iter()
+                        .zip(cell_rank)
+                        .filter(|(c, _)| c.kind == *k)
+                        .map(|(_, &r)| r as i32)
+                })
+                .collect();
             cr.write(&cr_i).map_err(|e| h5err(path, "write /mesh/cell_rank", e))?;
             for (ds, conn, nn) in &cell_sets {
                 let arr = ndarray::Array2::from_shape_vec((conn.len() / nn, *nn), conn.clone())
@@ -798,12 +808,14 @@ impl Output {
             self.fields.iter().map(|f| (f.spec.clone(), f.written)).collect();
         let (rank, n_nodes, dim) = (self.rank, self.n_nodes, self.dim);
         let (cells, steps) = (self.cell_kinds.clone(), self.field_times.clone());
-        let xdmf_path = self.xdmf_path();
+        let (h5_path, xdmf_path) = (self.path.clone(), self.xdmf_path());
         let run_file = self.close()?;
         run_file.write_meta(world, items)?;
         let mut outcome = Ok(());
         if rank == 0 {
+            // Serial, with no parallel handle open (like the metadata): the index's views.
             outcome = xdmf::write_xdmf(
+                &h5_path,
                 &xdmf_path,
                 &xdmf::XdmfLayout {
                     h5_name: &name,
