@@ -229,7 +229,8 @@ fn patch_test_every_kind_exact_stress_in_every_cell_and_node() {
     }
 }
 
-/// Two materials side by side on an unstructured mesh of quadrangles and triangles: every
+/// Two materials side by side on an unstructured mesh of quadrangles (left, first in the
+/// mesh) and triangles (right; first in the file, which stores kinds in gmsh type order): every
 /// cell holds its own material's stress of the common strain at the start (the linear field
 /// is no equilibrium of two materials: the interface's traction jumps, and the body moves).
 #[test]
@@ -245,7 +246,7 @@ fn patch_test_two_materials_and_mixed_cells() {
          Line(5) = {5, 6}; Line(6) = {6, 1}; Line(7) = {2, 5};\n\
          Curve Loop(1) = {1, 7, 5, 6}; Plane Surface(1) = {1};\n\
          Curve Loop(2) = {2, 3, 4, -7}; Plane Surface(2) = {2};\n\
-         Recombine Surface{2};\n\
+         Recombine Surface{1};\n\
          Physical Surface(\"soft\") = {1}; Physical Surface(\"stiff\") = {2};\n\
          Physical Curve(\"boundary\") = {1, 2, 3, 4, 5, 6};\n",
     )
