@@ -512,7 +512,10 @@ fn stress_time_is_reported_and_zero_without_stress_fields() {
         &[
             short[0],
             short[1],
-            ("every = 10", "every = 10\nfields = [\"displacement\", \"von_mises_nodal\"]"),
+            (
+                "every = 10",
+                "every = 10\nfields = [\"displacement\", \"von_mises\", \"von_mises_nodal\"]",
+            ),
         ],
     );
     let s = run_scene(2, &with, &["--param", "h=0.25"]);
@@ -522,4 +525,22 @@ fn stress_time_is_reported_and_zero_without_stress_fields() {
     assert!(line.lines().any(|l| l.starts_with("stress = ") && l != "stress = 0e0"), "{line}");
     // Written at steps 0, 10, 20 only.
     assert_eq!(values(&h5, &layout::field_step("von_mises_nodal")), vec![0.0, 10.0, 20.0]);
+    // `post --node` follows the nodal fields (a cell field has no node values).
+    let h5s = h5.display().to_string();
+    let o = massfree(0, &["post", &h5s, "--node", "5,1"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let csv = std::fs::read_dir(&sub)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .find(|p| p.to_string_lossy().ends_with("-von_mises_nodal.csv"))
+        .expect("node CSV of von_mises_nodal");
+    let text = std::fs::read_to_string(csv).unwrap();
+    assert!(text.starts_with("time,von_mises_nodal\n"), "{text}");
+    assert_eq!(text.lines().count(), 4);
+    let o = massfree(0, &["post", &h5s, "--node", "5,1", "--field", "von_mises"]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        !o.status.success() && err.contains("a cell field") && err.contains("von_mises_nodal"),
+        "{err}"
+    );
 }
