@@ -6,8 +6,11 @@
 //!   `/mesh/cells/<kind>` [n, nodes per cell] (0-based indices into coordinates),
 //!   `/mesh/cell_rank` [n_cells] (METIS partition, same order as the cells),
 //! - `/time` [n_out], `/step` [n_out] of the written field steps,
-//! - `/fields/displacement`, `/fields/velocity` [n_out, n_nodes, dim], each with its own
-//!   `/fields/<name>_step`, `/fields/<name>_time` (fields may have their own periods),
+//! - `/fields/displacement`, `/fields/velocity` [n_out, n_nodes, dim], the stress-type cell
+//!   fields `/fields/{stress,strain}` [n_out, n_cells, 6] and `/fields/{von_mises,
+//!   effective_stress,pressure}` [n_out, n_cells, 1] (cells in the order of `/mesh/cells`,
+//!   [`natural_cell_index`]) and their nodal projections `/fields/<name>_nodal`, each with its
+//!   own `/fields/<name>_step`, `/fields/<name>_time` (fields may have their own periods),
 //! - `/energy/{step,time,kinetic,potential,total,external_work}` [n_steps + 1], one entry per
 //!   step (external work `W^n = sum_k f^{k+1/2} . du^k`, so `total - total[0] - external_work`
 //!   is the integrator's energy balance, zero up to solver tolerance),
