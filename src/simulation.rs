@@ -20,9 +20,10 @@ use crate::contact::history::{ContactSummary, History as ContactHistory};
 use crate::contact::{self, ContactBoundary, ContactSolver, Obstacles};
 use crate::error::{Error, Result};
 use crate::fem::kernels;
+use crate::fem::stress::Quantity;
 use crate::io::{
-    group_key, natural_range, read_checkpoint, Checkpoint, Meta, Output, OutputPlan, PlannedField,
-    RunFile,
+    group_key, natural_range, read_checkpoint, Checkpoint, Location, Meta, Output, OutputPlan,
+    PlannedField, RunFile,
 };
 use crate::mass::{build_layer, mass_matrix, MassFreeLayer};
 use crate::mesh::Mesh;
@@ -32,6 +33,7 @@ use crate::phase::{self, HangTimeout, Phase, Watchdog};
 use crate::post::{picture_paths, write_pictures, RunCurves};
 use crate::scene::effects::short_number;
 use crate::scene::{Field, MeshSource, Scene};
+use crate::stress_output::StressOutput;
 use crate::time::{Dirichlet, Energy, Forces, Midpoint, StepOperator, StepSolverDefaults};
 
 /// What the command line adds to a scene.
@@ -63,7 +65,12 @@ pub struct Timings {
     pub assembly: f64,
     pub setup: f64,
     pub stepping: f64,
+    /// Writing the output (the stress-type fields' computation excluded).
     pub output: f64,
+    /// Computing the stress-type output fields (`stress`, `von_mises_nodal`, ...): zero in a
+    /// run that writes none.
+    #[serde(default)]
+    pub stress: f64,
 }
 
 /// Errors of the displacement against the scene's exact solution at one step.
@@ -230,9 +237,22 @@ pub struct Simulation<'a> {
     mass_check: MassCheck,
     /// Scatter to this rank's block of natural (gmsh) node order, built on first use.
     natural: Option<(Scatter, Vector)>,
-    /// Values at the nodes of this rank's cells, built on first use (exact errors).
-    local_view: Option<(Scatter, Vector, Vec<usize>)>,
+    /// Values at the nodes of this rank's cells, built on first use (exact errors, stress).
+    local_view: Option<LocalView>,
+    /// The stress-type output fields, built at the first step one is due.
+    stress: Option<StressOutput>,
     output: RunOutput,
+}
+
+/// The values of a distributed vector at the nodes of this rank's cells, ghosts included: a
+/// scatter built once into a vector holding them on this rank.
+struct LocalView {
+    scatter: Scatter,
+    values: Vector,
+    /// The nodes of this rank's cells, sorted: node `nodes[i]` at slot i.
+    nodes: Vec<usize>,
+    /// The slot of each node in the values (`usize::MAX` for nodes of no cell of this rank).
+    slot: Vec<usize>,
 }
 
 /// The physics of a scene, assembled once: stiffness `A`, mass `M` (or `M_H`), loads,
@@ -414,6 +434,7 @@ impl<'a> Simulation<'a> {
             mass_check: MassCheck::default(),
             natural: None,
             local_view: None,
+            stress: None,
             output,
         })
     }
@@ -483,6 +504,7 @@ impl<'a> Simulation<'a> {
             self.timings.stepping = max_over_ranks(self.world, stepping);
             self.timings.output =
                 max_over_ranks(self.world, self.timings.output + record.output_seconds);
+            self.timings.stress = max_over_ranks(self.world, self.stress_seconds());
             let summary = self.summarize(&midpoint, contact.as_deref(), record)?;
             self.finish(&summary)?;
             watchdog.disarm();
@@ -759,6 +781,7 @@ impl<'a> Simulation<'a> {
         record: &mut Record,
     ) -> Result<bool> {
         let t0 = Instant::now();
+        let stress0 = self.stress_seconds();
         self.write_step(n, midpoint, record)?;
         // A signal on any rank stops all ranks after this step, with a checkpoint.
         let stop = phase::stop_requested(self.world);
@@ -785,7 +808,8 @@ impl<'a> Simulation<'a> {
             );
             self.output.open_mut().expect("output").write_checkpoint(&cp, &u, &v, &du)?;
         }
-        record.output_seconds += t0.elapsed().as_secs_f64();
+        // The stress-type fields' computation is timed on its own (`Timings::stress`).
+        record.output_seconds += t0.elapsed().as_secs_f64() - (self.stress_seconds() - stress0);
         Ok(stop)
     }
 
@@ -794,9 +818,20 @@ impl<'a> Simulation<'a> {
         let Some(out) = self.output.open() else { return Ok(()) };
         let t = n as f64 * midpoint.tau();
         let due = out.due_fields(n);
+        let fields = self.scene.output.fields.clone();
+        // The stress-type fields due now, computed together in one pass over the cells.
+        let wanted: Vec<(Quantity, Location)> =
+            fields.iter().zip(&due).filter(|(_, &d)| d).filter_map(|(f, _)| f.derived()).collect();
+        let mut derived =
+            if wanted.is_empty() { Vec::new() } else { self.stress_blocks(midpoint.u(), &wanted)? }
+                .into_iter();
         let mut blocks = Vec::with_capacity(due.len());
-        for (&field, due) in self.scene.output.fields.clone().iter().zip(due) {
-            blocks.push(if due { Some(self.field_block(field, midpoint)?) } else { None });
+        for (&field, due) in fields.iter().zip(due) {
+            blocks.push(match (due, field.derived()) {
+                (false, _) => None,
+                (true, Some(_)) => derived.next(),
+                (true, None) => Some(self.field_block(field, midpoint)?),
+            });
         }
         let out = self.output.open_mut().expect("output");
         out.write_energy(n, t, midpoint.energy())?;
@@ -809,11 +844,13 @@ impl<'a> Simulation<'a> {
         Ok(())
     }
 
-    /// This rank's block of an output field (natural order, components interlaced).
+    /// This rank's block of a state field (natural order, components interlaced); the
+    /// stress-type fields come from `stress_blocks`.
     fn field_block(&mut self, field: Field, midpoint: &Midpoint) -> Result<Vec<f64>> {
         match field {
             Field::Displacement => self.to_natural(midpoint.u()),
             Field::Velocity => self.to_natural(midpoint.v()),
+            other => Err(Error::Internal(format!("{} is not a state field", other.name()))),
         }
     }
 
@@ -987,8 +1024,8 @@ impl<'a> Simulation<'a> {
             let text = toml::to_string(summary).unwrap_or_default();
             let t = &self.timings;
             let timing = format!(
-                "mesh = {:e}\npartition = {:e}\nassembly = {:e}\nsetup = {:e}\nstepping = {:e}\noutput = {:e}\n",
-                t.mesh, t.partition, t.assembly, t.setup, t.stepping, t.output
+                "mesh = {:e}\npartition = {:e}\nassembly = {:e}\nsetup = {:e}\nstepping = {:e}\noutput = {:e}\nstress = {:e}\n",
+                t.mesh, t.partition, t.assembly, t.setup, t.stepping, t.output, t.stress
             );
             out.finish(
                 self.world,
@@ -1218,24 +1255,49 @@ impl<'a> Simulation<'a> {
             let mut offset = 0usize;
             self.world.scan_into(&k, &mut offset, SystemOperation::sum());
             let total = sum_over_ranks(self.world, k as f64) as usize;
-            let y = Vector::new_mpi(k, total, 1)?;
+            let values = Vector::new_mpi(k, total, 1)?;
             let first = offset - k;
             let to: Vec<i32> = (first..first + k).map(|i| i as i32).collect();
-            let sc = Scatter::new(x, &from, &y, &to)?;
-            self.local_view = Some((sc, y, slot));
+            let scatter = Scatter::new(x, &from, &values, &to)?;
+            self.local_view = Some(LocalView { scatter, values, nodes, slot });
         }
-        let (sc, y, _) = self.local_view.as_mut().expect("local view");
-        sc.forward(x, y)?;
+        let view = self.local_view.as_mut().expect("local view");
+        view.scatter.forward(x, &mut view.values)?;
         let mut vals = Vec::new();
-        y.with_local_slice(|s| vals.extend_from_slice(s))?;
+        view.values.with_local_slice(|s| vals.extend_from_slice(s))?;
         Ok(vals)
+    }
+
+    /// This rank's natural blocks of the stress-type fields `wanted` (in that order), from the
+    /// displacement `u`; the stress output is built at the first call. Timed as `stress`.
+    fn stress_blocks(
+        &mut self,
+        u: &Vector,
+        wanted: &[(Quantity, Location)],
+    ) -> Result<Vec<Vec<f64>>> {
+        let t0 = Instant::now();
+        let vals = self.local_values(u)?;
+        let view = self.local_view.as_ref().expect("local view");
+        let fetch = t0.elapsed().as_secs_f64();
+        if self.stress.is_none() {
+            let (mesh, part) = (Rc::clone(&self.mesh), Rc::clone(&self.part));
+            self.stress = Some(StressOutput::new(self.world, mesh, part, &view.nodes, &view.slot)?);
+        }
+        let stress = self.stress.as_mut().expect("stress output");
+        stress.seconds += fetch;
+        stress.compute(self.world, &self.bodies, &vals, &view.slot, wanted)
+    }
+
+    /// Wall time of the stress work so far on this rank (zero before the first stress field).
+    fn stress_seconds(&self) -> f64 {
+        self.stress.as_ref().map_or(0.0, |s| s.seconds)
     }
 
     /// L2 and H1-seminorm errors of `u` against the scene's exact displacement at time t.
     pub fn exact_errors(&mut self, u: &Vector, t: f64) -> Result<Option<(f64, f64)>> {
         let Some(exact) = self.scene.exact.clone() else { return Ok(None) };
         let vals = self.local_values(u)?;
-        let slot = &self.local_view.as_ref().expect("local view").2;
+        let slot = &self.local_view.as_ref().expect("local view").slot;
         let dim = self.part.dim;
         let disp = &exact.displacement;
         let grad = exact.gradient.as_ref();
@@ -1573,8 +1635,8 @@ pub fn summary_lines(sim: &Simulation, s: &RunSummary) -> Vec<String> {
             s.ksp_iterations as f64 / s.steps.max(1) as f64
         ),
         format!(
-            "time: mesh {:.3} s, partition {:.3} s, assembly {:.3} s, solver setup {:.3} s, output {:.3} s",
-            t.mesh, t.partition, t.assembly, t.setup, t.output
+            "time: mesh {:.3} s, partition {:.3} s, assembly {:.3} s, solver setup {:.3} s, output {:.3} s, stress {:.3} s",
+            t.mesh, t.partition, t.assembly, t.setup, t.output, t.stress
         ),
         format!(
             "energy: initial {:.10e}, final {:.10e}, external work {:.6e}; balance |E^n - E^0 - W^n|/max E = {:.2e} (W: loads, contact, boundary reactions)",

@@ -37,6 +37,21 @@ fn scene_errors_name_the_key() {
 }
 
 #[test]
+fn unknown_output_field_names_the_key_and_the_valid_names() {
+    let dir = scratch("bad-field");
+    let scene =
+        beam_with(&dir, "every = 10", "every = 10\nfields = [\"displacement\", \"vonmises\"]");
+    expect_error(&["run", &scene], "output.fields = \"vonmises\" is not allowed");
+    expect_error(
+        &["run", &scene],
+        "allowed: displacement, velocity, stress, strain, von_mises, effective_stress, pressure, \
+         stress_nodal, strain_nodal, von_mises_nodal, effective_stress_nodal, pressure_nodal",
+    );
+    let scene = beam_with(&dir, "every = 10", "every = 10\nfield_every = { vonmises = 5 }");
+    expect_error(&["run", &scene], "unknown key \"output.field_every.vonmises\"");
+}
+
+#[test]
 fn missing_scene_file_is_an_error() {
     expect_error(&["run", "/nonexistent/scene.toml"], "/nonexistent/scene.toml");
 }

@@ -58,11 +58,11 @@ impl Material {
 // Cached reference tables.
 
 /// Quadrature points, weights, shape values and reference gradients of one `(kind, order)`.
-struct Table {
-    xi: Vec<[f64; 3]>,
-    w: Vec<f64>,
-    n: Vec<[f64; MAX_NODES]>,
-    dn: Vec<[[f64; 3]; MAX_NODES]>,
+pub(super) struct Table {
+    pub(super) xi: Vec<[f64; 3]>,
+    pub(super) w: Vec<f64>,
+    pub(super) n: Vec<[f64; MAX_NODES]>,
+    pub(super) dn: Vec<[[f64; 3]; MAX_NODES]>,
 }
 
 const MAX_CACHED_ORDER: usize = 16;
@@ -104,7 +104,7 @@ fn build_table(kind: ElementKind, order: usize) -> Table {
     t
 }
 
-fn table(kind: ElementKind, order: usize) -> &'static Table {
+pub(super) fn table(kind: ElementKind, order: usize) -> &'static Table {
     if order <= MAX_CACHED_ORDER {
         return TABLES[kind_index(kind)][order].get_or_init(|| build_table(kind, order));
     }
@@ -119,7 +119,7 @@ fn table(kind: ElementKind, order: usize) -> &'static Table {
 
 /// Quadrature order of the stiffness rule: 1 point on simplices (exact for affine P1),
 /// 2 Gauss points per direction on tensor elements.
-fn stiffness_order(kind: ElementKind) -> usize {
+pub(super) fn stiffness_order(kind: ElementKind) -> usize {
     match kind {
         ElementKind::Tri3 | ElementKind::Tet4 | ElementKind::Point1 => 0,
         ElementKind::Line2 | ElementKind::Quad4 | ElementKind::Hex8 => 2,
@@ -133,11 +133,11 @@ fn mass_order(_kind: ElementKind) -> usize {
     2
 }
 
-fn check_len(what: &str, kind: ElementKind, got: usize, need: usize) {
+pub(super) fn check_len(what: &str, kind: ElementKind, got: usize, need: usize) {
     assert!(got >= need, "{what} for {}: slice of length {got}, need {need}", kind.name());
 }
 
-fn inverted(kind: ElementKind, det: f64, q: usize) -> Error {
+pub(super) fn inverted(kind: ElementKind, det: f64, q: usize) -> Error {
     Error::Mesh(format!(
         "inverted or degenerate {} ({kind:?}): det J = {det:e} at quadrature point {q}",
         kind.name()

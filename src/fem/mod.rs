@@ -5,6 +5,7 @@ pub mod element;
 pub mod kernels;
 pub mod quadrature;
 pub mod shape;
+pub mod stress;
 
 pub use element::ElementKind;
 pub use kernels::{

@@ -6,8 +6,11 @@
 //!   `/mesh/cells/<kind>` [n, nodes per cell] (0-based indices into coordinates),
 //!   `/mesh/cell_rank` [n_cells] (METIS partition, in the order of the cells of `/mesh/cells`),
 //! - `/time` [n_out], `/step` [n_out] of the written field steps,
-//! - `/fields/displacement`, `/fields/velocity` [n_out, n_nodes, dim], each with its own
-//!   `/fields/<name>_step`, `/fields/<name>_time` (fields may have their own periods),
+//! - `/fields/displacement`, `/fields/velocity` [n_out, n_nodes, dim], the stress-type cell
+//!   fields `/fields/{stress,strain}` [n_out, n_cells, 6] and `/fields/{von_mises,
+//!   effective_stress,pressure}` [n_out, n_cells, 1] (cells in the order of `/mesh/cells`,
+//!   [`natural_cell_index`]) and their nodal projections `/fields/<name>_nodal`, each with its
+//!   own `/fields/<name>_step`, `/fields/<name>_time` (fields may have their own periods),
 //! - `/energy/{step,time,kinetic,potential,total,external_work}` [n_steps + 1], one entry per
 //!   step (external work `W^n = sum_k f^{k+1/2} . du^k`, so `total - total[0] - external_work`
 //!   is the integrator's energy balance, zero up to solver tolerance),
@@ -115,6 +118,37 @@ pub fn natural_range(n_nodes: usize, rank: usize, size: usize) -> (usize, usize)
     let lo = n_nodes * rank / size;
     let hi = n_nodes * (rank + 1) / size;
     (lo, hi)
+}
+
+/// The cell kinds of the mesh in the order the file stores them (`/mesh/cells/<kind>`): gmsh
+/// type order.
+pub fn file_cell_kinds(mesh: &Mesh) -> Vec<crate::mesh::ElementKind> {
+    let mut kinds: Vec<crate::mesh::ElementKind> = mesh.cells.iter().map(|c| c.kind).collect();
+    kinds.sort_by_key(|k| k.gmsh_type());
+    kinds.dedup();
+    kinds
+}
+
+/// The natural (file) index of each mesh cell: its row in the file's cell order, the kinds of
+/// [`file_cell_kinds`] one after the other, mesh order within a kind. Cell fields are written
+/// in this order (for a mesh of one kind it is the mesh order).
+pub fn natural_cell_index(mesh: &Mesh) -> Vec<usize> {
+    let kinds = file_cell_kinds(mesh);
+    let mut next = vec![0usize; kinds.len()];
+    for c in &mesh.cells {
+        let k = kinds.iter().position(|&k| k == c.kind).expect("kind");
+        for n in &mut next[k + 1..] {
+            *n += 1;
+        }
+    }
+    mesh.cells
+        .iter()
+        .map(|c| {
+            let k = kinds.iter().position(|&k| k == c.kind).expect("kind");
+            next[k] += 1;
+            next[k] - 1
+        })
+        .collect()
 }
 
 struct ContactDatasets {
@@ -352,9 +386,7 @@ impl Output {
             .create("cell_rank")
             .map_err(|e| h5err(path, "create /mesh/cell_rank", e))?;
         let cg = group(&g, "cells", path)?;
-        let mut kinds: Vec<crate::mesh::ElementKind> = mesh.cells.iter().map(|c| c.kind).collect();
-        kinds.sort_by_key(|k| k.gmsh_type());
-        kinds.dedup();
+        let kinds = file_cell_kinds(mesh);
         let mut cell_sets = Vec::new();
         for k in &kinds {
             let conn: Vec<u64> = mesh
@@ -842,5 +874,28 @@ impl Output {
     /// The XDMF file written beside the HDF5 file.
     pub fn xdmf_path(&self) -> PathBuf {
         self.path.with_extension("xdmf")
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::mesh::{Element, ElementKind, Mesh};
+
+    #[test]
+    fn natural_cells_follow_the_files_kind_order() {
+        // Mesh order: quad, tri, quad, tri, tri; the file stores triangles (gmsh 2) first.
+        let q = |t| Element::new(ElementKind::Quad4, &[0, 1, 2, 3], t, 1);
+        let t = |t| Element::new(ElementKind::Tri3, &[0, 1, 2], t, 1);
+        let mesh = Mesh {
+            dim: 2,
+            coords: vec![[0.0; 3]; 4],
+            node_tags: vec![1, 2, 3, 4],
+            cells: vec![q(1), t(2), q(3), t(4), t(5)],
+            boundary: vec![],
+            groups: vec![],
+        };
+        assert_eq!(file_cell_kinds(&mesh), vec![ElementKind::Tri3, ElementKind::Quad4]);
+        assert_eq!(natural_cell_index(&mesh), vec![3, 0, 4, 1, 2]);
     }
 }

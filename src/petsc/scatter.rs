@@ -24,20 +24,33 @@ impl Scatter {
 
     /// `to[to_idx] = from[from_idx]` (INSERT_VALUES, forward).
     pub fn forward(&mut self, from: &Vector, to: &mut Vector) -> Result<()> {
-        self.scatter(from, to, ffi::ScatterMode_SCATTER_FORWARD)
+        self.scatter(from, to, ffi::ScatterMode_SCATTER_FORWARD, ffi::InsertMode_INSERT_VALUES)
+    }
+
+    /// `to[to_idx] += from[from_idx]` (ADD_VALUES, forward): entries listed several times (by
+    /// one rank or by several) are summed, which is how element contributions to shared nodes
+    /// are assembled.
+    pub fn forward_add(&mut self, from: &Vector, to: &mut Vector) -> Result<()> {
+        self.scatter(from, to, ffi::ScatterMode_SCATTER_FORWARD, ffi::InsertMode_ADD_VALUES)
     }
 
     /// The reverse direction: `from[from_idx] = to[to_idx]` (INSERT_VALUES).
     pub fn reverse(&mut self, to: &Vector, from: &mut Vector) -> Result<()> {
-        self.scatter(to, from, ffi::ScatterMode_SCATTER_REVERSE)
+        self.scatter(to, from, ffi::ScatterMode_SCATTER_REVERSE, ffi::InsertMode_INSERT_VALUES)
     }
 
-    fn scatter(&mut self, x: &Vector, y: &mut Vector, mode: ffi::ScatterMode) -> Result<()> {
+    fn scatter(
+        &mut self,
+        x: &Vector,
+        y: &mut Vector,
+        mode: ffi::ScatterMode,
+        insert: ffi::InsertMode,
+    ) -> Result<()> {
         // SAFETY: the vectors have the layouts the scatter was created with (in the order
         // `mode` expects); `&mut` excludes aliasing.
-        chk!(ffi::VecScatterBegin(self.sc, x.raw(), y.raw(), ffi::InsertMode_INSERT_VALUES, mode))?;
+        chk!(ffi::VecScatterBegin(self.sc, x.raw(), y.raw(), insert, mode))?;
         // SAFETY: as above; completes the scatter begun above.
-        chk!(ffi::VecScatterEnd(self.sc, x.raw(), y.raw(), ffi::InsertMode_INSERT_VALUES, mode))
+        chk!(ffi::VecScatterEnd(self.sc, x.raw(), y.raw(), insert, mode))
     }
 }
 

@@ -371,16 +371,22 @@ pub fn post(path: &Path, opts: &PostOptions) -> Result<Vec<String>> {
         )));
     }
 
-    // Node histories of the nodal fields.
+    // Node histories of the nodal fields (cell fields, e.g. `stress`, have no node values).
     if !opts.nodes.is_empty() {
-        let available = run.fields();
+        let rows_of = |f: &str| file.dataset(&layout::field(f)).map(|d| d.shape()[1]).ok();
+        let available: Vec<String> =
+            run.fields().into_iter().filter(|f| rows_of(f) == Some(tags.len())).collect();
         let fields: Vec<String> =
             if opts.fields.is_empty() { available.clone() } else { opts.fields.clone() };
         for f in &fields {
             if !available.contains(f) {
+                let what = if rows_of(f).is_some() {
+                    format!("a cell field of {}, not a nodal one (try {f}_nodal)", path.display())
+                } else {
+                    format!("not in {}", path.display())
+                };
                 return Err(Error::Usage(format!(
-                    "--field {f}: not in {} (it has: {})",
-                    path.display(),
+                    "--field {f}: {what} (its nodal fields: {})",
                     available.join(", ")
                 )));
             }
@@ -395,6 +401,13 @@ pub fn post(path: &Path, opts: &PostOptions) -> Result<Vec<String>> {
                 let ftime = read(&layout::field_time(f)).or_else(|_| read(layout::TIME))?;
                 let ds = file.dataset(&layout::field(f)).map_err(|e| h5(path, "open field", e))?;
                 let dim = ds.shape()[2];
+                // Component names: x, y, z; a symmetric tensor's six (fem::stress::TENSOR6);
+                // none for a scalar.
+                let comps: Vec<String> = match dim {
+                    1 => vec![String::new()],
+                    6 => crate::fem::stress::tensor6_names().to_vec(),
+                    _ => ["x", "y", "z"][..dim].iter().map(|c| c.to_string()).collect(),
+                };
                 let a: ndarray::Array3<f64> =
                     ds.read().map_err(|e| h5(path, &format!("read fields/{f}"), e))?;
                 let mut header = vec!["time".to_string()];
@@ -402,10 +415,11 @@ pub fn post(path: &Path, opts: &PostOptions) -> Result<Vec<String>> {
                 let mut series = Vec::new();
                 for c in 0..dim {
                     let v: Vec<f64> = (0..a.shape()[0]).map(|k| a[[k, node, c]]).collect();
-                    let comp = ["x", "y", "z"][c];
-                    header.push(format!("{f}_{comp}"));
+                    let comp = &comps[c];
+                    let sep = if comp.is_empty() { "" } else { "_" };
+                    header.push(format!("{f}{sep}{comp}"));
                     series.push(Series {
-                        name: format!("{f} {comp}"),
+                        name: format!("{f} {comp}").trim_end().to_string(),
                         points: ftime.iter().copied().zip(v.iter().copied()).collect(),
                     });
                     cols.push(v);

@@ -50,7 +50,9 @@
 //! [output]
 //! file = "out/beam.h5"                # default out/<name>.h5, relative to the working directory
 //! every = 1
-//! fields = ["displacement", "velocity"]
+//! fields = ["displacement", "velocity"]  # also stress, strain, von_mises, effective_stress,
+//!                                     # pressure (cell values) and <name>_nodal (projections)
+//! field_every = { von_mises = 50 }    # optional per-field periods
 //! progress = true
 //! [exact]
 //! displacement = ["0", "0"]
@@ -259,26 +261,87 @@ pub struct SolverSpec {
     pub options: Vec<String>,
 }
 
-/// A field that can be written to the output file.
+/// A field that can be written to the output file: the state (nodal), and the stress-type
+/// fields derived from the displacement (`fem::stress`), each as cell values (`stress`, ...)
+/// and as their lumped L2 projection to the nodes (`stress_nodal`, ...).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
-#[serde(rename_all = "lowercase")]
+#[serde(rename_all = "snake_case")]
 pub enum Field {
     Displacement,
     Velocity,
+    Stress,
+    Strain,
+    VonMises,
+    EffectiveStress,
+    Pressure,
+    StressNodal,
+    StrainNodal,
+    VonMisesNodal,
+    EffectiveStressNodal,
+    PressureNodal,
 }
 
 impl Field {
+    /// Every field, in the order of the scene schema.
+    pub const ALL: [Field; 12] = [
+        Field::Displacement,
+        Field::Velocity,
+        Field::Stress,
+        Field::Strain,
+        Field::VonMises,
+        Field::EffectiveStress,
+        Field::Pressure,
+        Field::StressNodal,
+        Field::StrainNodal,
+        Field::VonMisesNodal,
+        Field::EffectiveStressNodal,
+        Field::PressureNodal,
+    ];
+
     pub fn name(self) -> &'static str {
         match self {
             Field::Displacement => "displacement",
             Field::Velocity => "velocity",
+            Field::Stress => "stress",
+            Field::Strain => "strain",
+            Field::VonMises => "von_mises",
+            Field::EffectiveStress => "effective_stress",
+            Field::Pressure => "pressure",
+            Field::StressNodal => "stress_nodal",
+            Field::StrainNodal => "strain_nodal",
+            Field::VonMisesNodal => "von_mises_nodal",
+            Field::EffectiveStressNodal => "effective_stress_nodal",
+            Field::PressureNodal => "pressure_nodal",
         }
+    }
+
+    /// For a stress-type field: the quantity and where it lives (cell values or their nodal
+    /// projection); `None` for the state (displacement, velocity).
+    pub fn derived(self) -> Option<(crate::fem::stress::Quantity, crate::io::Location)> {
+        use crate::fem::stress::Quantity as Q;
+        use crate::io::Location::{Cell, Nodal};
+        Some(match self {
+            Field::Displacement | Field::Velocity => return None,
+            Field::Stress => (Q::Stress, Cell),
+            Field::Strain => (Q::Strain, Cell),
+            Field::VonMises => (Q::VonMises, Cell),
+            Field::EffectiveStress => (Q::EffectiveStress, Cell),
+            Field::Pressure => (Q::Pressure, Cell),
+            Field::StressNodal => (Q::Stress, Nodal),
+            Field::StrainNodal => (Q::Strain, Nodal),
+            Field::VonMisesNodal => (Q::VonMises, Nodal),
+            Field::EffectiveStressNodal => (Q::EffectiveStress, Nodal),
+            Field::PressureNodal => (Q::Pressure, Nodal),
+        })
     }
 
     /// What the output writes for this field on a `dim`-dimensional mesh.
     pub fn spec(self, dim: usize) -> crate::io::FieldSpec {
-        match self {
-            Field::Displacement | Field::Velocity => crate::io::FieldSpec::nodal(self.name(), dim),
+        use crate::io::{FieldSpec, Location};
+        match self.derived() {
+            None => FieldSpec::nodal(self.name(), dim),
+            Some((q, Location::Cell)) => FieldSpec::cell(self.name(), q.components()),
+            Some((q, Location::Nodal)) => FieldSpec::nodal(self.name(), q.components()),
         }
     }
 }
@@ -767,12 +830,42 @@ struct RawOutput {
     progress: Option<bool>,
 }
 
-/// Per-field output periods, overriding `output.every`.
+/// Per-field output periods, overriding `output.every` (one key per [`Field`]).
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 struct RawFieldEvery {
     displacement: Option<i64>,
     velocity: Option<i64>,
+    stress: Option<i64>,
+    strain: Option<i64>,
+    von_mises: Option<i64>,
+    effective_stress: Option<i64>,
+    pressure: Option<i64>,
+    stress_nodal: Option<i64>,
+    strain_nodal: Option<i64>,
+    von_mises_nodal: Option<i64>,
+    effective_stress_nodal: Option<i64>,
+    pressure_nodal: Option<i64>,
+}
+
+impl RawFieldEvery {
+    /// The period given for `f`, if any.
+    fn of(&self, f: Field) -> Option<i64> {
+        match f {
+            Field::Displacement => self.displacement,
+            Field::Velocity => self.velocity,
+            Field::Stress => self.stress,
+            Field::Strain => self.strain,
+            Field::VonMises => self.von_mises,
+            Field::EffectiveStress => self.effective_stress,
+            Field::Pressure => self.pressure,
+            Field::StressNodal => self.stress_nodal,
+            Field::StrainNodal => self.strain_nodal,
+            Field::VonMisesNodal => self.von_mises_nodal,
+            Field::EffectiveStressNodal => self.effective_stress_nodal,
+            Field::PressureNodal => self.pressure_nodal,
+        }
+    }
 }
 
 #[derive(Deserialize)]
@@ -1300,8 +1393,8 @@ fn build(raw: RawScene, stem: &str, base_dir: &Path) -> VResult<Scene> {
     let time_steps = steps_of_times(&times, t.tau, steps)?;
     let mut field_every = Vec::new();
     if let Some(fe) = &o.field_every {
-        for (f, k) in [(Field::Displacement, fe.displacement), (Field::Velocity, fe.velocity)] {
-            if let Some(k) = k {
+        for f in Field::ALL {
+            if let Some(k) = fe.of(f) {
                 if k < 1 {
                     return Err(format!(
                         "output.field_every.{} = {k} is impossible: write every k-th step with k >= 1",

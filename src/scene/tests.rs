@@ -217,6 +217,51 @@ fn full_scene_round_trips() {
 }
 
 #[test]
+fn stress_fields_and_their_periods() {
+    let dir = workspace();
+    let text = full_with(
+        "fields = [\"velocity\"]",
+        "fields = [\"von_mises\", \"stress_nodal\", \"displacement\", \"von_mises\", \"pressure_nodal\"]\n\
+         field_every = { von_mises = 10, stress_nodal = 20, effective_stress = 3 }",
+    );
+    let s = parse_in(&dir, &text).unwrap();
+    // In the order given, without duplicates.
+    assert_eq!(
+        s.output.fields,
+        vec![Field::VonMises, Field::StressNodal, Field::Displacement, Field::PressureNodal]
+    );
+    assert_eq!(s.every_of(Field::VonMises), 10);
+    assert_eq!(s.every_of(Field::StressNodal), 20);
+    assert_eq!(s.every_of(Field::Displacement), 5);
+    assert_eq!(s.every_of(Field::PressureNodal), 5);
+    // Specs: cell values and nodal projections, 6 components for tensors (also in 2D).
+    use crate::io::{FieldSpec, Location};
+    assert_eq!(Field::VonMises.spec(2), FieldSpec::cell("von_mises", 1));
+    assert_eq!(Field::Stress.spec(2), FieldSpec::cell("stress", 6));
+    assert_eq!(Field::StrainNodal.spec(3), FieldSpec::nodal("strain_nodal", 6));
+    assert_eq!(Field::PressureNodal.spec(3), FieldSpec::nodal("pressure_nodal", 1));
+    assert_eq!(Field::Displacement.spec(3), FieldSpec::nodal("displacement", 3));
+    for f in Field::ALL {
+        // Every name parses back to its field and every stress field names its quantity.
+        let one = full_with("fields = [\"velocity\"]", &format!("fields = [\"{}\"]", f.name()));
+        assert_eq!(parse_in(&dir, &one).unwrap().output.fields, vec![f]);
+        if let Some((q, loc)) = f.derived() {
+            let base = f.name().trim_end_matches("_nodal");
+            assert_eq!(q.name(), base);
+            assert_eq!(loc == Location::Nodal, f.name().ends_with("_nodal"));
+        }
+    }
+    assert_err(
+        &full_with("fields = [\"velocity\"]", "field_every = { von_mises = 0 }"),
+        &["output.field_every.von_mises = 0 is impossible"],
+    );
+    assert_err(
+        &full_with("fields = [\"velocity\"]", "field_every = { mises = 2 }"),
+        &["unknown key \"output.field_every.mises\"", "von_mises_nodal"],
+    );
+}
+
+#[test]
 fn minimal_scene_defaults() {
     let dir = workspace();
     let s = parse_in(&dir, MINIMAL).unwrap();
@@ -462,8 +507,18 @@ fn wrong_types_and_values() {
         ],
     );
     assert_err(
-        &full_with("fields = [\"velocity\"]", "fields = [\"velocity\", \"stress\"]"),
-        &["output.fields = \"stress\" is not allowed", "allowed: displacement, velocity"],
+        &full_with("fields = [\"velocity\"]", "fields = [\"velocity\", \"tension\"]"),
+        &[
+            "output.fields = \"tension\" is not allowed",
+            "allowed: displacement, velocity, stress, strain, von_mises, effective_stress, \
+             pressure, stress_nodal, strain_nodal, von_mises_nodal, effective_stress_nodal, \
+             pressure_nodal",
+        ],
+    );
+    // A near miss of a stress field is named as given.
+    assert_err(
+        &full_with("fields = [\"velocity\"]", "fields = [\"vonmises\"]"),
+        &["output.fields = \"vonmises\" is not allowed", "von_mises_nodal"],
     );
     assert_err(
         &full_with("components = [\"y\", \"x\"]", "components = [\"w\"]"),

@@ -760,6 +760,7 @@ mod tests {
                 setup: 0.03,
                 stepping: 0.5,
                 output: 0.0,
+                stress: 0.0,
             },
             ksp_iterations: 124,
             energy_initial: 1.0,

@@ -1,0 +1,298 @@
+//! The stress-type output fields of a run: `stress`, `strain`, `von_mises`, `effective_stress`,
+//! `pressure` as cell values and `<name>_nodal` as their lumped L2 projection to the nodes
+//! (the quantities and the per-cell integrals: [`crate::fem::stress`]).
+//!
+//! Built at the first step a stress-type field is due (a run without one never builds it), then
+//! used only at the steps such a field is due, and only for the quantities due then.
+//!
+//! - Work on this rank's own cells only (`Partition::local_cells`), each with its own material
+//!   (`Bodies::material`), from the displacement at their nodes, ghosts included: the run's
+//!   local view (`Simulation::local_values`, one `VecScatter` built once).
+//! - Cell values: each rank puts its cells' values into a vector laid out by its own cells; a
+//!   scatter built once (per number of components) INSERTs them into a vector laid out by the
+//!   writer's natural cell blocks (`Output::block(Location::Cell)`: cells in the file's order,
+//!   [`crate::io::natural_cell_index`]), whose local part is the block this rank writes.
+//! - Nodal projections `Q_i = sum_K int_K phi_i Q_h / sum_K int_K phi_i`: each rank puts its
+//!   cells' numerators into a vector over the nodes of its cells; a scatter built once ADDs
+//!   them (ADD_VALUES: a node shared by cells of several ranks gets every contribution) into a
+//!   vector laid out by the natural node blocks the writer writes; divided there by the
+//!   denominators, assembled the same way once.
+//!
+//! Every sum over cells is the same whatever the partition but for the order of additions, so
+//! the files agree across rank counts to rounding.
+
+use std::rc::Rc;
+use std::time::Instant;
+
+use mpi::collective::SystemOperation;
+use mpi::topology::SimpleCommunicator;
+use mpi::traits::*;
+
+use crate::assembly;
+use crate::bodies::Bodies;
+use crate::error::{Error, Result};
+use crate::fem::stress::{integrate, lumped_weights, samples, Quantity, Sample, MAX_SAMPLES};
+use crate::fem::MAX_NODES;
+use crate::io::{natural_cell_index, natural_range, Location};
+use crate::mesh::Mesh;
+use crate::partition::Partition;
+use crate::petsc::{Scatter, Vector};
+
+/// A scatter from this rank's own entries to the natural blocks, with its two vectors.
+struct Mover {
+    components: usize,
+    scatter: Scatter,
+    from: Vector,
+    to: Vector,
+}
+
+impl Mover {
+    /// From `n_from` local entries (per component) to the natural layout of `n_natural` global
+    /// entries; entry `i` goes to natural entry `target(i)`.
+    fn new(
+        world: &SimpleCommunicator,
+        components: usize,
+        n_from: usize,
+        n_natural: usize,
+        target: impl Fn(usize) -> usize,
+    ) -> Result<Mover> {
+        let c = components;
+        let k = n_from * c;
+        let mut end = 0usize;
+        world.scan_into(&k, &mut end, SystemOperation::sum());
+        let mut total = 0usize;
+        world.all_reduce_into(&k, &mut total, SystemOperation::sum());
+        let from = Vector::new_mpi(k, total, c)?;
+        let (lo, hi) = natural_range(n_natural, world.rank() as usize, world.size() as usize);
+        let to = Vector::new_mpi((hi - lo) * c, n_natural * c, c)?;
+        let first = end - k;
+        let idx = |i: usize| -> Result<i32> {
+            i32::try_from(i).map_err(|_| Error::Internal(format!("index {i} exceeds PetscInt")))
+        };
+        let mut from_idx = Vec::with_capacity(k);
+        let mut to_idx = Vec::with_capacity(k);
+        for i in 0..n_from {
+            let t = target(i);
+            for j in 0..c {
+                from_idx.push(idx(first + i * c + j)?);
+                to_idx.push(idx(t * c + j)?);
+            }
+        }
+        let scatter = Scatter::new(&from, &from_idx, &to, &to_idx)?;
+        Ok(Mover { components, scatter, from, to })
+    }
+
+    /// Move `values` (this rank's entries, components interlaced) and return this rank's
+    /// natural block: inserted (`add` false) or summed (`add` true).
+    fn apply(&mut self, values: &[f64], add: bool) -> Result<Vec<f64>> {
+        self.from.with_local_slice_mut(|s| s.copy_from_slice(values))?;
+        self.to.zero()?;
+        if add {
+            self.scatter.forward_add(&self.from, &mut self.to)?;
+        } else {
+            self.scatter.forward(&self.from, &mut self.to)?;
+        }
+        self.to.with_local_slice(|s| s.to_vec())
+    }
+}
+
+/// The stress-type fields of a run (see the module doc).
+pub struct StressOutput {
+    mesh: Rc<Mesh>,
+    part: Rc<Partition>,
+    dim: usize,
+    n_nodes: usize,
+    n_cells: usize,
+    /// The nodes of this rank's cells, in the order of the local view's values.
+    nodes: Vec<usize>,
+    /// The natural (file) index of each of this rank's cells (`Partition::local_cells` order).
+    natural: Vec<usize>,
+    cell_movers: Vec<Mover>,
+    node_movers: Vec<Mover>,
+    /// `sum_K int_K phi_i` over this rank's natural node block (the projection's denominators).
+    lumped: Vec<f64>,
+    /// Wall time of the stress work so far (this rank).
+    pub seconds: f64,
+}
+
+/// The cell's coordinates and displacement from the local view (`slot[v]`: node v's place in
+/// `u_local`); returns the number of nodes.
+fn gather(
+    mesh: &Mesh,
+    cell: usize,
+    dim: usize,
+    u_local: &[f64],
+    slot: &[usize],
+    xy: &mut [[f64; 3]; MAX_NODES],
+    ue: &mut [f64; assembly::MAX_EDOFS],
+) -> usize {
+    let c = &mesh.cells[cell];
+    let n = assembly::cell_coords(mesh, c, xy);
+    for (a, &v) in c.nodes().iter().enumerate() {
+        for i in 0..dim {
+            ue[a * dim + i] = u_local[slot[v] * dim + i];
+        }
+    }
+    n
+}
+
+impl StressOutput {
+    /// Set up for this rank's cells: the natural cell indices, the nodal denominators (one
+    /// assembly). `nodes` are the nodes of this rank's cells in the order of the local view
+    /// (`slot[nodes[i]] == i`). Collective.
+    pub fn new(
+        world: &SimpleCommunicator,
+        mesh: Rc<Mesh>,
+        part: Rc<Partition>,
+        nodes: &[usize],
+        slot: &[usize],
+    ) -> Result<StressOutput> {
+        let t0 = Instant::now();
+        let all = natural_cell_index(&mesh);
+        let natural = part.local_cells.iter().map(|&c| all[c]).collect();
+        let mut out = StressOutput {
+            mesh: Rc::clone(&mesh),
+            part: Rc::clone(&part),
+            dim: mesh.dim,
+            n_nodes: mesh.n_nodes(),
+            n_cells: mesh.cells.len(),
+            nodes: nodes.to_vec(),
+            natural,
+            cell_movers: Vec::new(),
+            node_movers: Vec::new(),
+            lumped: Vec::new(),
+            seconds: 0.0,
+        };
+        // Denominators: sum_K int_K phi_i with the stress rule (displacement irrelevant).
+        let zero = vec![0.0; nodes.len() * mesh.dim];
+        let mut local = vec![0.0; nodes.len()];
+        let mut xy = [[0.0; 3]; MAX_NODES];
+        let mut ue = [0.0; assembly::MAX_EDOFS];
+        let mut s = [Sample::default(); MAX_SAMPLES];
+        let mut m = [0.0; MAX_NODES];
+        for &c in &part.local_cells {
+            let n = gather(&mesh, c, mesh.dim, &zero, slot, &mut xy, &mut ue);
+            let k = samples(mesh.cells[c].kind, &xy[..n], &ue[..n * mesh.dim], &mut s)
+                .map_err(|e| cell_error(&mesh, c, e))?;
+            lumped_weights(&s[..k], n, &mut m);
+            for (a, &v) in mesh.cells[c].nodes().iter().enumerate() {
+                local[slot[v]] += m[a];
+            }
+        }
+        out.lumped = out.node_mover(world, 1)?.apply(&local, true)?;
+        out.seconds += t0.elapsed().as_secs_f64();
+        Ok(out)
+    }
+
+    fn cell_mover(&mut self, world: &SimpleCommunicator, c: usize) -> Result<&mut Mover> {
+        if let Some(i) = self.cell_movers.iter().position(|m| m.components == c) {
+            return Ok(&mut self.cell_movers[i]);
+        }
+        let natural = &self.natural;
+        let m = Mover::new(world, c, natural.len(), self.n_cells, |i| natural[i])?;
+        self.cell_movers.push(m);
+        Ok(self.cell_movers.last_mut().expect("mover"))
+    }
+
+    fn node_mover(&mut self, world: &SimpleCommunicator, c: usize) -> Result<&mut Mover> {
+        if let Some(i) = self.node_movers.iter().position(|m| m.components == c) {
+            return Ok(&mut self.node_movers[i]);
+        }
+        let nodes = &self.nodes;
+        let m = Mover::new(world, c, nodes.len(), self.n_nodes, |i| nodes[i])?;
+        self.node_movers.push(m);
+        Ok(self.node_movers.last_mut().expect("mover"))
+    }
+
+    /// This rank's natural blocks of the `wanted` fields (quantity and cell values or nodal
+    /// projection), in that order, components interlaced, from the displacement at the nodes
+    /// of this rank's cells (`u_local`, node v at `slot[v]`). One pass over this rank's cells
+    /// computes every quantity wanted. Collective (every rank must want the same fields).
+    pub fn compute(
+        &mut self,
+        world: &SimpleCommunicator,
+        bodies: &Bodies,
+        u_local: &[f64],
+        slot: &[usize],
+        wanted: &[(Quantity, Location)],
+    ) -> Result<Vec<Vec<f64>>> {
+        let t0 = Instant::now();
+        let dim = self.dim;
+        let (mesh, part) = (Rc::clone(&self.mesh), Rc::clone(&self.part));
+        // The distinct quantities, each with its cell and nodal buffers when wanted.
+        struct Job {
+            q: Quantity,
+            cell: Option<Vec<f64>>,
+            nodal: Option<Vec<f64>>,
+        }
+        let mut jobs: Vec<Job> = Vec::new();
+        for &(q, loc) in wanted {
+            let i = match jobs.iter().position(|j| j.q == q) {
+                Some(i) => i,
+                None => {
+                    jobs.push(Job { q, cell: None, nodal: None });
+                    jobs.len() - 1
+                }
+            };
+            let c = q.components();
+            match loc {
+                Location::Cell => jobs[i].cell = Some(vec![0.0; part.local_cells.len() * c]),
+                Location::Nodal => jobs[i].nodal = Some(vec![0.0; self.nodes.len() * c]),
+            }
+        }
+        let mut xy = [[0.0; 3]; MAX_NODES];
+        let mut ue = [0.0; assembly::MAX_EDOFS];
+        let mut s = [Sample::default(); MAX_SAMPLES];
+        let mut cv = [0.0; 6];
+        let mut nv = [0.0; MAX_NODES * 6];
+        for (i, &c) in part.local_cells.iter().enumerate() {
+            let n = gather(&mesh, c, dim, u_local, slot, &mut xy, &mut ue);
+            let kind = mesh.cells[c].kind;
+            let k = samples(kind, &xy[..n], &ue[..n * dim], &mut s)
+                .map_err(|e| cell_error(&mesh, c, e))?;
+            let mat = bodies.material(c);
+            for job in &mut jobs {
+                let nc = job.q.components();
+                integrate(&s[..k], n, dim, mat, job.q, &mut cv, &mut nv);
+                if let Some(cell) = job.cell.as_mut() {
+                    cell[i * nc..(i + 1) * nc].copy_from_slice(&cv[..nc]);
+                }
+                if let Some(nodal) = job.nodal.as_mut() {
+                    for (a, &v) in mesh.cells[c].nodes().iter().enumerate() {
+                        let at = slot[v] * nc;
+                        for j in 0..nc {
+                            nodal[at + j] += nv[a * nc + j];
+                        }
+                    }
+                }
+            }
+        }
+        let mut blocks = Vec::with_capacity(wanted.len());
+        for &(q, loc) in wanted {
+            let job = jobs.iter().find(|j| j.q == q).expect("job");
+            let c = q.components();
+            blocks.push(match loc {
+                Location::Cell => {
+                    let vals = job.cell.as_ref().expect("cell values");
+                    self.cell_mover(world, c)?.apply(vals, false)?
+                }
+                Location::Nodal => {
+                    let vals = job.nodal.as_ref().expect("nodal values");
+                    let mut sums = self.node_mover(world, c)?.apply(vals, true)?;
+                    for (i, m) in self.lumped.iter().enumerate() {
+                        for v in &mut sums[i * c..(i + 1) * c] {
+                            *v /= m;
+                        }
+                    }
+                    sums
+                }
+            });
+        }
+        self.seconds += t0.elapsed().as_secs_f64();
+        Ok(blocks)
+    }
+}
+
+fn cell_error(mesh: &Mesh, c: usize, e: Error) -> Error {
+    Error::Mesh(format!("stress: {e} (gmsh element tag {})", mesh.cells[c].tag))
+}
