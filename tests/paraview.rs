@@ -117,13 +117,18 @@ fn a_2d_run_reads_alike_in_every_reader() {
         &[
             ("steps = 250", "steps = 20"),
             ("error_steps = [30, 250]", "error_steps = [20]"),
-            ("every = 10", "every = 5\nfield_every = { velocity = 10 }"),
+            (
+                "every = 10",
+                "every = 5\nfields = [\"displacement\", \"velocity\", \"stress\", \"von_mises_nodal\"]\nfield_every = { velocity = 10, stress = 10 }",
+            ),
             ("h = 0.125", "h = 0.5"),
         ],
     );
     let mut expect = every_reader("0", "point", "displacement", 0);
     expect.extend(every_reader("0.0002", "point", "displacement", 4));
     expect.extend(every_reader("0.0002", "point", "velocity", 2));
+    expect.extend(every_reader("0.0002", "cell", "stress", 2));
+    expect.extend(every_reader("0.0002", "point", "von_mises_nodal", 4));
     expect.extend(["meshio step 4: velocity = row 2".into(), "meshio step 3: displacement".into()]);
     expect.push("XDMFReader t=0.0002: point field displacement = row 4 (padded to 3".into());
     run_and_check(&scene, "beam.png", &expect);
@@ -140,10 +145,17 @@ fn a_3d_run_reads_alike_in_every_reader() {
             ("steps = 250", "steps = 20"),
             ("error_steps = [30, 250]", "error_steps = [20]"),
             ("h = 0.25", "h = 0.5"),
+            (
+                "every = 10",
+                "every = 10\nfields = [\"displacement\", \"velocity\", \"strain\", \"stress_nodal\", \"effective_stress\"]",
+            ),
         ],
     );
     let mut expect = every_reader("0", "point", "displacement", 0);
     expect.extend(every_reader("0.0002", "point", "velocity", 2));
+    expect.extend(every_reader("0.0002", "cell", "strain", 2));
+    expect.extend(every_reader("0.0002", "point", "stress_nodal", 2));
+    expect.extend(every_reader("0.0002", "cell", "effective_stress", 2));
     expect.push("cells = /mesh/cells (tetrahedron)".into());
     run_and_check(&scene, "block.png", &expect);
 }
