@@ -830,7 +830,7 @@ impl<'a> Simulation<'a> {
             blocks.push(match (due, field.derived()) {
                 (false, _) => None,
                 (true, Some(_)) => derived.next(),
-                (true, None) => Some(self.field_block(field, midpoint)?),
+                (true, None) => Some(self.field_block(field, midpoint, record)?),
             });
         }
         let out = self.output.open_mut().expect("output");
@@ -846,12 +846,38 @@ impl<'a> Simulation<'a> {
 
     /// This rank's block of a state field (natural order, components interlaced); the
     /// stress-type fields come from `stress_blocks`.
-    fn field_block(&mut self, field: Field, midpoint: &Midpoint) -> Result<Vec<f64>> {
+    fn field_block(
+        &mut self,
+        field: Field,
+        midpoint: &Midpoint,
+        record: &Record,
+    ) -> Result<Vec<f64>> {
         match field {
             Field::Displacement => self.to_natural(midpoint.u()),
             Field::Velocity => self.to_natural(midpoint.v()),
+            Field::ContactTraction => Ok(self.traction_block(record)),
             other => Err(Error::Internal(format!("{} is not a state field", other.name()))),
         }
+    }
+
+    /// This rank's block of `contact_traction`: `-p_q n_q` at the contact nodes of the last
+    /// step (every rank holds the contact nodes' rows), zero at every other node.
+    fn traction_block(&self, record: &Record) -> Vec<f64> {
+        let dim = self.part.dim;
+        let (lo, hi) = natural_range(self.mesh.n_nodes(), self.rank, self.size);
+        let mut block = vec![0.0; (hi - lo) * dim];
+        let Some(row) = record.history.last_row() else { return block };
+        let (nodes, weights) = record.history.nodes();
+        let normals = record.history.last_normals();
+        let pressure = row.pressure(weights);
+        for (q, &v) in nodes.iter().enumerate() {
+            if (lo..hi).contains(&v) {
+                for i in 0..dim {
+                    block[(v - lo) * dim + i] = -pressure[q] * normals[q][i];
+                }
+            }
+        }
+        block
     }
 
     /// Continue from a checkpoint: u, v, the last increment (the solver's initial guess), the

@@ -45,10 +45,14 @@ fn unknown_output_field_names_the_key_and_the_valid_names() {
     expect_error(
         &["run", &scene],
         "allowed: displacement, velocity, stress, strain, von_mises, effective_stress, pressure, \
-         stress_nodal, strain_nodal, von_mises_nodal, effective_stress_nodal, pressure_nodal",
+         stress_nodal, strain_nodal, von_mises_nodal, effective_stress_nodal, pressure_nodal, \
+         contact_traction",
     );
     let scene = beam_with(&dir, "every = 10", "every = 10\nfield_every = { vonmises = 5 }");
     expect_error(&["run", &scene], "unknown key \"output.field_every.vonmises\"");
+    // The beam has no contact: no contact traction to write.
+    let scene = beam_with(&dir, "every = 10", "every = 10\nfields = [\"contact_traction\"]");
+    expect_error(&["run", &scene], "output.fields: contact_traction needs a [contact] table");
 }
 
 #[test]

@@ -200,7 +200,7 @@ boundary = "contact"
 obstacle = { type = "plane", point = [0.0, 0.0], normal = [0.0, 1.0] }
 [output]
 every = 500
-fields = ["displacement", "stress"]
+fields = ["displacement", "stress", "contact_traction"]
 "#;
     let scene = scene_text(&dir, "hertz.toml", text);
     let s = run_scene(2, &scene, &[]);
@@ -247,6 +247,16 @@ fields = ["displacement", "stress"]
             worst = worst.max((ty - hertz(x)).abs() / p0);
             assert!((ty - hertz(x)).abs() <= slack.max(0.02 * p0), "x = {x}: {ty} vs {}", hertz(x));
         }
+    }
+    // The nodal field contact_traction: the same vectors at the contact nodes, zero elsewhere.
+    let (field, fc) = reader(&h5).field_at("contact_traction", 2500.0 * 1e-6).unwrap();
+    assert_eq!((fc, field.len()), (2, coords.len() / 3 * 2));
+    for (v, t) in field.chunks(2).enumerate() {
+        let want = match nodes.iter().position(|&n| n == v) {
+            Some(k) => [traction[last * 2 * nc + 2 * k], traction[last * 2 * nc + 2 * k + 1]],
+            None => [0.0, 0.0],
+        };
+        assert!(t == want, "node {v}: contact_traction {t:?}, /contact/traction {want:?}");
     }
     // The contact area (a length in 2D), the sum of the active nodes' weights: 2a within one
     // mesh size (the edge of the zone is resolved to a node).

@@ -23,6 +23,8 @@ pub struct History {
     weights: Vec<f64>,
     /// The contact nodes' normals of the last step (zero before the first).
     last_normals: Vec<[f64; 3]>,
+    /// The contact nodes (mesh indices), as the solver's boundary lists them.
+    nodes: Vec<usize>,
 }
 
 /// What a contact run reports (written by `--summary` under `[contact]`).
@@ -81,6 +83,7 @@ impl History {
         let nc = c.n_nodes();
         self.weights = c.boundary().weights.clone();
         self.last_normals = vec![[0.0; 3]; nc];
+        self.nodes.clone_from(&c.boundary().nodes);
         // The first row: the set the run starts from (empty, or a restart's checkpoint).
         self.rows.push(ContactRow {
             force: vec![0.0; nc],
@@ -137,6 +140,11 @@ impl History {
     /// The last step's row.
     pub fn last_row(&self) -> Option<&ContactRow> {
         self.rows.last()
+    }
+
+    /// The contact nodes (mesh indices) and their boundary weights `D_qq`.
+    pub fn nodes(&self) -> (&[usize], &[f64]) {
+        (&self.nodes, &self.weights)
     }
 
     /// The contact nodes' normals of the last step (zero before the first step).

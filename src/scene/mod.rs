@@ -279,11 +279,12 @@ pub enum Field {
     VonMisesNodal,
     EffectiveStressNodal,
     PressureNodal,
+    ContactTraction,
 }
 
 impl Field {
     /// Every field, in the order of the scene schema.
-    pub const ALL: [Field; 12] = [
+    pub const ALL: [Field; 13] = [
         Field::Displacement,
         Field::Velocity,
         Field::Stress,
@@ -296,6 +297,7 @@ impl Field {
         Field::VonMisesNodal,
         Field::EffectiveStressNodal,
         Field::PressureNodal,
+        Field::ContactTraction,
     ];
 
     pub fn name(self) -> &'static str {
@@ -312,16 +314,17 @@ impl Field {
             Field::VonMisesNodal => "von_mises_nodal",
             Field::EffectiveStressNodal => "effective_stress_nodal",
             Field::PressureNodal => "pressure_nodal",
+            Field::ContactTraction => "contact_traction",
         }
     }
 
     /// For a stress-type field: the quantity and where it lives (cell values or their nodal
-    /// projection); `None` for the state (displacement, velocity).
+    /// projection); `None` for the state (displacement, velocity) and the contact traction.
     pub fn derived(self) -> Option<(crate::fem::stress::Quantity, crate::io::Location)> {
         use crate::fem::stress::Quantity as Q;
         use crate::io::Location::{Cell, Nodal};
         Some(match self {
-            Field::Displacement | Field::Velocity => return None,
+            Field::Displacement | Field::Velocity | Field::ContactTraction => return None,
             Field::Stress => (Q::Stress, Cell),
             Field::Strain => (Q::Strain, Cell),
             Field::VonMises => (Q::VonMises, Cell),
@@ -846,6 +849,7 @@ struct RawFieldEvery {
     von_mises_nodal: Option<i64>,
     effective_stress_nodal: Option<i64>,
     pressure_nodal: Option<i64>,
+    contact_traction: Option<i64>,
 }
 
 impl RawFieldEvery {
@@ -864,6 +868,7 @@ impl RawFieldEvery {
             Field::VonMisesNodal => self.von_mises_nodal,
             Field::EffectiveStressNodal => self.effective_stress_nodal,
             Field::PressureNodal => self.pressure_nodal,
+            Field::ContactTraction => self.contact_traction,
         }
     }
 }
@@ -1540,6 +1545,11 @@ fn build(raw: RawScene, stem: &str, base_dir: &Path) -> VResult<Scene> {
         }
     }
     let mass = MassSpec { kind, contact_boundary, also_along };
+    if output.fields.contains(&Field::ContactTraction) && contact.is_none() {
+        return Err(
+            "output.fields: contact_traction needs a [contact] table (no contact nodes)".into()
+        );
+    }
 
     Ok(Scene {
         name,
