@@ -5,7 +5,7 @@
 //! [`Effects::summary`] is the line a run prints and stores, e.g.
 //!
 //! ```text
-//! effects: elasticity, mass-free layer (modified1 along "contact"), Dirichlet (zero values), contact (plane obstacle); not built: initial displacement, initial velocity, body force, tractions, Dirichlet lifting, exact errors
+//! effects: elasticity, mass-free layer (modified1 along "contact"), Dirichlet (zero values), contact (plane obstacle); not built: initial displacement, initial velocity, body force, tractions, Dirichlet lifting, exact errors, stress output
 //! ```
 
 use super::{BodySpec, MassKind, Obstacle, Scene, Shape};
@@ -118,6 +118,8 @@ pub struct Effects {
     pub contact_pairs: Vec<(String, String)>,
     /// Beside a pair: the group that meets the obstacles of `contact`.
     pub contact_obstacle_boundary: Option<String>,
+    /// The stress-type output fields asked for (their names, in the scene's order).
+    pub stress_fields: Vec<&'static str>,
 }
 
 impl Scene {
@@ -167,6 +169,10 @@ impl Scene {
             contact_obstacle_boundary: (self.contact.as_ref())
                 .and_then(|c| c.obstacle_boundary().map(String::from)),
             exact_errors: self.exact.is_some(),
+            stress_fields: (self.output.fields.iter())
+                .filter(|f| f.derived().is_some())
+                .map(|f| f.name())
+                .collect(),
         }
     }
 }
@@ -232,7 +238,7 @@ impl Effects {
     ///    OBSTACLE, ...)` with several, each `[moving ](plane | sphere | cylinder)`; a pair:
     ///    `contact (two bodies, slave "S" on master "M", dual mortar)`, with obstacles beside
     ///    it followed by `; "GROUP" on OBSTACLES` (as above);
-    /// 10. `exact errors`.
+    /// 10. `exact errors`, 11. `stress output (FIELD, FIELD, ...)`.
     ///
     /// `not built:` lists, in the same order and by the names before the parentheses, the
     /// optional items 3 to 10 the scene does not ask for, preceded by `mass-free layer` when
@@ -266,7 +272,8 @@ impl Effects {
             (p, o) => p.or(o),
         };
         let layer = self.layer.as_ref().map(|(k, g)| format!("{} along {g}", k.name()));
-        let optional: [(&str, Option<String>); 9] = [
+        let stress = (!self.stress_fields.is_empty()).then(|| self.stress_fields.join(", "));
+        let optional: [(&str, Option<String>); 10] = [
             ("mass-free layer", with("mass-free layer", layer.as_deref())),
             ("initial displacement", flag("initial displacement", self.initial_displacement)),
             ("initial velocity", flag("initial velocity", self.initial_velocity)),
@@ -279,6 +286,7 @@ impl Effects {
             ),
             ("contact", with("contact", obstacle.as_deref())),
             ("exact errors", flag("exact errors", self.exact_errors)),
+            ("stress output", with("stress output", stress.as_deref())),
         ];
         let mut built = vec!["elasticity".to_string()];
         if !self.bodies.is_empty() {

@@ -281,7 +281,7 @@ fn minimal_scene_defaults() {
     assert!(s.exact.is_none() && s.contact.is_none());
     assert_eq!(
         s.effects().summary(),
-        "effects: elasticity, consistent mass; not built: mass-free layer, initial displacement, initial velocity, body force, tractions, Dirichlet, Dirichlet lifting, contact, exact errors"
+        "effects: elasticity, consistent mass; not built: mass-free layer, initial displacement, initial velocity, body force, tractions, Dirichlet, Dirichlet lifting, contact, exact errors, stress output"
     );
     s.check_dim(2).unwrap();
     s.check_dim(3).unwrap();
@@ -720,6 +720,7 @@ fn effects_follow_the_scene() {
             exact_errors: true,
             contact_pairs: Vec::new(),
             contact_obstacle_boundary: None,
+            stress_fields: Vec::new(),
         }
     );
     let text = format!(
@@ -744,11 +745,12 @@ fn effects_follow_the_scene() {
             exact_errors: false,
             contact_pairs: Vec::new(),
             contact_obstacle_boundary: None,
+            stress_fields: Vec::new(),
         }
     );
     assert_eq!(
         s.effects().summary(),
-        "effects: elasticity, lumped mass, tractions (steady), Dirichlet (non-zero values), Dirichlet lifting (steady); not built: mass-free layer, initial displacement, initial velocity, body force, contact, exact errors"
+        "effects: elasticity, lumped mass, tractions (steady), Dirichlet (non-zero values), Dirichlet lifting (steady); not built: mass-free layer, initial displacement, initial velocity, body force, contact, exact errors, stress output"
     );
 }
 
@@ -758,13 +760,23 @@ fn effects_summary_lines() {
     let s = parse_in(&dir, FULL).unwrap();
     assert_eq!(
         s.effects().summary(),
-        "effects: elasticity, mass-free layer (modified1 along \"bottom\"), initial velocity, body force (time-dependent), tractions (time-dependent), Dirichlet (non-zero values), Dirichlet lifting (time-dependent), contact (plane obstacle), exact errors; not built: initial displacement"
+        "effects: elasticity, mass-free layer (modified1 along \"bottom\"), initial velocity, body force (time-dependent), tractions (time-dependent), Dirichlet (non-zero values), Dirichlet lifting (time-dependent), contact (plane obstacle), exact errors; not built: initial displacement, stress output"
     );
     let all = full_with("displacement = [\"0\", \"0\"]", "displacement = [\"0\", \"1e-3*x\"]");
     let line = parse_in(&dir, &all).unwrap().effects().summary();
     assert!(line.starts_with("effects: elasticity, mass-free layer"), "{line}");
     assert!(line.contains(", initial displacement, initial velocity, "), "{line}");
-    assert!(line.ends_with("exact errors; not built: none"), "{line}");
+    assert!(line.ends_with("exact errors; not built: stress output"), "{line}");
+    // Stress-type fields asked for: item 11, with their names in the scene's order.
+    let stressed = all.replace(
+        "fields = [\"velocity\"]",
+        "fields = [\"von_mises\", \"displacement\", \"stress_nodal\"]",
+    );
+    let line = parse_in(&dir, &stressed).unwrap().effects().summary();
+    assert!(
+        line.ends_with("exact errors, stress output (von_mises, stress_nodal); not built: none"),
+        "{line}"
+    );
     // The layer along the contact boundary (the default), zero Dirichlet values: no lifting.
     let text = format!(
         "{MINIMAL}\n[[dirichlet]]\ngroup = \"left\"\nvalue = [\"0\", \"2-2\"]\n[mass]\nkind = \"modified1\"\n[contact]\nboundary = \"contact\"\nobstacle = {{ type = \"plane\", point = [0, 0], normal = [0, 1] }}\n[initial]\nvelocity = [0, 0]\n"
@@ -772,7 +784,7 @@ fn effects_summary_lines() {
     let line = parse_in(&dir, &text).unwrap().effects().summary();
     assert_eq!(
         line,
-        "effects: elasticity, mass-free layer (modified1 along \"contact\"), Dirichlet (zero values), contact (plane obstacle); not built: initial displacement, initial velocity, body force, tractions, Dirichlet lifting, exact errors"
+        "effects: elasticity, mass-free layer (modified1 along \"contact\"), Dirichlet (zero values), contact (plane obstacle); not built: initial displacement, initial velocity, body force, tractions, Dirichlet lifting, exact errors, stress output"
     );
     assert!(!line.contains('\n'));
 }
