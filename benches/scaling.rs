@@ -125,7 +125,7 @@ fn main() {
         std::process::exit(1);
     }
     let quick = args.iter().any(|a| a == "--quick");
-    // --only scaling|solvers|mass|disc|contact3d|two_body|output runs one section.
+    // --only scaling|solvers|mass|disc|contact3d|two_body|output|stress runs one section.
     let only = args.iter().position(|a| a == "--only").and_then(|i| args.get(i + 1)).cloned();
     let want = |section: &str| only.as_deref().is_none_or(|o| o == section);
     let cg_jacobi: &[&str] = &[];
@@ -552,6 +552,84 @@ fn main() {
                 _ => md += &format!("| {ranks} | failed |\n"),
             }
             print!("{}", md.lines().last().map(|l| format!("{l}\n")).unwrap_or_default());
+        }
+    }
+    if want("stress") {
+        // The cost of the stress-type fields: the same 10 steps written every step with the
+        // state only, with the five cell fields, and with the five nodal projections too.
+        md += "\nStress output (2 ranks, 10 steps written every step; ms per written step):\n\n| case | DOFs | fields | ms/step (solve) | stress ms | output ms | stress + output / step |\n|---|---|---|---|---|---|---|\n";
+        let cells = ["stress", "strain", "von_mises", "effective_stress", "pressure"];
+        let nodal: Vec<String> = cells.iter().map(|c| format!("{c}_nodal")).collect();
+        let cases = [
+            ("beam (quads)", "beam.toml", if quick { "0.0625" } else { "0.01" }),
+            ("block (hexahedra)", "block_hex.toml", if quick { "0.125" } else { "0.05" }),
+        ];
+        for (label, scene, h) in cases {
+            let text = std::fs::read_to_string(repo().join("scenes").join(scene)).unwrap();
+            let mut state = vec!["displacement".to_string(), "velocity".to_string()];
+            let with_cells: Vec<String> =
+                state.iter().cloned().chain(cells.iter().map(|c| c.to_string())).collect();
+            let with_all: Vec<String> = with_cells.iter().cloned().chain(nodal.clone()).collect();
+            for (what, fields) in [
+                ("state", std::mem::take(&mut state)),
+                ("+ 5 cell fields", with_cells),
+                ("+ 5 nodal projections", with_all),
+            ] {
+                let list = fields.iter().map(|f| format!("\"{f}\"")).collect::<Vec<_>>();
+                let variant = text.replacen(
+                    "\nevery = 10",
+                    &format!("\nevery = 1\nfields = [{}]", list.join(", ")),
+                    1,
+                );
+                let dir = bench_dir();
+                let path = dir.join(format!("stress-{scene}"));
+                std::fs::write(
+                    &path,
+                    variant.replace("../meshes/", &format!("{}/meshes/", repo().display())),
+                )
+                .unwrap();
+                let summary = dir.join("stress-summary.toml");
+                let h5 = dir.join("stress.h5");
+                let ok = Command::new("mpirun")
+                    .args(["--oversubscribe", "-n", "2"])
+                    .arg(repo().join("target/release/massfree"))
+                    .arg("run")
+                    .arg(&path)
+                    .args([
+                        "--quiet",
+                        "--param",
+                        &format!("h={h}"),
+                        "--steps",
+                        "10",
+                        "--overwrite",
+                        "-o",
+                    ])
+                    .arg(&h5)
+                    .arg("--summary")
+                    .arg(&summary)
+                    .env("OMPI_ALLOW_RUN_AS_ROOT", "1")
+                    .env("OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1")
+                    .env("OMPI_MCA_btl_vader_single_copy_mechanism", "none")
+                    .output()
+                    .map(|o| o.status.success())
+                    .unwrap_or(false);
+                let _ = std::fs::remove_file(&h5);
+                match ok.then(|| read_summary(&summary).ok()).flatten() {
+                    Some(t) => {
+                        let steps = t.steps as f64;
+                        let step_ms = 1e3 * t.timings.stepping / steps;
+                        let stress_ms = 1e3 * t.timings.stress / (steps + 1.0);
+                        let out_ms = 1e3 * t.timings.output / (steps + 1.0);
+                        md += &format!(
+                            "| {label} | {} | {what} | {step_ms:.1} | {stress_ms:.1} | {out_ms:.1} | {:.0}% |\n",
+                            t.n_dofs,
+                            100.0 * (stress_ms + out_ms) / step_ms
+                        );
+                    }
+                    None => md += &format!("| {label} | failed | {what} |\n"),
+                }
+                print!("{}", md.lines().last().map(|l| format!("{l}\n")).unwrap_or_default());
+            }
         }
     }
     let path = bench_dir().join("scaling.md");
