@@ -38,6 +38,15 @@ fn ball_dropped_on_a_plane_follows_hertz() {
     eprintln!("t_c {duration} vs Hertz {t_c}; F_max {peak} vs Hertz {f_max}");
     assert!((duration / t_c - 1.0).abs() < 0.10, "contact time {duration} vs Hertz {t_c}");
     assert!((peak / f_max - 1.0).abs() < 0.10, "peak force {peak} vs Hertz {f_max}");
+    // The contact area at the peak against Hertz's radius for that force,
+    // a = (3 F R / (4 E*))^(1/3): the radius of the circle of the same area within one
+    // contact-zone mesh size (hc = 0.04; a is about 2.5 of them).
+    let area = values(&dir.join("sphere-2.h5"), &layout::contact(layout::CONTACT_PER_STEP[2]));
+    let k = (0..force.len()).max_by(|&i, &j| force[i].total_cmp(&force[j])).unwrap();
+    let a = (3.0 * force[k] * 1.0 / (4.0 * 100.0 / (1.0 - 0.09))).cbrt();
+    let r = (area[k] / std::f64::consts::PI).sqrt();
+    eprintln!("contact area at the peak {} = pi {r}^2, Hertz a = {a}", area[k]);
+    assert!((r - a).abs() <= 0.04, "contact radius {r} vs Hertz {a}");
     // One contact period, one episode per node, and the ball leaves the plane.
     assert_eq!(c.contact_steps, c.last_contact_step - c.first_contact_step + 1);
     assert_eq!(c.episodes_max, 1, "a node touched more than once (chatter)");
