@@ -20,7 +20,9 @@
 //! * the mesh deformed by `displacement` written at the same time, times `magnify`; without one
 //!   the mesh is drawn undeformed and the caption says so;
 //! * x and y to the same scale; colours from viridis (a 33-entry table, linear in between) over
-//!   the range of the drawn values (of all panels together), with a colour bar.
+//!   the field's range at that time (all its nodes or cells, also hidden ones or ones outside
+//!   the window; of all panels together; a constant value gets the middle colour) or over
+//!   `--range`, with a colour bar.
 //!
 //! Every error is one line that names the culprit (flag, field, file).
 
@@ -424,6 +426,8 @@ struct Panel {
     edges: Vec<[[f64; 3]; 2]>,
     time: f64,
     step: f64,
+    /// The smallest and largest finite value of the field (all nodes or cells, drawn or not).
+    range: Option<(f64, f64)>,
 }
 
 impl Panel {
@@ -433,13 +437,6 @@ impl Panel {
             b = [b[0].min(p[0]), b[1].max(p[0]), b[2].min(p[1]), b[3].max(p[1])];
         }
         (b[0] <= b[1]).then_some(b)
-    }
-    fn value_range(&self) -> Option<(f64, f64)> {
-        let mut r = (f64::INFINITY, f64::NEG_INFINITY);
-        for p in self.tris.iter().flatten().filter(|p| p[3].is_finite()) {
-            r = (r.0.min(p[3]), r.1.max(p[3]));
-        }
-        (r.0 <= r.1).then_some(r)
     }
 }
 
@@ -580,7 +577,10 @@ fn prepare(path: &Path, req: &Request, label: &str) -> Result<(Panel, Quantity)>
 
     let three_d = cells.iter().any(|(kind, _)| kind.dim() == 3);
     let label = label.to_string();
-    let mut panel = Panel { label, note, tris: Vec::new(), edges: Vec::new(), time, step };
+    let range = values.iter().filter(|v| v.is_finite()).fold(None, |r: Option<(f64, f64)>, &v| {
+        Some(r.map_or((v, v), |r| (r.0.min(v), r.1.max(v))))
+    });
+    let mut panel = Panel { label, note, tris: Vec::new(), edges: Vec::new(), time, step, range };
     let value_of = |cell: usize, node: usize| if nodal { values[node] } else { values[cell] };
     let axes;
     if three_d {
@@ -720,22 +720,17 @@ pub fn draw(
         let m = if m > 0.0 { m } else { 1.0 };
         bounds = [bounds[0] - m, bounds[1] + m, bounds[2] - m, bounds[3] + m];
     }
-    let (lo, hi) = match req.range {
-        Some(r) => r,
-        None => {
-            let r = panels
-                .iter()
-                .filter_map(Panel::value_range)
-                .reduce(|a, b| (a.0.min(b.0), a.1.max(b.1)))
-                .unwrap_or((0.0, 1.0));
-            if r.1 > r.0 {
-                r
-            } else {
-                // A constant field: a range around its value, which gets the middle colour.
-                let d = if r.0 != 0.0 { 0.1 * r.0.abs() } else { 1.0 };
-                (r.0 - d, r.0 + d)
-            }
+    // The values' range over all runs, and the colours' range.
+    let data = panels.iter().filter_map(|p| p.range).reduce(|a, b| (a.0.min(b.0), a.1.max(b.1)));
+    let (lo, hi) = match (req.range, data) {
+        (Some(r), _) => r,
+        (None, Some(r)) if r.1 > r.0 => r,
+        // A constant field: a range around its value, which gets the middle colour.
+        (None, Some((v, _))) => {
+            let d = if v != 0.0 { 0.1 * v.abs() } else { 1.0 };
+            (v - d, v + d)
         }
+        (None, None) => (0.0, 1.0),
     };
     let field = &req.field;
     // What all panels share goes into the title, the rest into each panel's caption.
@@ -787,14 +782,20 @@ pub fn draw(
         }
         colour_bar(&bar, &req.field, &q.name, (lo, hi))
     })?;
-    let mut lines = vec![format!(
-        "{}: {} in [{}, {}]{}",
-        req.field,
-        q.name,
-        short(lo),
-        short(hi),
-        if req.range.is_some() { " (--range)" } else { "" }
-    )];
+    let mut lines: Vec<String> = runs
+        .iter()
+        .zip(&panels)
+        .map(|(r, p)| format!("{}: {}, {}", r.display(), when(p), p.note))
+        .collect();
+    let mut range_line = match data {
+        Some((a, b)) => format!("{} in [{}, {}]", q.name, short(a), short(b)),
+        None => format!("{}: no finite value", q.name),
+    };
+    if data != Some((lo, hi)) {
+        let why = if req.range.is_some() { "--range" } else { "constant field" };
+        range_line.push_str(&format!("; colours over [{}, {}] ({why})", short(lo), short(hi)));
+    }
+    lines.push(range_line);
     lines.push(format!("wrote {}", out.display()));
     Ok(lines)
 }
