@@ -830,25 +830,28 @@ fn draw_panel(
     st: &Style,
 ) -> std::result::Result<(), String> {
     let body = titled(area, caption, CAPTION_SIZE - 2, CAPTION_BAND)?;
-    let (w, h) = body.dim_in_pixel();
-    let pw = w.saturating_sub(MARGIN_LEFT + Y_LABELS + MARGIN_RIGHT).max(1);
-    let ph = h.saturating_sub(MARGIN_TOP + X_LABELS + MARGIN_BOTTOM).max(1);
+    let build = |xr: (f64, f64), yr: (f64, f64)| {
+        ChartBuilder::on(&body)
+            .margin_top(MARGIN_TOP)
+            .margin_bottom(MARGIN_BOTTOM)
+            .margin_left(MARGIN_LEFT)
+            .margin_right(MARGIN_RIGHT)
+            .x_label_area_size(X_LABELS)
+            .y_label_area_size(Y_LABELS)
+            .build_cartesian_2d(xr.0..xr.1, yr.0..yr.1)
+            .map_err(|e| e.to_string())
+    };
+    // The drawing area's size in pixels (building a chart draws nothing yet).
+    let (pw, ph) = build((0.0, 1.0), (0.0, 1.0))?.plotting_area().dim_in_pixel();
+    let (pw, ph) = (f64::from(pw.max(1)), f64::from(ph.max(1)));
     // One scale for x and y: the bounds fitted into the drawing area, centred.
     let b = st.bounds;
-    let s = (f64::from(pw) / (b[1] - b[0])).min(f64::from(ph) / (b[3] - b[2]));
+    let s = (pw / (b[1] - b[0])).min(ph / (b[3] - b[2]));
     let (cx, cy) = (0.5 * (b[0] + b[1]), 0.5 * (b[2] + b[3]));
-    let (hx, hy) = (0.5 * f64::from(pw) / s, 0.5 * f64::from(ph) / s);
+    let (hx, hy) = (0.5 * pw / s, 0.5 * ph / s);
     let xr = (cx - hx, cx + hx);
     let yr = (cy - hy, cy + hy);
-    let mut chart = ChartBuilder::on(&body)
-        .margin_top(MARGIN_TOP)
-        .margin_bottom(MARGIN_BOTTOM)
-        .margin_left(MARGIN_LEFT)
-        .margin_right(MARGIN_RIGHT)
-        .x_label_area_size(X_LABELS)
-        .y_label_area_size(Y_LABELS)
-        .build_cartesian_2d(xr.0..xr.1, yr.0..yr.1)
-        .map_err(|e| e.to_string())?;
+    let mut chart = build(xr, yr)?;
     let xfmt = plot::linear_formatter(xr.0, xr.1);
     let yfmt = plot::linear_formatter(yr.0, yr.1);
     chart
@@ -867,7 +870,7 @@ fn draw_panel(
         .map_err(|e| e.to_string())?;
     let plotting = chart.plotting_area().strip_coord_spec();
     let (aw, ah) = plotting.dim_in_pixel();
-    let image = rasterize(p, st, (aw as usize, ah as usize), xr.0, yr.1, s);
+    let image = rasterize(p, st, (aw as usize, ah as usize), xr, yr);
     for (i, c) in image.iter().enumerate() {
         if let Some(c) = c {
             let (px, py) = ((i % aw as usize) as i32, (i / aw as usize) as i32);
@@ -886,20 +889,21 @@ fn draw_panel(
 }
 
 /// The panel's pixels (row by row from the top; `None` = background) for a drawing area of
-/// `size` pixels whose top-left corner is (x0, y1) in screen coordinates, `s` pixels per unit.
+/// `size` pixels spanning the screen coordinates `xr` x `yr`.
 fn rasterize(
     p: &Panel,
     st: &Style,
     size: (usize, usize),
-    x0: f64,
-    y1: f64,
-    s: f64,
+    xr: (f64, f64),
+    yr: (f64, f64),
 ) -> Vec<Option<[u8; 3]>> {
     let (w, h) = size;
     let mut colour: Vec<Option<[u8; 3]>> = vec![None; w * h];
     let mut depth = vec![f64::NEG_INFINITY; w * h];
     let (lo, hi) = st.range;
-    let to_px = |q: &[f64]| ((q[0] - x0) * s, (y1 - q[1]) * s);
+    // The axes' ranges span the drawing area (equal per unit in x and y: see draw_panel).
+    let (sx, sy) = (w as f64 / (xr.1 - xr.0), h as f64 / (yr.1 - yr.0));
+    let to_px = |q: &[f64]| ((q[0] - xr.0) * sx, (yr.1 - q[1]) * sy);
     for t in &p.tris {
         let v: Vec<(f64, f64)> = t.iter().map(|q| to_px(q)).collect();
         let area = (v[1].0 - v[0].0) * (v[2].1 - v[0].1) - (v[2].0 - v[0].0) * (v[1].1 - v[0].1);
