@@ -569,7 +569,7 @@ fn prepare(path: &Path, req: &Request, label: &str) -> Result<(Panel, Quantity)>
         }
     }
     let note = match deformed {
-        Some(m) if m == 1.0 => "mesh deformed by the displacement".to_string(),
+        Some(1.0) => "mesh deformed by the displacement".to_string(),
         Some(m) => format!("mesh deformed by {} x the displacement", short(m)),
         None if req.magnify == 0.0 => "undeformed (--magnify 0)".to_string(),
         None => format!("undeformed: no displacement written at t = {}", short(time)),
