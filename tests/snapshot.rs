@@ -286,6 +286,10 @@ fn a_cell_field_is_drawn_cell_by_cell_at_equal_scale() {
     let all = pic.bbox(0.0..=1.0);
     let ratio = (all.1 - all.0 + 1) as f64 / (all.3 - all.2 + 1) as f64;
     assert!((ratio - 2.0).abs() < 0.03, "aspect {ratio}");
+    // --size bounds the drawing area: 360 x 190 for the 2.12 x 1.12 box in 360 x 280.
+    run_ok(&["post", path_str(&h5), "--snapshot", "mark", "--size", "360x280"]);
+    let small = Picture::read(&png);
+    assert_eq!((small.w, small.h), (10 + 80 + 360 + 16 + 130, 40 + 30 + 8 + 190 + 54 + 6));
     // A long thin bar gets a taller drawing area than its shape (160 pixels at least), but is
     // still drawn at its own aspect ratio, 20 : 1.
     let bar = rectangle(10.0, 0.5, 40, 2);
@@ -568,6 +572,10 @@ fn mistakes_are_one_line_naming_the_culprit() {
     assert!(e.contains("--range 1,0"), "{e}");
     let e = fails(&["post", r, "--snapshot", "mark", "--view", "+x"]);
     assert!(e.contains("--view +x") && e.contains("2D"), "{e}");
+    for size in ["100x400", "400", "axb"] {
+        let e = fails(&["post", r, "--snapshot", "mark", "--size", size]);
+        assert!(e.contains(&format!("--size {size}: expected WxH")), "{e}");
+    }
     let e = fails(&["post", r, "--snapshot", "mark", "--view", "up"]);
     assert!(e.contains("--view up"), "{e}");
     let e = fails(&["post", r, "--time", "1"]);

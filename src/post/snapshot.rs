@@ -70,6 +70,10 @@ pub struct SnapshotArgs {
     /// Draw the cell edges (3D: the edges of the visible boundary faces) as thin lines.
     #[arg(long)]
     pub edges: bool,
+    /// The largest drawing area of a panel in pixels (default 720x560, side by side 480x480);
+    /// the mesh is fitted into it at its own aspect ratio.
+    #[arg(long, value_name = "WxH")]
+    pub size: Option<String>,
 }
 
 impl SnapshotArgs {
@@ -84,6 +88,7 @@ impl SnapshotArgs {
             (self.range.is_some(), "--range"),
             (self.view.is_some(), "--view"),
             (self.edges, "--edges"),
+            (self.size.is_some(), "--size"),
         ]
         .into_iter()
         .find_map(|(given, name)| given.then_some(name))
@@ -99,6 +104,8 @@ pub const MAX_PLOT: (u32, u32) = (720, 560);
 pub const MAX_PLOT_SIDE_BY_SIDE: (u32, u32) = (480, 480);
 /// Smallest side of a panel's drawing area (a long thin mesh gets empty space around it).
 pub const MIN_PLOT_SIDE: u32 = 160;
+/// Largest side `--size` accepts.
+pub const MAX_PLOT_SIDE: u32 = 4000;
 /// Height of the band holding the picture's title.
 const TITLE_BAND: u32 = 40;
 /// A panel around its drawing area: caption band, margins, tick label areas.
@@ -338,6 +345,7 @@ struct Request {
     range: Option<(f64, f64)>,
     view: Option<View>,
     edges: bool,
+    size: Option<(u32, u32)>,
 }
 
 impl Request {
@@ -401,6 +409,25 @@ impl Request {
                     usage(format!("--view {v}: use one of +x, -x, +y, -y, +z, -z"))
                 })?),
             };
+        let size = match &a.size {
+            None => None,
+            Some(t) => {
+                let bad = || {
+                    usage(format!(
+                        "--size {t}: expected WxH in pixels, each {MIN_PLOT_SIDE} to {MAX_PLOT_SIDE}"
+                    ))
+                };
+                let (w, h) = t.trim().split_once('x').ok_or_else(bad)?;
+                let side = |v: &str| {
+                    v.trim()
+                        .parse::<u32>()
+                        .ok()
+                        .filter(|v| (MIN_PLOT_SIDE..=MAX_PLOT_SIDE).contains(v))
+                        .ok_or_else(bad)
+                };
+                Some((side(w)?, side(h)?))
+            }
+        };
         Ok(Request {
             field,
             when,
@@ -410,6 +437,7 @@ impl Request {
             range,
             view,
             edges: a.edges,
+            size,
         })
     }
 }
@@ -759,7 +787,7 @@ pub fn draw(
         })
         .collect();
     let out = snapshot_path(prefix, field);
-    let fit = if several { MAX_PLOT_SIDE_BY_SIDE } else { MAX_PLOT };
+    let fit = req.size.unwrap_or(if several { MAX_PLOT_SIDE_BY_SIDE } else { MAX_PLOT });
     let (dx, dy) = (bounds[1] - bounds[0], bounds[3] - bounds[2]);
     let s = (f64::from(fit.0) / dx).min(f64::from(fit.1) / dy);
     let pw = ((dx * s).round() as u32).max(MIN_PLOT_SIDE);
