@@ -60,7 +60,7 @@ pub struct SnapshotArgs {
     /// Show only the window x0..x1, y0..y1 (of the picture's axes).
     #[arg(long, value_name = "X0,X1,Y0,Y1", allow_hyphen_values = true)]
     pub window: Option<String>,
-    /// Fix the colour range (default: the drawn values' range).
+    /// Fix the colour range (default: the field's range at that time, all nodes or cells).
     #[arg(long, value_name = "LO,HI", allow_hyphen_values = true)]
     pub range: Option<String>,
     /// 3D runs: the direction the camera looks in, +x, -x, +y (default: x right, z up), -y,
