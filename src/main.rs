@@ -10,6 +10,7 @@ use massfree::console::Console;
 use massfree::error::{Error, Result};
 use massfree::petsc::Petsc;
 use massfree::phase::{self, HangTimeout};
+use massfree::post::snapshot::{self, SnapshotArgs};
 use massfree::simulation::{summary_lines, RunOptions, Simulation};
 
 #[derive(Parser, Debug)]
@@ -38,7 +39,7 @@ fn parse_point(s: &str) -> std::result::Result<[f64; 3], String> {
 #[derive(Subcommand, Debug)]
 enum Command {
     /// Summarize a run's HDF5 file; write PNG plots and CSV of its energies and of chosen
-    /// node and contact-node histories.
+    /// node and contact-node histories; or, with --snapshot, draw a field on the deformed mesh.
     Post {
         /// The run's .h5 file.
         run: PathBuf,
@@ -54,6 +55,8 @@ enum Command {
         /// Prefix of the written files (default: RUN-post).
         #[arg(long, short)]
         out: Option<PathBuf>,
+        #[command(flatten)]
+        snapshot: SnapshotArgs,
     },
     /// Sweep a grid of settings over a scene (each point a real run on 2 ranks) and map error
     /// against wall time: CSV, Markdown table and PNG plots in the study's output folder.
@@ -62,7 +65,8 @@ enum Command {
         study: PathBuf,
     },
     /// Overlay the energies and the lowest contact node's pressure of several runs (HDF5
-    /// files) in PNG pictures PREFIX-energy.png and PREFIX-pressure.png.
+    /// files) in PNG pictures PREFIX-energy.png and PREFIX-pressure.png; with --snapshot, draw
+    /// a field of the runs side by side (one colour range) in PREFIX-snapshot-FIELD.png.
     Compare {
         /// The runs' .h5 files.
         #[arg(required = true)]
@@ -70,9 +74,12 @@ enum Command {
         /// Prefix of the pictures.
         #[arg(long, short, default_value = "out/compare")]
         out: PathBuf,
-        /// Curve labels, one per run (default: the mass kind and mesh).
+        /// Curve labels, one per run (default: the mass kind and mesh; for --snapshot panels
+        /// the file name).
         #[arg(long = "label")]
         labels: Vec<String>,
+        #[command(flatten)]
+        snapshot: SnapshotArgs,
     },
     /// Run a scene (launch with mpirun for several ranks). PETSc options go after `--`.
     Run {
@@ -125,13 +132,34 @@ enum Command {
     },
 }
 
+/// A snapshot flag without `--snapshot` is a mistake, not something to ignore.
+fn no_snapshot_details(args: &SnapshotArgs) -> Result<()> {
+    match args.any_detail() {
+        Some(flag) => Err(Error::Usage(format!("{flag} needs --snapshot FIELD"))),
+        None => Ok(()),
+    }
+}
+
 fn run(
     cli: Cli,
     universe: &mpi::environment::Universe,
     agree: &mpi::topology::SimpleCommunicator,
 ) -> Result<()> {
-    if let Command::Post { run, nodes, contact_nodes, fields, out } = &cli.command {
+    if let Command::Post { run, nodes, contact_nodes, fields, out, snapshot } = &cli.command {
         if universe.world().rank() == 0 {
+            if snapshot.snapshot.is_some() {
+                if !nodes.is_empty() || !contact_nodes.is_empty() || !fields.is_empty() {
+                    return Err(Error::Usage(
+                        "--snapshot draws only the picture: leave out --node, --contact-node and --field (run post twice)".into(),
+                    ));
+                }
+                let prefix = out.clone().unwrap_or_else(|| massfree::post::default_prefix(run));
+                for line in snapshot::draw(std::slice::from_ref(run), &[], snapshot, &prefix)? {
+                    println!("{line}");
+                }
+                return Ok(());
+            }
+            no_snapshot_details(snapshot)?;
             let opts = massfree::post::PostOptions {
                 nodes: nodes.clone(),
                 contact_nodes: contact_nodes.clone(),
@@ -151,9 +179,16 @@ fn run(
         }
         return Ok(());
     }
-    if let Command::Compare { runs, out, labels } = &cli.command {
+    if let Command::Compare { runs, out, labels, snapshot } = &cli.command {
         // Post-processing: serial, rank 0 only.
         if universe.world().rank() == 0 {
+            if snapshot.snapshot.is_some() {
+                for line in snapshot::draw(runs, labels, snapshot, out)? {
+                    println!("{line}");
+                }
+                return Ok(());
+            }
+            no_snapshot_details(snapshot)?;
             let mut curves = Vec::new();
             for (i, r) in runs.iter().enumerate() {
                 let mut c = massfree::post::read_curves(r)?;

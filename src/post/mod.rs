@@ -1,6 +1,7 @@
 //! Post-processing: plots of a run's energies and contact histories.
 
 pub mod plot;
+pub mod snapshot;
 
 use std::path::{Path, PathBuf};
 
@@ -178,6 +179,14 @@ fn write_csv(path: &Path, header: &[String], columns: &[Vec<f64>]) -> Result<()>
         .map_err(|e| Error::Io(format!("cannot write {}: {e}", path.display())))
 }
 
+/// The prefix of `post`'s files for the run `path` when `-o` is not given: RUN without .h5,
+/// plus "-post".
+pub fn default_prefix(path: &Path) -> PathBuf {
+    let mut p = path.with_extension("").into_os_string();
+    p.push("-post");
+    PathBuf::from(p)
+}
+
 /// Summarize a run's HDF5 file and write PNG plots and CSV files of its energies and of the
 /// chosen node and contact-node histories. Returns the lines to print.
 pub fn post(path: &Path, opts: &PostOptions) -> Result<Vec<String>> {
@@ -185,11 +194,7 @@ pub fn post(path: &Path, opts: &PostOptions) -> Result<Vec<String>> {
     let file = &run.file;
     let read = |name: &str| run.series(name);
     let attr = |name: &str| run.text(name);
-    let prefix = opts.prefix.clone().unwrap_or_else(|| {
-        let mut p = path.with_extension("").into_os_string();
-        p.push("-post");
-        PathBuf::from(p)
-    });
+    let prefix = opts.prefix.clone().unwrap_or_else(|| default_prefix(path));
     let with_suffix = |s: &str| suffixed(&prefix, s);
     let status = attr("status");
     let Ok(time) = read(&layout::energy("time")) else {

@@ -57,14 +57,14 @@ pub struct Plot<'a> {
 const MIN_WIDTH: u32 = 200;
 const MIN_HEIGHT: u32 = 150;
 /// Largest accepted image side.
-const MAX_SIDE: u32 = 16_384;
+pub(crate) const MAX_SIDE: u32 = 16_384;
 
 /// Family name under which the font is registered with `plotters`.
-const FAMILY: &str = "sans-serif";
-const TITLE_SIZE: u32 = 22;
-const CAPTION_SIZE: u32 = 18;
-const DESC_SIZE: u32 = 16;
-const TICK_SIZE: u32 = 14;
+pub(crate) const FAMILY: &str = "sans-serif";
+pub(crate) const TITLE_SIZE: u32 = 22;
+pub(crate) const CAPTION_SIZE: u32 = 18;
+pub(crate) const DESC_SIZE: u32 = 16;
+pub(crate) const TICK_SIZE: u32 = 14;
 const LEGEND_SIZE: u32 = 14;
 /// Height of the band that holds the overall title of [`stacked_plots`].
 const STACK_TITLE_BAND: u32 = 40;
@@ -342,11 +342,11 @@ const DASHES: [(u32, u32); 4] = [(8, 4), (3, 3), (12, 4), (6, 2)];
 // ---------------------------------------------------------------------------------------------
 // Drawing helpers
 
-type Area<'a> = DrawingArea<BitMapBackend<'a>, Shift>;
+pub(crate) type Area<'a> = DrawingArea<BitMapBackend<'a>, Shift>;
 
 /// Creates the bitmap, lets `draw` paint it, and writes the PNG; every failure becomes
 /// `Error::Io` naming `path`.
-fn render<F>(path: &Path, width: u32, height: u32, draw: F) -> Result<()>
+pub(crate) fn render<F>(path: &Path, width: u32, height: u32, draw: F) -> Result<()>
 where
     F: FnOnce(&Area) -> std::result::Result<(), String>,
 {
@@ -756,7 +756,7 @@ fn reference_line(
 
 /// Formatter for a linear axis over `[lo, hi]`: scientific notation when the values are small
 /// (< 1e-2) or large (>= 1e4), with only the digits the tick spacing needs.
-fn linear_formatter(lo: f64, hi: f64) -> impl Fn(&f64) -> String {
+pub(crate) fn linear_formatter(lo: f64, hi: f64) -> impl Fn(&f64) -> String {
     let mag = lo.abs().max(hi.abs());
     let sci = !(1e-2..1e4).contains(&mag);
     // Slightly below the spacing of ~10 ticks, so that no needed digit is cut.
@@ -825,7 +825,7 @@ fn trim_fixed(s: &str) -> String {
 }
 
 /// "2.500e-4" -> "2.5e-4", "1.0e3" -> "1e3".
-fn trim_sci(s: &str) -> String {
+pub(crate) fn trim_sci(s: &str) -> String {
     match s.split_once('e') {
         Some((m, e)) => format!("{}e{e}", trim_fixed(m)),
         None => s.to_string(),
@@ -862,7 +862,7 @@ static FONT_REGISTERED: Mutex<bool> = Mutex::new(false);
 
 /// Registers [`FONT_PATH`] with `plotters` under the family "sans-serif" the first time it is
 /// called; the font bytes are leaked once to obtain the `'static` slice `plotters` requires.
-fn ensure_font() -> Result<()> {
+pub(crate) fn ensure_font() -> Result<()> {
     let mut done = FONT_REGISTERED.lock().unwrap_or_else(|e| e.into_inner());
     if *done {
         return Ok(());
