@@ -123,6 +123,10 @@ pub struct RunSummary {
     /// Each `[[body]]` (empty without).
     #[serde(default)]
     pub bodies: Vec<BodySummary>,
+    /// The largest change the consistent initialization made to the massless DOFs' initial
+    /// displacement (`None` without massless DOFs, or on a restart).
+    #[serde(default)]
+    pub massless_initialization: Option<f64>,
 }
 
 /// One `[[body]]` of a finished run.
@@ -232,6 +236,9 @@ pub struct Simulation<'a> {
     pub timings: Timings,
     /// Contact nodes and cells of the mass-free layer (once assembled).
     layer_summary: Option<(usize, usize)>,
+    /// The largest change the consistent initialization made to the massless DOFs
+    /// (`Midpoint::make_massless_consistent`; `None` without massless DOFs or on a restart).
+    massless_initialized: Option<f64>,
     /// Per body: contact nodes and cells of the mass-free layer on it.
     body_layers: Vec<(usize, usize)>,
     mass_check: MassCheck,
@@ -430,6 +437,7 @@ impl<'a> Simulation<'a> {
             size,
             timings,
             layer_summary: None,
+            massless_initialized: None,
             body_layers: Vec::new(),
             mass_check: MassCheck::default(),
             natural: None,
@@ -650,6 +658,10 @@ impl<'a> Simulation<'a> {
             None => assembly::new_vector(&self.part)?,
         };
         let mut midpoint = Midpoint::new(op, m, a, dirichlet, self.scene.tau, u0, v0, 0.0, forces)?;
+        if self.opts.restart.is_none() {
+            // The massless DOFs start in static equilibrium (a restart's state already is).
+            self.massless_initialized = midpoint.make_massless_consistent(forces, 0.0)?;
+        }
         let restart = match self.opts.restart.clone() {
             Some(path) => {
                 Some(self.restore(&path, &mut midpoint, contact.as_deref_mut(), forces)?)
@@ -1031,6 +1043,7 @@ impl<'a> Simulation<'a> {
             pictures,
             effects: self.effects(),
             bodies,
+            massless_initialization: self.massless_initialized,
         })
     }
 
@@ -1669,6 +1682,11 @@ pub fn summary_lines(sim: &Simulation, s: &RunSummary) -> Vec<String> {
             s.energy_initial, s.energy_final, s.external_work, s.energy_balance
         ),
     ];
+    if let Some(d) = s.massless_initialization.filter(|&d| d > 0.0) {
+        lines.push(format!(
+            "massless DOFs: the initial displacement made statically consistent there (largest change {d:.3e})"
+        ));
+    }
     for b in &s.bodies {
         let vec = |v: &[f64]| {
             let x: Vec<String> = v.iter().map(|x| format!("{x:.6e}")).collect();

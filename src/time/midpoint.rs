@@ -154,6 +154,66 @@ impl Midpoint {
         Ok(mp)
     }
 
+    /// Consistent initial data for the massless DOFs (rows of `M` that are exactly zero, the
+    /// mass-free layer's contact DOFs, not Dirichlet): their rows of the equation of motion are
+    /// static, `(A u)_C = f_C`, and the midpoint rule keeps their residual
+    /// `r^n = f^n_C - (A u^n)_C` only up to sign, `r^{n+1} = -r^n + O(tau^2)`: an initial
+    /// displacement that violates them sets off a period-2 oscillation of those nodes that
+    /// never decays. So `u_C` is replaced by the solution of `A_CC u_C = f_C(t) - A_CN u_N`
+    /// (the minimizer of the potential `1/2 u.Au - f.u` over `u_C`), solved as
+    /// `(P A P + I - P) d = P (f - A u)`, `u += d`, with `P` the projection on the massless
+    /// DOFs. Returns the largest change `|d|_inf` (`None` without massless DOFs). Collective.
+    pub fn make_massless_consistent(&mut self, forces: &dyn Forces, t: f64) -> Result<Option<f64>> {
+        let mut diag = self.u.duplicate()?;
+        self.m.get_diagonal(&mut diag)?;
+        let (lo, hi) = self.u.ownership_range();
+        let mut dirichlet = vec![false; hi - lo];
+        for &d in self.dirichlet.dofs() {
+            if (lo..hi).contains(&(d as usize)) {
+                dirichlet[d as usize - lo] = true;
+            }
+        }
+        let massless: Vec<bool> = diag.with_local_slice(|m| {
+            m.iter().zip(&dirichlet).map(|(&x, &fixed)| x == 0.0 && !fixed).collect()
+        })?;
+        let mut mask = self.u.duplicate()?;
+        mask.with_local_slice_mut(|x| {
+            for (xi, &c) in x.iter_mut().zip(&massless) {
+                *xi = if c { 1.0 } else { 0.0 };
+            }
+        })?;
+        if mask.sum()? == 0.0 {
+            return Ok(None);
+        }
+        // r = P (f(t) - A u)
+        let mut r = self.u.duplicate()?;
+        if forces.present() {
+            forces.assemble(t, &mut r)?;
+        }
+        let mut au = self.u.duplicate()?;
+        self.a.mult(&self.u, &mut au)?;
+        r.axpy(-1.0, &au)?;
+        let mut rhs = self.u.duplicate()?;
+        rhs.pointwise_mult(&r, &mask)?;
+        let others: Vec<i32> = (lo..hi).filter(|i| !massless[i - lo]).map(|i| i as i32).collect();
+        let mut k = self.a.duplicate(true)?;
+        k.zero_rows_columns(&others, 1.0, None, None)?;
+        k.set_option_symmetric(true)?;
+        let mut ksp = crate::petsc::Ksp::new("")?;
+        ksp.set_operators(&k, &k)?;
+        ksp.set_type("cg")?;
+        ksp.set_pc_type("jacobi")?;
+        ksp.set_tolerances(Some(1e-12), Some(1e-300), None, Some(10_000))?;
+        ksp.set_options_prefix("massless_")?;
+        ksp.set_from_options()?;
+        let mut d = self.u.duplicate()?;
+        ksp.solve(&rhs, &mut d)?;
+        let change = d.norm_inf()?;
+        self.u.axpy(1.0, &d)?;
+        self.refresh(forces, t)?;
+        Ok(Some(change))
+    }
+
     /// Recompute what follows from `u`, `v` at time `t`: the loads `f(t)`, `M v`, `A u` and the
     /// energies (after `new`, or after the state was replaced by a restart).
     pub fn refresh(&mut self, forces: &dyn Forces, t: f64) -> Result<()> {
