@@ -95,8 +95,12 @@ pub struct RunSummary {
     pub external_work: f64,
     /// max_n |E^n - E^0 - W^n| / max_n E^n: the integrator's energy balance.
     pub energy_balance: f64,
-    /// max_n |E^n - E^0| / E^0.
+    /// max_n |E^n - E^0| / E^0 (0 when E^0 = 0).
     pub energy_drift: f64,
+    /// max_n |E^n|: the scale of the run's energy (a body released at rest under gravity
+    /// starts at E^0 = 0).
+    #[serde(default)]
+    pub energy_max: f64,
     pub errors: Vec<ErrorSample>,
     pub output: Option<PathBuf>,
     /// Wall time of one MatMult with the step operator (the floor of a step's cost).
@@ -1026,6 +1030,7 @@ impl<'a> Simulation<'a> {
             external_work: e.external_work,
             energy_balance: record.balance,
             energy_drift: record.drift,
+            energy_max: record.e_max,
             errors: record.errors,
             output: self.output.open().map(|o| o.path().to_path_buf()),
             matmult_seconds,
@@ -1730,9 +1735,10 @@ pub fn summary_lines(sim: &Simulation, s: &RunSummary) -> Vec<String> {
             c.max_pressure,
             c.active_set_iterations_mean,
             c.active_set_iterations_max,
-            // Relative to the larger energy: a body at rest pushed by a moving obstacle starts at 0.
-            (s.energy_initial - s.energy_final)
-                / s.energy_initial.abs().max(s.energy_final.abs()).max(f64::MIN_POSITIVE),
+            // The energy the contact took, relative to the largest energy of the run: a body
+            // released at rest under gravity, or pushed by a moving obstacle, starts at E = 0,
+            // and loads or moving boundaries change E besides the contact.
+            -c.contact_work / s.energy_max.max(f64::MIN_POSITIVE),
             c.contact_work
         ));
         lines.push(format!(
