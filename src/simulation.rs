@@ -131,6 +131,12 @@ pub struct RunSummary {
     /// displacement (`None` without massless DOFs, or on a restart).
     #[serde(default)]
     pub massless_initialization: Option<f64>,
+    /// Steps after which released massless contact nodes were put back in static equilibrium
+    /// (`Midpoint::step`), and the energy that took (<= 0, part of the contact work).
+    #[serde(default)]
+    pub release_projections: usize,
+    #[serde(default)]
+    pub release_energy: f64,
 }
 
 /// One `[[body]]` of a finished run.
@@ -1049,6 +1055,8 @@ impl<'a> Simulation<'a> {
             effects: self.effects(),
             bodies,
             massless_initialization: self.massless_initialized,
+            release_projections: midpoint.release_projections().0,
+            release_energy: midpoint.release_projections().1,
         })
     }
 
@@ -1690,6 +1698,12 @@ pub fn summary_lines(sim: &Simulation, s: &RunSummary) -> Vec<String> {
     if let Some(d) = s.massless_initialization.filter(|&d| d > 0.0) {
         lines.push(format!(
             "massless DOFs: the initial displacement made statically consistent there (largest change {d:.3e})"
+        ));
+    }
+    if s.release_projections > 0 {
+        lines.push(format!(
+            "massless DOFs: released contact nodes put back in static equilibrium after {} steps (energy {:.3e}, in the contact work)",
+            s.release_projections, s.release_energy
         ));
     }
     for b in &s.bodies {
