@@ -95,8 +95,12 @@ pub struct RunSummary {
     pub external_work: f64,
     /// max_n |E^n - E^0 - W^n| / max_n E^n: the integrator's energy balance.
     pub energy_balance: f64,
-    /// max_n |E^n - E^0| / E^0.
+    /// max_n |E^n - E^0| / E^0 (0 when E^0 = 0).
     pub energy_drift: f64,
+    /// max_n |E^n|: the scale of the run's energy (a body released at rest under gravity
+    /// starts at E^0 = 0).
+    #[serde(default)]
+    pub energy_max: f64,
     pub errors: Vec<ErrorSample>,
     pub output: Option<PathBuf>,
     /// Wall time of one MatMult with the step operator (the floor of a step's cost).
@@ -123,6 +127,16 @@ pub struct RunSummary {
     /// Each `[[body]]` (empty without).
     #[serde(default)]
     pub bodies: Vec<BodySummary>,
+    /// The largest change the consistent initialization made to the massless DOFs' initial
+    /// displacement (`None` without massless DOFs, or on a restart).
+    #[serde(default)]
+    pub massless_initialization: Option<f64>,
+    /// Steps after which released massless contact nodes were put back in static equilibrium
+    /// (`Midpoint::step`), and the energy that took (<= 0, part of the contact work).
+    #[serde(default)]
+    pub release_projections: usize,
+    #[serde(default)]
+    pub release_energy: f64,
 }
 
 /// One `[[body]]` of a finished run.
@@ -232,6 +246,9 @@ pub struct Simulation<'a> {
     pub timings: Timings,
     /// Contact nodes and cells of the mass-free layer (once assembled).
     layer_summary: Option<(usize, usize)>,
+    /// The largest change the consistent initialization made to the massless DOFs
+    /// (`Midpoint::make_massless_consistent`; `None` without massless DOFs or on a restart).
+    massless_initialized: Option<f64>,
     /// Per body: contact nodes and cells of the mass-free layer on it.
     body_layers: Vec<(usize, usize)>,
     mass_check: MassCheck,
@@ -430,6 +447,7 @@ impl<'a> Simulation<'a> {
             size,
             timings,
             layer_summary: None,
+            massless_initialized: None,
             body_layers: Vec::new(),
             mass_check: MassCheck::default(),
             natural: None,
@@ -654,6 +672,10 @@ impl<'a> Simulation<'a> {
             None => assembly::new_vector(&self.part)?,
         };
         let mut midpoint = Midpoint::new(op, m, a, dirichlet, self.scene.tau, u0, v0, 0.0, forces)?;
+        if self.opts.restart.is_none() {
+            // The massless DOFs start in static equilibrium (a restart's state already is).
+            self.massless_initialized = midpoint.make_massless_consistent(forces, 0.0)?;
+        }
         let restart = match self.opts.restart.clone() {
             Some(path) => {
                 Some(self.restore(&path, &mut midpoint, contact.as_deref_mut(), forces)?)
@@ -1018,6 +1040,7 @@ impl<'a> Simulation<'a> {
             external_work: e.external_work,
             energy_balance: record.balance,
             energy_drift: record.drift,
+            energy_max: record.e_max,
             errors: record.errors,
             output: self.output.open().map(|o| o.path().to_path_buf()),
             matmult_seconds,
@@ -1035,6 +1058,9 @@ impl<'a> Simulation<'a> {
             pictures,
             effects: self.effects(),
             bodies,
+            massless_initialization: self.massless_initialized,
+            release_projections: midpoint.release_projections().0,
+            release_energy: midpoint.release_projections().1,
         })
     }
 
@@ -1673,6 +1699,17 @@ pub fn summary_lines(sim: &Simulation, s: &RunSummary) -> Vec<String> {
             s.energy_initial, s.energy_final, s.external_work, s.energy_balance
         ),
     ];
+    if let Some(d) = s.massless_initialization.filter(|&d| d > 0.0) {
+        lines.push(format!(
+            "massless DOFs: the initial displacement made statically consistent there (largest change {d:.3e})"
+        ));
+    }
+    if s.release_projections > 0 {
+        lines.push(format!(
+            "massless DOFs: released contact nodes put back in static equilibrium after {} steps (energy {:.3e}, in the contact work)",
+            s.release_projections, s.release_energy
+        ));
+    }
     for b in &s.bodies {
         let vec = |v: &[f64]| {
             let x: Vec<String> = v.iter().map(|x| format!("{x:.6e}")).collect();
@@ -1716,9 +1753,10 @@ pub fn summary_lines(sim: &Simulation, s: &RunSummary) -> Vec<String> {
             c.max_pressure,
             c.active_set_iterations_mean,
             c.active_set_iterations_max,
-            // Relative to the larger energy: a body at rest pushed by a moving obstacle starts at 0.
-            (s.energy_initial - s.energy_final)
-                / s.energy_initial.abs().max(s.energy_final.abs()).max(f64::MIN_POSITIVE),
+            // The energy the contact took, relative to the largest energy of the run: a body
+            // released at rest under gravity, or pushed by a moving obstacle, starts at E = 0,
+            // and loads or moving boundaries change E besides the contact.
+            -c.contact_work / s.energy_max.max(f64::MIN_POSITIVE),
             c.contact_work
         ));
         lines.push(format!(

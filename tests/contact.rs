@@ -361,3 +361,48 @@ fn obstacle_intersecting_the_body_is_an_error() {
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(!o.status.success() && err.contains("\"disc\"") && err.lines().count() == 1, "{err}");
 }
+
+/// A block released at rest under gravity onto a plane starts with E^0 = 0: the run's energy
+/// loss is the contact work relative to the run's largest energy (summary `energy_max`), a
+/// number in [0, 1], not a ratio over E^0 (it printed -1.59e306 before).
+#[test]
+fn energy_loss_of_a_body_released_at_rest_is_relative_to_the_largest_energy() {
+    let dir = scratch("released-at-rest");
+    let text = BLOCK_2D
+        .replace("velocity = [\"0.2\", \"-1\"]", "velocity = [\"0\", \"0\"]")
+        .replace("[time]", "[body_force]\nvalue = [\"0\", \"-10\"]\n[time]");
+    let scene = scene_text(&dir, "rest.toml", &text);
+    let summary = dir.join("rest.summary.toml");
+    for mass in ["consistent", "modified1"] {
+        let args = [
+            "run",
+            scene.to_str().unwrap(),
+            "--quiet",
+            "--no-output",
+            "--mass",
+            mass,
+            "--summary",
+            summary.to_str().unwrap(),
+        ];
+        let out = massfree(2, &args);
+        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+        let stdout = String::from_utf8_lossy(&out.stdout);
+        let line = stdout.lines().find(|l| l.starts_with("contact: ")).expect("a contact line");
+        let loss: f64 = line
+            .split("energy loss ")
+            .nth(1)
+            .and_then(|r| r.split_whitespace().next())
+            .and_then(|x| x.parse().ok())
+            .unwrap_or_else(|| panic!("no energy loss in {line}"));
+        let s: RunSummary = toml::from_str(&std::fs::read_to_string(&summary).unwrap()).unwrap();
+        // At rest in the reference configuration: E^0 = 0 with M; with M_H the massless
+        // layer starts in its static sag under gravity (a tiny potential energy).
+        assert!(s.energy_initial <= 1e-2 * s.energy_max, "{mass}: E^0 = {}", s.energy_initial);
+        if mass == "consistent" {
+            assert_eq!(s.energy_initial, 0.0);
+        }
+        let expected = -s.contact.as_ref().unwrap().contact_work / s.energy_max;
+        assert!((0.0..=1.0).contains(&loss), "{mass}: energy loss {loss} in: {line}");
+        assert!((loss - expected).abs() <= 0.01 * expected.abs() + 1e-12, "{loss} vs {expected}");
+    }
+}

@@ -98,6 +98,12 @@ pub struct Midpoint {
     lifting: Option<(Vector, Vector, Vector)>,
     energy: Energy,
     ksp_iterations: usize,
+    /// This rank's massless DOFs and whether any rank has some (found on first use).
+    massless: Option<(Vec<bool>, bool)>,
+    /// Steps after which released massless contact nodes were put back in static equilibrium,
+    /// and the energy that removed (<= 0, counted as contact work).
+    release_projections: usize,
+    release_energy: f64,
 }
 
 impl Midpoint {
@@ -149,9 +155,105 @@ impl Midpoint {
             v,
             energy: Energy::default(),
             ksp_iterations: 0,
+            massless: None,
+            release_projections: 0,
+            release_energy: 0.0,
         };
         mp.refresh(forces, t0)?;
         Ok(mp)
+    }
+
+    /// Consistent initial data for the massless DOFs (rows of `M` that are exactly zero, the
+    /// mass-free layer's contact DOFs, not Dirichlet): their rows of the equation of motion are
+    /// static, `(A u)_C = f_C`, and the midpoint rule keeps their residual
+    /// `r^n = f^n_C - (A u^n)_C` only up to sign, `r^{n+1} = -r^n + O(tau^2)`: an initial
+    /// displacement that violates them sets off a period-2 oscillation of those nodes that
+    /// never decays. So `u_C` is replaced by the solution of `A_CC u_C = f_C(t) - A_CN u_N`
+    /// ([`Midpoint::project_massless`]). Returns the largest change (`None` without massless
+    /// DOFs). Collective.
+    pub fn make_massless_consistent(&mut self, forces: &dyn Forces, t: f64) -> Result<Option<f64>> {
+        if forces.present() {
+            forces.assemble(t, &mut self.f_now)?;
+        }
+        let change = self.project_massless(forces.present(), &[])?;
+        self.refresh(forces, t)?;
+        Ok(change)
+    }
+
+    /// The massless DOFs (exact zeros on `M`'s diagonal, Dirichlet DOFs excluded) of this rank,
+    /// found once.
+    fn massless(&mut self) -> Result<&[bool]> {
+        if self.massless.is_none() {
+            let mut diag = self.u.duplicate()?;
+            self.m.get_diagonal(&mut diag)?;
+            let (lo, hi) = self.u.ownership_range();
+            let mut fixed = vec![false; hi - lo];
+            for &d in self.dirichlet.dofs() {
+                if (lo..hi).contains(&(d as usize)) {
+                    fixed[d as usize - lo] = true;
+                }
+            }
+            let local: Vec<bool> = diag.with_local_slice(|m| {
+                m.iter().zip(&fixed).map(|(&x, &f)| x == 0.0 && !f).collect()
+            })?;
+            let count = local.iter().filter(|&&c| c).count() as f64;
+            let mut all = 0.0;
+            SimpleCommunicator::world().all_reduce_into(&count, &mut all, SystemOperation::sum());
+            self.massless = Some((local, all > 0.0));
+        }
+        Ok(&self.massless.as_ref().expect("set above").0)
+    }
+
+    /// Puts the massless DOFs but those in `hold` (global indices, any rank may list any) in
+    /// static equilibrium at the current state: `A_CC u_C = f_C - A_CN u_N`, the minimizer of
+    /// the potential `1/2 u.Au - f.u` over `u_C` (`f = f_now` with `loads`, else 0), solved as
+    /// `(P A P + I - P) d = P (f - A u)`, `u += d`, with `P` the projection on those DOFs.
+    /// Returns `|d|_inf` (`None` without massless DOFs). Collective; energies not refreshed.
+    fn project_massless(&mut self, loads: bool, hold: &[i32]) -> Result<Option<f64>> {
+        self.massless()?;
+        let (local, any) = self.massless.as_ref().expect("found").clone();
+        if !any {
+            return Ok(None);
+        }
+        let (lo, hi) = self.u.ownership_range();
+        let mut free = local;
+        for &d in hold {
+            if (lo..hi).contains(&(d as usize)) {
+                free[d as usize - lo] = false;
+            }
+        }
+        let mut mask = self.u.duplicate()?;
+        mask.with_local_slice_mut(|x| {
+            for (xi, &c) in x.iter_mut().zip(&free) {
+                *xi = if c { 1.0 } else { 0.0 };
+            }
+        })?;
+        // r = P (f - A u)
+        let mut r = self.u.duplicate()?;
+        if loads {
+            r.copy_from(&self.f_now)?;
+        }
+        let mut au = self.u.duplicate()?;
+        self.a.mult(&self.u, &mut au)?;
+        r.axpy(-1.0, &au)?;
+        let mut rhs = self.u.duplicate()?;
+        rhs.pointwise_mult(&r, &mask)?;
+        let others: Vec<i32> = (lo..hi).filter(|i| !free[i - lo]).map(|i| i as i32).collect();
+        let mut k = self.a.duplicate(true)?;
+        k.zero_rows_columns(&others, 1.0, None, None)?;
+        k.set_option_symmetric(true)?;
+        let mut ksp = crate::petsc::Ksp::new("")?;
+        ksp.set_operators(&k, &k)?;
+        ksp.set_type("cg")?;
+        ksp.set_pc_type("jacobi")?;
+        ksp.set_tolerances(Some(1e-12), Some(1e-300), None, Some(10_000))?;
+        ksp.set_options_prefix("massless_")?;
+        ksp.set_from_options()?;
+        let mut d = self.u.duplicate()?;
+        ksp.solve(&rhs, &mut d)?;
+        let change = d.norm_inf()?;
+        self.u.axpy(1.0, &d)?;
+        Ok(Some(change))
     }
 
     /// Recompute what follows from `u`, `v` at time `t`: the loads `f(t)`, `M v`, `A u` and the
@@ -206,12 +308,16 @@ impl Midpoint {
             }
             other => other,
         };
+        // The active set before the step (obstacle contact): nodes it loses are released.
+        let mut released_dofs: Option<Vec<bool>> = None;
+        let mut hold: Vec<i32> = Vec::new();
         let (its, contact) = match contact {
             None => {
                 let info = self.op.ksp.solve(&self.rhs, &mut self.du).map_err(with_step)?;
                 (info.iterations, None)
             }
             Some(solver) => {
+                released_dofs = Some(solver.active().to_vec());
                 let (c, its) = solver
                     .solve(StepSystem {
                         k: &mut self.op.k,
@@ -224,6 +330,23 @@ impl Midpoint {
                     })
                     .map_err(with_step)?;
                 self.energy.contact_work += c.work;
+                // Released massless nodes: their static rows lose the contact force at once,
+                // and the midpoint rule would carry that residual on as a period-2 jump of
+                // the node. Held: the nodes still active (all their DOFs). Pairs are left as
+                // they are (their constraints live in the mortar basis).
+                let before = released_dofs.take().unwrap_or_default();
+                let nodes = solver.nodes();
+                let released = !solver.is_pair()
+                    && before.iter().zip(&c.row.active).any(|(&was, &is)| was && !is);
+                if released {
+                    let dim = nodes.dim;
+                    for (k, &a) in c.row.active.iter().enumerate() {
+                        if a {
+                            hold.extend((0..dim).map(|i| nodes.dofs[k * dim + i].0));
+                        }
+                    }
+                    released_dofs = Some(Vec::new());
+                }
                 (its, Some(c))
             }
         };
@@ -243,7 +366,23 @@ impl Midpoint {
             }
         }
         self.update_energies()?;
+        if released_dofs.is_some() {
+            let before = self.energy.total();
+            if self.project_massless(forces.present(), &hold)?.is_some() {
+                self.update_energies()?;
+                let removed = self.energy.total() - before;
+                self.energy.contact_work += removed;
+                self.release_energy += removed;
+                self.release_projections += 1;
+            }
+        }
         Ok(StepReport { ksp_iterations: its, contact })
+    }
+
+    /// Steps after which released massless contact nodes were put back in static
+    /// equilibrium, and the energy that took (<= 0; part of the contact work).
+    pub fn release_projections(&self) -> (usize, f64) {
+        (self.release_projections, self.release_energy)
     }
 
     /// The constrained rows of the right-hand side: `diag * du_D` with
