@@ -789,6 +789,10 @@ mod tests {
             pictures: vec![],
             effects: String::new(),
             bodies: Vec::new(),
+            energy_max: 0.0,
+            massless_initialization: None,
+            release_projections: 0,
+            release_energy: 0.0,
         };
         // The text `massfree run --summary` writes, read back.
         let s = parse_summary(&toml::to_string(&run).unwrap()).unwrap();
