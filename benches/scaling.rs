@@ -68,19 +68,25 @@ fn read_summary(path: &Path) -> Result<RunSummary, String> {
 
 /// `mpirun -n ranks massfree run scene --quiet --no-output args... --summary summary`; the
 /// summary, or None if the run failed (its stderr printed).
-fn run_scene(ranks: usize, scene: &str, args: &[String], summary: &Path) -> Option<RunSummary> {
-    let _ = std::fs::remove_file(summary);
-    let o = Command::new("mpirun")
-        .args(["--oversubscribe", "-n", &ranks.to_string()])
+/// `mpirun -n ranks massfree run SCENE` with the environment Open MPI needs here.
+fn massfree_run(ranks: usize, scene: &Path) -> Command {
+    let mut cmd = Command::new("mpirun");
+    cmd.args(["--oversubscribe", "-n", &ranks.to_string()])
         .arg(repo().join("target/release/massfree"))
         .arg("run")
-        .arg(repo().join("scenes").join(scene))
+        .arg(scene)
+        .env("OMPI_ALLOW_RUN_AS_ROOT", "1")
+        .env("OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1")
+        .env("OMPI_MCA_btl_vader_single_copy_mechanism", "none");
+    cmd
+}
+
+fn run_scene(ranks: usize, scene: &str, args: &[String], summary: &Path) -> Option<RunSummary> {
+    let _ = std::fs::remove_file(summary);
+    let o = massfree_run(ranks, &repo().join("scenes").join(scene))
         .args(["--quiet", "--no-output", "--summary"])
         .arg(summary)
         .args(args)
-        .env("OMPI_ALLOW_RUN_AS_ROOT", "1")
-        .env("OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1")
-        .env("OMPI_MCA_btl_vader_single_copy_mechanism", "none")
         .output()
         .ok()?;
     if !o.status.success() {
@@ -507,25 +513,18 @@ fn main() {
             for write in [false, true] {
                 let summary = out.join(format!("output-{ranks}-{write}.toml"));
                 let h5 = out.join(format!("output-{ranks}.h5"));
-                let mut cmd = Command::new("mpirun");
-                cmd.args(["--oversubscribe", "-n", &ranks.to_string()])
-                    .arg(repo().join("target/release/massfree"))
-                    .arg("run")
-                    .arg(repo().join("scenes/beam.toml"))
-                    .args([
-                        "--quiet",
-                        "--param",
-                        &format!("h={h}"),
-                        "--steps",
-                        "10",
-                        "--every",
-                        "1",
-                        "--summary",
-                    ])
-                    .arg(&summary)
-                    .env("OMPI_ALLOW_RUN_AS_ROOT", "1")
-                    .env("OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1")
-                    .env("OMPI_MCA_btl_vader_single_copy_mechanism", "none");
+                let mut cmd = massfree_run(ranks, &repo().join("scenes/beam.toml"));
+                cmd.args([
+                    "--quiet",
+                    "--param",
+                    &format!("h={h}"),
+                    "--steps",
+                    "10",
+                    "--every",
+                    "1",
+                    "--summary",
+                ])
+                .arg(&summary);
                 if write {
                     cmd.args(["--overwrite", "-o"]).arg(&h5);
                 } else {
@@ -590,11 +589,7 @@ fn main() {
                 .unwrap();
                 let summary = dir.join("stress-summary.toml");
                 let h5 = dir.join("stress.h5");
-                let ok = Command::new("mpirun")
-                    .args(["--oversubscribe", "-n", "2"])
-                    .arg(repo().join("target/release/massfree"))
-                    .arg("run")
-                    .arg(&path)
+                let ok = massfree_run(2, &path)
                     .args([
                         "--quiet",
                         "--param",
@@ -607,9 +602,6 @@ fn main() {
                     .arg(&h5)
                     .arg("--summary")
                     .arg(&summary)
-                    .env("OMPI_ALLOW_RUN_AS_ROOT", "1")
-                    .env("OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1")
-                    .env("OMPI_MCA_btl_vader_single_copy_mechanism", "none")
                     .output()
                     .map(|o| o.status.success())
                     .unwrap_or(false);

@@ -674,7 +674,32 @@ impl<'a> Simulation<'a> {
         let mut midpoint = Midpoint::new(op, m, a, dirichlet, self.scene.tau, u0, v0, 0.0, forces)?;
         if self.opts.restart.is_none() {
             // The massless DOFs start in static equilibrium (a restart's state already is).
-            self.massless_initialized = midpoint.make_massless_consistent(forces, 0.0)?;
+            // Contact nodes the projection would push through an obstacle or the master side
+            // need their contact force for it (bodies touching at t = 0): they are held as
+            // given, and the projection is made again without them.
+            let mut hold: Vec<i32> = Vec::new();
+            loop {
+                let change = midpoint.make_massless_consistent(forces, 0.0, &hold)?;
+                let through = match contact.as_ref() {
+                    Some(c) => c.penetrating(midpoint.u(), 0.0)?,
+                    None => Vec::new(),
+                };
+                let dofs: Vec<i32> = (through.iter())
+                    .flat_map(|&(v, _)| (0..self.part.dim).map(move |c| (v, c)))
+                    .map(|(v, c)| self.part.dof(v, c) as i32)
+                    .filter(|d| !hold.contains(d))
+                    .collect();
+                if through.is_empty() {
+                    self.massless_initialized = change;
+                    break;
+                }
+                midpoint.undo_massless(forces, 0.0)?;
+                if dofs.is_empty() {
+                    // Penetrating as given: the scene check below says so.
+                    break;
+                }
+                hold.extend(dofs);
+            }
         }
         let restart = match self.opts.restart.clone() {
             Some(path) => {

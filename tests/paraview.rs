@@ -37,14 +37,26 @@ fn check_xdmf(xdmf: &Path, png: Option<&Path>) -> (String, bool) {
         );
     }
     let _one = PVBATCH.lock().unwrap_or_else(|e| e.into_inner());
-    let mut cmd = Command::new("xvfb-run");
-    cmd.args(["-a", "-s", "-screen 0 1280x1024x24"])
-        .arg(repo().join("tools/check-xdmf.py"))
-        .arg(xdmf);
-    if let Some(png) = png {
-        cmd.arg("--png").arg(png);
+    let run = || {
+        let mut cmd = Command::new("xvfb-run");
+        cmd.args(["-a", "-s", "-screen 0 1280x1024x24"])
+            .arg(repo().join("tools/check-xdmf.py"))
+            .arg(xdmf);
+        if let Some(png) = png {
+            cmd.arg("--png").arg(png);
+        }
+        cmd.output().expect("cannot start xvfb-run")
+    };
+    // Another process's xvfb-run may take the same display number at the same moment (the
+    // choice is racy across processes): pvbatch then finds no X server. Only that is retried.
+    let mut o = run();
+    for _ in 0..2 {
+        if !String::from_utf8_lossy(&o.stdout).contains("bad X server connection") {
+            break;
+        }
+        std::thread::sleep(std::time::Duration::from_secs(2));
+        o = run();
     }
-    let o = cmd.output().expect("cannot start xvfb-run");
     let out = String::from_utf8_lossy(&o.stdout).to_string();
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(out.contains("check-xdmf: "), "tools/check-xdmf.py did not finish:\n{out}\n{err}");

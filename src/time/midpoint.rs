@@ -104,6 +104,8 @@ pub struct Midpoint {
     /// and the energy that removed (<= 0, counted as contact work).
     release_projections: usize,
     release_energy: f64,
+    /// `u` before the last consistent initialization (to take it back).
+    before_projection: Option<Vector>,
 }
 
 impl Midpoint {
@@ -158,6 +160,7 @@ impl Midpoint {
             massless: None,
             release_projections: 0,
             release_energy: 0.0,
+            before_projection: None,
         };
         mp.refresh(forces, t0)?;
         Ok(mp)
@@ -171,13 +174,33 @@ impl Midpoint {
     /// never decays. So `u_C` is replaced by the solution of `A_CC u_C = f_C(t) - A_CN u_N`
     /// ([`Midpoint::project_massless`]). Returns the largest change (`None` without massless
     /// DOFs). Collective.
-    pub fn make_massless_consistent(&mut self, forces: &dyn Forces, t: f64) -> Result<Option<f64>> {
+    /// `hold`: global DOFs kept as they are (contact nodes whose equilibrium needs their
+    /// contact force, e.g. bodies touching at t = 0). [`Midpoint::undo_massless`] takes the
+    /// change back.
+    pub fn make_massless_consistent(
+        &mut self,
+        forces: &dyn Forces,
+        t: f64,
+        hold: &[i32],
+    ) -> Result<Option<f64>> {
         if forces.present() {
             forces.assemble(t, &mut self.f_now)?;
         }
-        let change = self.project_massless(forces.present(), &[])?;
+        let mut before = self.u.duplicate()?;
+        before.copy_from(&self.u)?;
+        let change = self.project_massless(forces.present(), hold)?;
+        self.before_projection = Some(before);
         self.refresh(forces, t)?;
         Ok(change)
+    }
+
+    /// Back to the state before the last [`Midpoint::make_massless_consistent`].
+    pub fn undo_massless(&mut self, forces: &dyn Forces, t: f64) -> Result<()> {
+        if let Some(before) = self.before_projection.take() {
+            self.u.copy_from(&before)?;
+            self.refresh(forces, t)?;
+        }
+        Ok(())
     }
 
     /// The massless DOFs (exact zeros on `M`'s diagonal, Dirichlet DOFs excluded) of this rank,
