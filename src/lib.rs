@@ -21,6 +21,7 @@ pub mod phase;
 pub mod post;
 pub mod scene;
 pub mod simulation;
+pub mod stability;
 pub mod stress_output;
 pub mod study;
 pub mod time;

@@ -789,6 +789,9 @@ mod tests {
             pictures: vec![],
             effects: String::new(),
             bodies: Vec::new(),
+            ksp_iterations_step_max: 7,
+            cfl: 0.5,
+            stability: None,
         };
         // The text `massfree run --summary` writes, read back.
         let s = parse_summary(&toml::to_string(&run).unwrap()).unwrap();
