@@ -24,6 +24,7 @@ pub mod simulation;
 pub mod stability;
 pub mod stress_output;
 pub mod study;
+pub mod suite;
 pub mod time;
 
 pub use error::{Error, Result};

@@ -146,7 +146,7 @@ pub fn measure(
 
 fn contact_metrics(s: &mut Stability, c: &ContactSeries) {
     let nc = c.nodes;
-    let rows = if nc == 0 { c.iterations.len() } else { c.force.len() / nc };
+    let rows = c.force.len().checked_div(nc).unwrap_or(c.iterations.len());
     s.non_finite += c.force.iter().filter(|x| !x.is_finite()).count();
     // Row 0's gaps are NaN by design (no step yet).
     s.non_finite += c.gap.iter().skip(nc).filter(|x| !x.is_finite()).count();
