@@ -131,7 +131,7 @@ fn main() {
         std::process::exit(1);
     }
     let quick = args.iter().any(|a| a == "--quick");
-    // --only scaling|solvers|mass|disc|contact3d|two_body|output|stress runs one section.
+    // --only scaling|solvers|mass|disc|contact3d|two_body|output|stress|suite runs one section.
     let only = args.iter().position(|a| a == "--only").and_then(|i| args.get(i + 1)).cloned();
     let want = |section: &str| only.as_deref().is_none_or(|o| o == section);
     let cg_jacobi: &[&str] = &[];
@@ -621,6 +621,39 @@ fn main() {
                     None => md += &format!("| {label} | failed | {what} |\n"),
                 }
                 print!("{}", md.lines().last().map(|l| format!("{l}\n")).unwrap_or_default());
+            }
+        }
+    }
+    if want("suite") {
+        // The hard-case stability suite (issue 14; README "Hard cases: the stability suite"):
+        // every case on 2 ranks, the marked ones also on 1, 3 and 4 (--quick: the reduced
+        // suite). Its own tables go to target/bench/suite/; here its per-case table and time.
+        let out = bench_dir().join("suite");
+        let mut cmd = Command::new(repo().join("target/release/massfree"));
+        cmd.arg("suite").arg(repo().join("studies/suite.toml")).arg("-o").arg(&out);
+        if quick {
+            cmd.arg("--reduced");
+        }
+        let t0 = std::time::Instant::now();
+        let ok = cmd
+            .env("OMPI_ALLOW_RUN_AS_ROOT", "1")
+            .env("OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1")
+            .env("OMPI_MCA_btl_vader_single_copy_mechanism", "none")
+            .status()
+            .map(|s| s.success())
+            .unwrap_or(false);
+        let seconds = t0.elapsed().as_secs_f64();
+        md += &format!(
+            "\n## Stability suite{}\n\n{} in {:.1} min (aim: under 30 min on 2 cores); tables in {}\n\n",
+            if quick { " (reduced)" } else { "" },
+            if ok { "finished" } else { "FAILED (a run failed or hit NaN/inf)" },
+            seconds / 60.0,
+            out.display()
+        );
+        if let Ok(text) = std::fs::read_to_string(out.join("suite.md")) {
+            if let Some(table) = text.split("## Per case").nth(1) {
+                md += table.split("## Every run").next().unwrap_or("").trim();
+                md += "\n";
             }
         }
     }

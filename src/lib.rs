@@ -21,8 +21,10 @@ pub mod phase;
 pub mod post;
 pub mod scene;
 pub mod simulation;
+pub mod stability;
 pub mod stress_output;
 pub mod study;
+pub mod suite;
 pub mod time;
 
 pub use error::{Error, Result};

@@ -64,6 +64,21 @@ enum Command {
         /// The study file (TOML).
         study: PathBuf,
     },
+    /// Run the hard-case stability suite (each case a real run on 2 ranks; selected cases also
+    /// on other rank counts) and write DIR/suite.md, suite.csv and suite.png.
+    Suite {
+        /// The suite file (default: studies/suite.toml, here or in the repository).
+        spec: Option<PathBuf>,
+        /// The reduced suite (coarser meshes, fewer steps): the suite file's [reduced] variant.
+        #[arg(long)]
+        reduced: bool,
+        /// Ranks of every run (default: the suite file's, 2).
+        #[arg(long)]
+        ranks: Option<usize>,
+        /// Output folder (default: the suite file's output, out/suite or out/suite-reduced).
+        #[arg(long, short)]
+        output: Option<PathBuf>,
+    },
     /// Overlay the energies and the lowest contact node's pressure of several runs (HDF5
     /// files) in PNG pictures PREFIX-energy.png and PREFIX-pressure.png; with --snapshot, draw
     /// a field of the runs side by side (one colour range) in PREFIX-snapshot-FIELD.png.
@@ -179,6 +194,20 @@ fn run(
         }
         return Ok(());
     }
+    if let Command::Suite { spec, reduced, ranks, output } = &cli.command {
+        // Like a study: separate mpirun runs, driven by rank 0.
+        if universe.world().rank() == 0 {
+            let spec = spec.clone().unwrap_or_else(default_suite);
+            let opts = massfree::suite::Options {
+                spec,
+                reduced: *reduced,
+                ranks: *ranks,
+                output: output.clone(),
+            };
+            massfree::suite::run(&opts)?;
+        }
+        return Ok(());
+    }
     if let Command::Compare { runs, out, labels, snapshot } = &cli.command {
         // Post-processing: serial, rank 0 only.
         if universe.world().rank() == 0 {
@@ -270,8 +299,21 @@ fn run(
             }
             Ok(())
         }
-        Command::Compare { .. } | Command::Study { .. } | Command::Post { .. } => Ok(()),
+        Command::Compare { .. }
+        | Command::Study { .. }
+        | Command::Post { .. }
+        | Command::Suite { .. } => Ok(()),
     }
+}
+
+/// `studies/suite.toml` in the current folder, else the one of the repository the binary was
+/// built from.
+fn default_suite() -> PathBuf {
+    let here = PathBuf::from("studies/suite.toml");
+    if here.is_file() {
+        return here;
+    }
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("studies/suite.toml")
 }
 
 fn main() {

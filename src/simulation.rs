@@ -33,6 +33,7 @@ use crate::phase::{self, HangTimeout, Phase, Watchdog};
 use crate::post::{picture_paths, write_pictures, RunCurves};
 use crate::scene::effects::short_number;
 use crate::scene::{Field, MeshSource, Scene};
+use crate::stability::{self, ContactSeries, EnergySeries, Stability};
 use crate::stress_output::StressOutput;
 use crate::time::{Dirichlet, Energy, Forces, Midpoint, StepOperator, StepSolverDefaults};
 
@@ -137,6 +138,16 @@ pub struct RunSummary {
     pub release_projections: usize,
     #[serde(default)]
     pub release_energy: f64,
+    /// The largest number of KSP iterations of one step (`ksp_iterations` is the sum).
+    #[serde(default)]
+    pub ksp_iterations_step_max: usize,
+    /// The CFL number `c_p tau / h_min` of the step solver's regime (largest over the bodies).
+    #[serde(default)]
+    pub cfl: f64,
+    /// Stability metrics (energy rise and loss against the work, penetration, chatter,
+    /// episodes per impact, iterations; `stability::Stability`).
+    #[serde(default)]
+    pub stability: Option<Stability>,
 }
 
 /// One `[[body]]` of a finished run.
@@ -249,6 +260,8 @@ pub struct Simulation<'a> {
     /// The largest change the consistent initialization made to the massless DOFs
     /// (`Midpoint::make_massless_consistent`; `None` without massless DOFs or on a restart).
     massless_initialized: Option<f64>,
+    /// The regime's CFL number `c_p tau / h_min` (largest over the bodies).
+    cfl: f64,
     /// Per body: contact nodes and cells of the mass-free layer on it.
     body_layers: Vec<(usize, usize)>,
     mass_check: MassCheck,
@@ -323,6 +336,11 @@ struct Record {
     output_seconds: f64,
     /// Momentum of each body at the start, per component.
     body_p0: Vec<Vec<f64>>,
+    /// Per step from the start: total energy, work of the loads, of the Dirichlet reactions
+    /// and of the contact (the series of `/energy`, for the stability metrics).
+    energies: Vec<[f64; 4]>,
+    /// The largest number of KSP iterations of one step.
+    ksp_step_max: usize,
 }
 
 impl Record {
@@ -338,6 +356,7 @@ impl Record {
         if self.e0 != 0.0 {
             self.drift = self.drift.max(((total - self.e0) / self.e0).abs());
         }
+        self.energies.push([total, e.external_work, e.dirichlet_work, e.contact_work]);
     }
 }
 
@@ -448,6 +467,7 @@ impl<'a> Simulation<'a> {
             timings,
             layer_summary: None,
             massless_initialized: None,
+            cfl: 0.0,
             body_layers: Vec::new(),
             mass_check: MassCheck::default(),
             natural: None,
@@ -491,6 +511,7 @@ impl<'a> Simulation<'a> {
             for n in start..n_steps {
                 let t_step = Instant::now();
                 let report = midpoint.step(n, &forces, contact.as_deref_mut())?;
+                record.ksp_step_max = record.ksp_step_max.max(report.ksp_iterations);
                 let t_next = (n + 1) as f64 * midpoint.tau();
                 if let Some(c) = &report.contact {
                     if c.row.active.iter().any(|&a| a) {
@@ -631,6 +652,7 @@ impl<'a> Simulation<'a> {
         let null_space = self.near_null_space()?;
         // The step solver's defaults follow the regime (scene and command line still win).
         let regime = self.bodies.regime(self.scene.tau, &self.min_edges());
+        self.cfl = regime.cfl;
         let (mut defaults, why) = StepSolverDefaults::for_regime(&regime, contact.is_some());
         if let Some(k) = &self.scene.solver.ksp_type {
             defaults.ksp_type = k.clone();
@@ -774,6 +796,8 @@ impl<'a> Simulation<'a> {
             contact_ksp_iterations: 0,
             output_seconds: 0.0,
             body_p0: self.body_momenta(midpoint.mv())?,
+            energies: vec![[e.total(), e.external_work, e.dirichlet_work, e.contact_work]],
+            ksp_step_max: 0,
         };
         if let Some(c) = contact.as_deref() {
             record.history.start(c);
@@ -1006,6 +1030,7 @@ impl<'a> Simulation<'a> {
         // Collective: every rank has the same contact solver.
         let mortar = contact.and_then(|c| c.mortar_cost()).map(|m| m.max_over_ranks(self.world));
         let contact_summary = contact_summary.map(|s| ContactSummary { mortar, ..s });
+        let stability = self.stability(midpoint, contact, &record);
         // Pictures next to the HDF5 file, drawn by rank 0 from the histories in memory. A
         // picture that cannot be drawn (e.g. no font) is a warning, not a failed run; every
         // rank learns the outcome, since the summary written below must be the same on all.
@@ -1086,7 +1111,51 @@ impl<'a> Simulation<'a> {
             massless_initialization: self.massless_initialized,
             release_projections: midpoint.release_projections().0,
             release_energy: midpoint.release_projections().1,
+            ksp_iterations_step_max: record.ksp_step_max,
+            cfl: self.cfl,
+            stability: Some(stability),
         })
+    }
+
+    /// The stability metrics of the run from its in-memory series (the same function that
+    /// `massfree suite` applies to the HDF5 file).
+    fn stability(
+        &self,
+        midpoint: &Midpoint,
+        contact: Option<&dyn ContactSolver>,
+        record: &Record,
+    ) -> Stability {
+        let col = |i: usize| record.energies.iter().map(|r| r[i]).collect::<Vec<f64>>();
+        let (total, ext, dir, con) = (col(0), col(1), col(2), col(3));
+        let energy = EnergySeries {
+            total: &total,
+            external_work: &ext,
+            dirichlet_work: &dir,
+            contact_work: &con,
+        };
+        let size = stability::body_size(&self.mesh.coords);
+        let ksp = (midpoint.ksp_iterations(), record.ksp_step_max, total.len().saturating_sub(1));
+        match contact {
+            Some(c) => {
+                let rows = record.history.rows();
+                let force: Vec<f64> = rows.iter().flat_map(|r| r.force.iter().copied()).collect();
+                let gap: Vec<f64> = rows.iter().flat_map(|r| r.gap.iter().copied()).collect();
+                let active: Vec<bool> =
+                    rows.iter().flat_map(|r| r.active.iter().copied()).collect();
+                let iterations: Vec<f64> = rows.iter().map(|r| r.iterations as f64).collect();
+                let series = ContactSeries {
+                    nodes: c.n_nodes(),
+                    force: &force,
+                    gap: &gap,
+                    active: &active,
+                    weights: record.history.nodes().1,
+                    iterations: &iterations,
+                    lowest: c.lowest(),
+                };
+                stability::measure(&energy, Some(&series), size, ksp)
+            }
+            None => stability::measure(&energy, None, size, ksp),
+        }
     }
 
     /// The file's final metadata. A signal that arrived in the final phase is reported as

@@ -137,6 +137,11 @@ impl History {
         out
     }
 
+    /// Every step's row (index 0 = the start).
+    pub fn rows(&self) -> &[ContactRow] {
+        &self.rows
+    }
+
     /// The last step's row.
     pub fn last_row(&self) -> Option<&ContactRow> {
         self.rows.last()

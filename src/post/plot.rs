@@ -956,3 +956,154 @@ mod tests {
         assert_eq!(t.last(), Some(&(99_999.0, 0.0)));
     }
 }
+
+/// One point of a [`status_panels`] chart: `class` picks its colour (0 green, 1 orange, 2 red).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct StatusPoint {
+    pub x: f64,
+    pub y: f64,
+    pub class: usize,
+}
+
+/// One panel of [`status_panels`]: a caption, the points (log y) and an optional dashed
+/// threshold line.
+#[derive(Debug, Clone, Copy)]
+pub struct StatusPanel<'a> {
+    pub caption: &'a str,
+    pub points: &'a [StatusPoint],
+    pub threshold: Option<f64>,
+}
+
+const STATUS_COLORS: [RGBColor; 3] =
+    [RGBColor(44, 160, 44), RGBColor(255, 127, 14), RGBColor(214, 39, 40)];
+
+/// Panels of points on a log y axis over a shared x axis (e.g. one point per run), coloured
+/// by class (`classes` names them in the legend), with vertical bands `(x_first, x_last,
+/// name)` that group the points (e.g. the runs of one case; their names label the bottom
+/// axis). Points with `y <= 0` or non-finite coordinates are skipped.
+pub fn status_panels(
+    path: &Path,
+    title: &str,
+    panels: &[StatusPanel],
+    bands: &[(f64, f64, String)],
+    classes: &[&str],
+) -> Result<()> {
+    let panel_h = 300u32;
+    let label_band = 170u32;
+    let width =
+        (bands.iter().map(|b| b.1 - b.0 + 1.0).sum::<f64>() * 9.0).clamp(900.0, 4000.0) as u32;
+    let height = panel_h * panels.len() as u32 + STACK_TITLE_BAND + label_band;
+    check_size(path, width, height)?;
+    let xs: Vec<f64> = panels.iter().flat_map(|p| p.points.iter().map(|q| q.x)).collect();
+    if xs.is_empty() {
+        return Err(nothing(path));
+    }
+    let (xlo, xhi) =
+        xs.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &x| (a.min(x), b.max(x)));
+    let xlo = bands.first().map_or(xlo, |b| b.0.min(xlo)) - 0.5;
+    let xhi = bands.last().map_or(xhi, |b| b.1.max(xhi)) + 0.5;
+    ensure_font()?;
+    render(path, width, height, |root| {
+        let body = root.titled(title, (FAMILY, TITLE_SIZE)).map_err(|e| e.to_string())?;
+        let n = panels.len() as i32;
+        let breaks: Vec<i32> = (1..=n).map(|k| k * panel_h as i32).collect();
+        let areas = body.split_by_breakpoints::<i32, i32, _, _>([], breaks);
+        // Pixel x of each band's middle (from the last panel's coordinates) and the top of
+        // the label band.
+        let mut label_x: Vec<i32> = Vec::new();
+        let mut label_top = 0i32;
+        for (i, panel) in panels.iter().enumerate() {
+            let area = &areas[i];
+            let ys: Vec<f64> = panel
+                .points
+                .iter()
+                .map(|p| p.y)
+                .chain(panel.threshold)
+                .filter(|y| *y > 0.0 && y.is_finite())
+                .collect();
+            let (lo, hi) = ys
+                .iter()
+                .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &y| (a.min(y), b.max(y)));
+            let yr = if lo.is_finite() { pad_log(lo, hi, Y_MARGIN) } else { (1e-16, 1.0) };
+            let yfmt = log_formatter(yr.0, yr.1);
+            let y_area = y_label_area(area, "", &log_sample_ticks(yr), &yfmt);
+            let mut chart = ChartBuilder::on(area)
+                .caption(panel.caption, (FAMILY, CAPTION_SIZE))
+                .margin(8)
+                .margin_right(25)
+                .x_label_area_size(10)
+                .y_label_area_size(y_area)
+                .build_cartesian_2d(xlo..xhi, LogAxis::new(yr))
+                .map_err(|e| e.to_string())?;
+            chart
+                .configure_mesh()
+                .disable_x_mesh()
+                .disable_x_axis()
+                .y_label_formatter(&yfmt)
+                .y_labels(8)
+                .label_style((FAMILY, TICK_SIZE))
+                .light_line_style(RGBColor(235, 235, 235))
+                .bold_line_style(RGBColor(205, 205, 205))
+                .draw()
+                .map_err(|e| e.to_string())?;
+            for (k, b) in bands.iter().enumerate() {
+                if k % 2 == 1 {
+                    chart
+                        .draw_series(std::iter::once(Rectangle::new(
+                            [(b.0 - 0.5, yr.0), (b.1 + 0.5, yr.1)],
+                            RGBColor(240, 240, 248).filled(),
+                        )))
+                        .map_err(|e| e.to_string())?;
+                }
+            }
+            if let Some(t) = panel.threshold {
+                chart
+                    .draw_series(std::iter::once(DashedPathElement::new(
+                        vec![(xlo, t), (xhi, t)],
+                        8,
+                        4,
+                        RGBColor(214, 39, 40).stroke_width(1),
+                    )))
+                    .map_err(|e| e.to_string())?;
+            }
+            for (c, name) in classes.iter().enumerate() {
+                let col = STATUS_COLORS[c.min(2)];
+                let pts: Vec<(f64, f64)> = panel
+                    .points
+                    .iter()
+                    .filter(|p| p.class == c && p.y > 0.0 && p.y.is_finite() && p.x.is_finite())
+                    .map(|p| (p.x, p.y))
+                    .collect();
+                let s = chart
+                    .draw_series(pts.into_iter().map(|p| Circle::new(p, 4, col.filled())))
+                    .map_err(|e| e.to_string())?;
+                if i == 0 {
+                    s.label(*name).legend(move |(x, y)| Circle::new((x + 10, y), 4, col.filled()));
+                }
+            }
+            if i + 1 == panels.len() {
+                label_x = bands
+                    .iter()
+                    .map(|b| chart.backend_coord(&((b.0 + b.1) / 2.0, yr.0)).0)
+                    .collect();
+                label_top = chart.backend_coord(&(xlo, yr.0)).1 + 6;
+            }
+            if i == 0 {
+                chart
+                    .configure_series_labels()
+                    .position(SeriesLabelPosition::UpperRight)
+                    .background_style(WHITE.mix(0.85))
+                    .border_style(RGBColor(120, 120, 120))
+                    .label_font((FAMILY, LEGEND_SIZE))
+                    .draw()
+                    .map_err(|e| e.to_string())?;
+            }
+        }
+        // The bands' names, rotated, under the last panel.
+        let style = TextStyle::from((FAMILY, 12).into_font()).transform(FontTransform::Rotate90);
+        for (b, x) in bands.iter().zip(label_x) {
+            root.draw_text(&b.2, &style, (x + 6, label_top)).map_err(|e| e.to_string())?;
+        }
+        Ok(())
+    })
+}

@@ -200,7 +200,7 @@ fn execute(study: &Study, binary: &Path) -> Result<Vec<Row>> {
     Ok(rows)
 }
 
-fn clock(s: f64) -> String {
+pub(crate) fn clock(s: f64) -> String {
     if s < 60.0 {
         format!("{s:.0} s")
     } else {
@@ -348,7 +348,7 @@ fn write_scene(path: &Path, text: &str) -> Result<PathBuf> {
 }
 
 /// The launcher: `MASSFREE_MPIRUN` (e.g. "srun") or `mpirun --oversubscribe`, then `-n RANKS`.
-fn launcher(ranks: usize) -> Command {
+pub(crate) fn launcher(ranks: usize) -> Command {
     let custom = std::env::var("MASSFREE_MPIRUN").ok().filter(|s| !s.trim().is_empty());
     let words: Vec<String> = match custom {
         Some(s) => s.split_whitespace().map(str::to_string).collect(),
@@ -427,7 +427,7 @@ fn run_point(
 }
 
 /// The run's own error line (`massfree: ...`), else the last line that is not mpirun's frame.
-fn last_error_line(stderr: &str, code: Option<i32>) -> String {
+pub(crate) fn last_error_line(stderr: &str, code: Option<i32>) -> String {
     let lines: Vec<&str> = stderr.lines().map(str::trim).filter(|l| !l.is_empty()).collect();
     if let Some(l) = lines.iter().rev().find(|l| l.starts_with("massfree:")) {
         return l.trim_start_matches("massfree:").trim().to_string();
@@ -442,7 +442,7 @@ fn last_error_line(stderr: &str, code: Option<i32>) -> String {
 }
 
 /// A run's summary as `massfree run --summary` writes it.
-fn parse_summary(text: &str) -> std::result::Result<RunSummary, String> {
+pub(crate) fn parse_summary(text: &str) -> std::result::Result<RunSummary, String> {
     toml::from_str(text).map_err(|e: toml::de::Error| e.message().to_string())
 }
 
@@ -793,6 +793,9 @@ mod tests {
             massless_initialization: None,
             release_projections: 0,
             release_energy: 0.0,
+            ksp_iterations_step_max: 7,
+            cfl: 0.5,
+            stability: None,
         };
         // The text `massfree run --summary` writes, read back.
         let s = parse_summary(&toml::to_string(&run).unwrap()).unwrap();
