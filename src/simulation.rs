@@ -35,7 +35,10 @@ use crate::scene::effects::short_number;
 use crate::scene::{Field, MeshSource, Scene};
 use crate::stability::{self, ContactSeries, EnergySeries, Stability};
 use crate::stress_output::StressOutput;
-use crate::time::{Dirichlet, Energy, Forces, Midpoint, StepOperator, StepSolverDefaults};
+use crate::time::{
+    Corrections, Dirichlet, Energy, Forces, MasslessScheme, Midpoint, StepOperator,
+    StepSolverDefaults,
+};
 
 /// What the command line adds to a scene.
 #[derive(Debug, Clone, Default)]
@@ -138,6 +141,12 @@ pub struct RunSummary {
     pub release_projections: usize,
     #[serde(default)]
     pub release_energy: f64,
+    /// How the massless DOFs were stepped (`None` without massless DOFs).
+    #[serde(default)]
+    pub massless_scheme: Option<MasslessScheme>,
+    /// What the level scheme's energy correction did.
+    #[serde(default)]
+    pub energy_corrections: Corrections,
     /// The largest number of KSP iterations of one step (`ksp_iterations` is the sum).
     #[serde(default)]
     pub ksp_iterations_step_max: usize,
@@ -301,17 +310,69 @@ struct LoadsAt {
     loads: Loads,
     mesh: Rc<Mesh>,
     part: Rc<Partition>,
+    inertial: Option<InertialLoad>,
+}
+
+/// A body force per unit mass `a` (`body_force.acceleration`, gravity), integrated like the
+/// inertia: `f = M a_h`. With the mass-free layer the massless DOFs then carry no weight, as
+/// they carry no inertia: a body in free fall moves rigidly (`u = a t^2/2` solves
+/// `M u'' + A u = M a`, as `A` vanishes on translations), and a body at rest has consistent
+/// data. `M_H` keeps the total mass and, for `M_H^1`, its first moments (Lemma 3.3), so the
+/// resultant and the moment of a uniform `a` are exact.
+enum InertialLoad {
+    /// `M a_h`, assembled once.
+    Steady(Vector),
+    /// `a` depends on `t`: `M a_h(t)` at every evaluation.
+    Varying(crate::scene::expr::VecExpr, crate::petsc::Matrix),
+}
+
+impl LoadsAt {
+    fn new(
+        loads: Loads,
+        mesh: Rc<Mesh>,
+        part: Rc<Partition>,
+        acceleration: Option<&crate::scene::expr::VecExpr>,
+        m: &crate::petsc::Matrix,
+    ) -> Result<LoadsAt> {
+        let inertial = match acceleration.filter(|a| !a.is_zero()) {
+            None => None,
+            Some(a) if a.depends_on_t() => {
+                Some(InertialLoad::Varying(a.clone(), m.duplicate(true)?))
+            }
+            Some(a) => {
+                let ah = assembly::interpolate(&mesh, &part, a, 0.0)?;
+                let mut f = ah.duplicate()?;
+                m.mult(&ah, &mut f)?;
+                Some(InertialLoad::Steady(f))
+            }
+        };
+        Ok(LoadsAt { loads, mesh, part, inertial })
+    }
 }
 
 impl Forces for LoadsAt {
     fn present(&self) -> bool {
-        self.loads.present
+        self.loads.present || self.inertial.is_some()
     }
     fn time_dependent(&self) -> bool {
-        self.loads.time_dependent
+        self.loads.time_dependent || matches!(self.inertial, Some(InertialLoad::Varying(..)))
     }
     fn assemble(&self, t: f64, out: &mut Vector) -> Result<()> {
-        self.loads.assemble(&self.mesh, &self.part, t, out)
+        if self.loads.present {
+            self.loads.assemble(&self.mesh, &self.part, t, out)?;
+        } else {
+            out.zero()?;
+        }
+        match &self.inertial {
+            None => Ok(()),
+            Some(InertialLoad::Steady(f)) => out.axpy(1.0, f),
+            Some(InertialLoad::Varying(a, m)) => {
+                let ah = assembly::interpolate(&self.mesh, &self.part, a, t)?;
+                let mut f = ah.duplicate()?;
+                m.mult(&ah, &mut f)?;
+                out.axpy(1.0, &f)
+            }
+        }
     }
 }
 
@@ -493,8 +554,13 @@ impl<'a> Simulation<'a> {
         let result = guard(|| {
             // 1. The physics: A, M (or M_H), loads, Dirichlet data, contact.
             let (physics, loads) = self.assemble()?;
-            let forces =
-                LoadsAt { loads, mesh: Rc::clone(&self.mesh), part: Rc::clone(&self.part) };
+            let forces = LoadsAt::new(
+                loads,
+                Rc::clone(&self.mesh),
+                Rc::clone(&self.part),
+                self.scene.body_acceleration.as_ref(),
+                &physics.m,
+            )?;
             // 2. The integrator: K = 4/tau^2 M + A and its solver, set up once; the state.
             let (mut midpoint, mut contact, start, mut record) =
                 self.integrator(physics, &forces)?;
@@ -723,6 +789,32 @@ impl<'a> Simulation<'a> {
                 hold.extend(dofs);
             }
         }
+        // The massless DOFs (`-massless_scheme midpoint|level`, `-massless_energy_correction`):
+        // midpoint rows with the energy correction by default; the level scheme only against
+        // obstacles when every contact DOF is massless (pairs keep the midpoint rows).
+        let level = match crate::petsc::Petsc::options_get_string("-massless_scheme")?.as_deref() {
+            None | Some("midpoint") => false,
+            Some("level") => true,
+            Some(other) => {
+                return Err(Error::Usage(format!(
+                    "-massless_scheme {other}: unknown scheme (midpoint or level)"
+                )))
+            }
+        };
+        let correct = match crate::petsc::Petsc::options_get_string("-massless_energy_correction")?
+            .as_deref()
+        {
+            None | Some("1" | "true" | "yes") => true,
+            Some("0" | "false" | "no") => false,
+            Some(other) => {
+                return Err(Error::Usage(format!(
+                    "-massless_energy_correction {other}: give true or false"
+                )))
+            }
+        };
+        let pair = contact.as_ref().is_some_and(|c| c.is_pair());
+        let dofs = contact.as_ref().map(|c| c.nodes().dofs.clone());
+        midpoint.configure_massless(level && !pair, dofs.as_deref(), correct, self.part.dim)?;
         let restart = match self.opts.restart.clone() {
             Some(path) => {
                 Some(self.restore(&path, &mut midpoint, contact.as_deref_mut(), forces)?)
@@ -1111,6 +1203,8 @@ impl<'a> Simulation<'a> {
             massless_initialization: self.massless_initialized,
             release_projections: midpoint.release_projections().0,
             release_energy: midpoint.release_projections().1,
+            massless_scheme: midpoint.has_massless().then(|| midpoint.scheme()),
+            energy_corrections: midpoint.corrections(),
             ksp_iterations_step_max: record.ksp_step_max,
             cfl: self.cfl,
             stability: Some(stability),
@@ -1796,6 +1890,17 @@ pub fn summary_lines(sim: &Simulation, s: &RunSummary) -> Vec<String> {
     if let Some(d) = s.massless_initialization.filter(|&d| d > 0.0) {
         lines.push(format!(
             "massless DOFs: the initial displacement made statically consistent there (largest change {d:.3e})"
+        ));
+    }
+    if s.massless_scheme == Some(MasslessScheme::Level) {
+        lines
+            .push("massless DOFs: static at every time level (-massless_scheme level)".to_string());
+    }
+    if s.energy_corrections.enabled {
+        let c = &s.energy_corrections;
+        lines.push(format!(
+            "massless DOFs: contact work put back on {} steps ({} extra solves, {} steps handed it on): {:.3e}, pending at the end {:.3e}",
+            c.steps, c.extra_solves, c.skipped, c.energy, c.pending
         ));
     }
     if s.release_projections > 0 {

@@ -152,7 +152,7 @@ impl Scene {
             bodies: self.bodies.iter().map(body_brief).collect(),
             initial_displacement: nonzero(&self.initial_displacement),
             initial_velocity: nonzero(&self.initial_velocity),
-            body_force: Variation::of(&self.body_force),
+            body_force: Variation::of(self.body_force.iter().chain(&self.body_acceleration)),
             tractions: Variation::of(self.neumann.iter().map(|n| &n.traction)),
             dirichlet: !self.dirichlet.is_empty(),
             dirichlet_lifting: Variation::of(self.dirichlet.iter().map(|d| &d.value)),

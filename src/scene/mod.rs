@@ -32,7 +32,8 @@
 //! group = "top"
 //! traction = ["0", "-1e-3*sin(2*pi*t)"]
 //! [body_force]
-//! value = ["0", "0.02*x*(10-x)*y^2*sin(2*pi*t)"]
+//! value = ["0", "0.02*x*(10-x)*y^2*sin(2*pi*t)"]   # force per volume, integrated exactly
+//! acceleration = ["0", "-9.81"]       # and/or per mass (gravity): f = M a_h, like the inertia
 //! [initial]
 //! displacement = ["0", "0"]
 //! velocity = ["0", "0"]
@@ -125,6 +126,10 @@ pub struct Scene {
     pub neumann: Vec<NeumannSpec>,
     /// `None` when absent; present but all-zero is kept (see [`Effects::body_force`]).
     pub body_force: Option<VecExpr>,
+    /// `body_force.acceleration`: a body force per unit mass (gravity), `rho a`, integrated
+    /// like the inertia: `f = M a_h` with the run's mass matrix (`M_H` with the mass-free
+    /// layer) and the nodal interpolant `a_h`.
+    pub body_acceleration: Option<VecExpr>,
     pub initial_displacement: Option<VecExpr>,
     pub initial_velocity: Option<VecExpr>,
     /// Time step, > 0.
@@ -580,6 +585,7 @@ impl Scene {
             }
         };
         opt("body_force.value", self.body_force.as_ref());
+        opt("body_force.acceleration", self.body_acceleration.as_ref());
         opt("initial.displacement", self.initial_displacement.as_ref());
         opt("initial.velocity", self.initial_velocity.as_ref());
         if let Some(ex) = &self.exact {
@@ -787,7 +793,8 @@ struct RawNeumann {
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 struct RawBodyForce {
-    value: Vec<ExprSrc>,
+    value: Option<Vec<ExprSrc>>,
+    acceleration: Option<Vec<ExprSrc>>,
 }
 
 #[derive(Deserialize)]
@@ -1296,10 +1303,21 @@ fn build(raw: RawScene, stem: &str, base_dir: &Path) -> VResult<Scene> {
             traction: compile_vec(&n.traction, &format!("{key}.traction"))?,
         });
     }
-    let body_force = match raw.body_force {
-        Some(b) => Some(compile_vec(&b.value, "body_force.value")?),
-        None => None,
-    };
+    let (mut body_force, mut body_acceleration) = (None, None);
+    if let Some(b) = raw.body_force {
+        if b.value.is_none() && b.acceleration.is_none() {
+            return Err(
+                "body_force: give value (force per volume) or acceleration (per mass, e.g. gravity)"
+                    .into(),
+            );
+        }
+        if let Some(v) = b.value {
+            body_force = Some(compile_vec(&v, "body_force.value")?);
+        }
+        if let Some(a) = b.acceleration {
+            body_acceleration = Some(compile_vec(&a, "body_force.acceleration")?);
+        }
+    }
     let (mut initial_displacement, mut initial_velocity) = (None, None);
     if let Some(init) = raw.initial {
         if let Some(d) = init.displacement {
@@ -1561,6 +1579,7 @@ fn build(raw: RawScene, stem: &str, base_dir: &Path) -> VResult<Scene> {
         dirichlet,
         neumann,
         body_force,
+        body_acceleration,
         initial_displacement,
         initial_velocity,
         tau: t.tau,

@@ -106,6 +106,64 @@ pub struct Midpoint {
     release_energy: f64,
     /// `u` before the last consistent initialization (to take it back).
     before_projection: Option<Vector>,
+    /// How the massless DOFs are stepped ([`MasslessScheme`]).
+    scheme: MasslessScheme,
+    /// With [`MasslessScheme::Level`]: `1` on this rank's massless DOFs, `0` elsewhere.
+    mask: Option<Vector>,
+    /// Work vectors of the level scheme: `F^n` (the massless rows' reaction at `t_n`), `M du`.
+    level_force: Option<(Vector, Vector)>,
+    /// Steps whose contact work the energy correction took back, its extra solves, and the
+    /// energy it put back (the negative of the contact work it cancelled).
+    corrections: Corrections,
+    corrections_this_step: usize,
+    /// Whether the level scheme corrects the energy of steps whose active set changed.
+    correct: bool,
+    /// The energy correction's right-hand side and work vectors `(M du, -2 xi M du)`.
+    rhs_corr: Option<Vector>,
+    corr: Option<(Vector, Vector)>,
+    /// Components per node (the level scheme's correction works per component).
+    dim: usize,
+    /// `M 1` without the Dirichlet rows (built on first use).
+    m_ones: Option<Vector>,
+}
+
+/// How the massless DOFs (zero rows of `M`) are stepped.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum MasslessScheme {
+    /// Their rows static at the midpoint, `(A u^{n+1/2})_C = f^{n+1/2}_C + F_C`, with the
+    /// contact conditions at `t_{n+1}`: the midpoint rule applied to every row alike. An
+    /// arriving node costs its activation work `-lambda g^n`; consistency is restored by a
+    /// projection after a release.
+    Midpoint,
+    /// Their rows static at every time level, `(A u^{n+1})_C = f^{n+1}_C + F^{n+1}_C`, with
+    /// the contact conditions there (the semi-discrete system with massless contact nodes is
+    /// an ODE in the massive DOFs, the contact nodes following statically: Khenous, Laborde
+    /// and Renard 2008). The massive rows keep the midpoint rule with `u_C^{n+1/2}` the mean
+    /// of the two levels, so the reaction in the energy balance is the mean `(F^n + F^{n+1})/2`;
+    /// with the energy correction the step keeps the energy exactly.
+    Level,
+}
+
+/// What the energy correction did (the level scheme).
+#[derive(Debug, Clone, Copy, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct Corrections {
+    /// Whether the run corrects (`-massless_energy_correction`, on by default with massless
+    /// DOFs).
+    #[serde(default)]
+    pub enabled: bool,
+    /// Steps that were corrected.
+    pub steps: usize,
+    /// Solves beyond each corrected step's first.
+    pub extra_solves: usize,
+    /// Steps whose contact work was too large for the step's motion to correct (left as it is).
+    pub skipped: usize,
+    /// The energy the correction put back (sum of `-xi du.M du`).
+    pub energy: f64,
+    /// Contact work not yet taken back: of steps too slow to carry the correction, handed on
+    /// to the next steps (they are corrected until it is gone).
+    #[serde(default)]
+    pub pending: f64,
 }
 
 impl Midpoint {
@@ -161,6 +219,16 @@ impl Midpoint {
             release_projections: 0,
             release_energy: 0.0,
             before_projection: None,
+            scheme: MasslessScheme::Midpoint,
+            mask: None,
+            level_force: None,
+            corrections: Corrections::default(),
+            corrections_this_step: 0,
+            correct: false,
+            rhs_corr: None,
+            corr: None,
+            dim: 1,
+            m_ones: None,
         };
         mp.refresh(forces, t0)?;
         Ok(mp)
@@ -297,15 +365,341 @@ impl Midpoint {
         Ok(())
     }
 
+    /// How the massless DOFs are stepped from now on: the energy correction (after steps whose
+    /// active set changed) if `correct`, and [`MasslessScheme::Level`] if `level` and it
+    /// applies: every DOF of the contact nodes (`contact_dofs`, global with the owner flag) is
+    /// massless (the level rows replace the midpoint rows of exactly those DOFs; a contact
+    /// node with mass keeps the midpoint rule). `dim` components per node. Nothing without
+    /// massless DOFs. Returns the scheme in use. Collective.
+    pub fn configure_massless(
+        &mut self,
+        level: bool,
+        contact_dofs: Option<&[(i32, bool)]>,
+        correct: bool,
+        dim: usize,
+    ) -> Result<MasslessScheme> {
+        self.dim = dim;
+        self.massless()?;
+        let (local, any) = self.massless.as_ref().expect("found").clone();
+        self.correct = correct && any;
+        self.corrections.enabled = self.correct;
+        let (lo, hi) = self.u.ownership_range();
+        let mut massive_contact = 0.0;
+        for &(d, owned) in contact_dofs.unwrap_or(&[]) {
+            if owned && (lo..hi).contains(&(d as usize)) && !local[d as usize - lo] {
+                massive_contact += 1.0;
+            }
+        }
+        let mut all = 0.0;
+        let world = SimpleCommunicator::world();
+        world.all_reduce_into(&massive_contact, &mut all, SystemOperation::sum());
+        if !level || !any || all > 0.0 {
+            return Ok(self.scheme);
+        }
+        let mut mask = self.u.duplicate()?;
+        mask.with_local_slice_mut(|x| {
+            for (xi, &c) in x.iter_mut().zip(&local) {
+                *xi = if c { 1.0 } else { 0.0 };
+            }
+        })?;
+        self.mask = Some(mask);
+        self.level_force = Some((self.u.duplicate()?, self.u.duplicate()?));
+        self.scheme = MasslessScheme::Level;
+        Ok(self.scheme)
+    }
+
+    /// Whether any rank has massless DOFs (once they were looked for: by the consistent
+    /// initialization or the choice of the scheme).
+    pub fn has_massless(&self) -> bool {
+        self.massless.as_ref().is_some_and(|m| m.1)
+    }
+
+    /// The scheme of the massless DOFs.
+    pub fn scheme(&self) -> MasslessScheme {
+        self.scheme
+    }
+
+    /// What the energy correction did so far.
+    pub fn corrections(&self) -> Corrections {
+        self.corrections
+    }
+
+    /// `out = mask (A u^n + A du - f)` with `f` the loads at the step's end when `next` (else at
+    /// `t_n`, and without the `A du` term): the massless rows' reaction `F` at a level.
+    fn level_reaction(&self, next: bool, loads: bool, out: &mut Vector) -> Result<()> {
+        let mask = self.mask.as_ref().expect("level scheme");
+        if next {
+            self.a.mult(&self.du, out)?;
+            out.axpy(1.0, &self.au)?;
+        } else {
+            out.copy_from(&self.au)?;
+        }
+        if loads {
+            out.axpy(-1.0, if next { &self.f_next } else { &self.f_now })?;
+        }
+        mask.with_local_slice(|m| {
+            out.with_local_slice_mut(|x| {
+                for (xi, &mi) in x.iter_mut().zip(m) {
+                    *xi *= mi;
+                }
+            })
+        })??;
+        Ok(())
+    }
+
+    /// The level scheme's right-hand side on the massless rows: `f^{n+1}_C - (A u^n)_C`, so
+    /// that `(K du)_C = (A du)_C` gives `(A u^{n+1})_C = f^{n+1}_C` (plus the contact force).
+    fn level_rows(&mut self, loads: bool) -> Result<()> {
+        let mask = self.mask.as_ref().expect("level scheme");
+        let rhs = &mut self.rhs;
+        let (au, f) = (&self.au, &self.f_next);
+        mask.with_local_slice(|m| {
+            au.with_local_slice(|a| {
+                f.with_local_slice(|f| {
+                    rhs.with_local_slice_mut(|r| {
+                        for i in 0..r.len() {
+                            if m[i] != 0.0 {
+                                r[i] = if loads { f[i] } else { 0.0 } - a[i];
+                            }
+                        }
+                    })
+                })
+            })
+        })????;
+        Ok(())
+    }
+
+    /// The contact work of a level step, `W = (F^n + F^{n+1})/2 . du` (the massless rows'
+    /// reactions at both ends; `F^n` is in `level_force.0`): the energy balance of the
+    /// massive rows' midpoint rule with `u_C^{n+1/2}` the mean of the levels.
+    fn level_work(&mut self, loads: bool) -> Result<f64> {
+        let (f_prev, mut f_next) = self.level_force.take().expect("level scheme");
+        let r = (|| -> Result<f64> {
+            self.level_reaction(true, loads, &mut f_next)?;
+            Ok(0.5 * (f_prev.dot(&self.du)? + f_next.dot(&self.du)?))
+        })();
+        self.level_force = Some((f_prev, f_next));
+        r
+    }
+
+    /// Solves the step's system (`rhs`, or `rhs_corr` when `corrected`) with the contact
+    /// solver when there is one.
+    fn solve_system<'c>(
+        &mut self,
+        corrected: bool,
+        contact: Option<&mut (dyn ContactSolver + 'c)>,
+        n: usize,
+        t_next: f64,
+    ) -> Result<(usize, Option<StepContact>)> {
+        let with_step = |e: Error| match e {
+            Error::Solver(m) if !m.starts_with("contact") => {
+                Error::Solver(format!("step {} (t = {t_next:e}): {m}", n + 1))
+            }
+            other => other,
+        };
+        let rhs = if corrected { self.rhs_corr.as_ref().expect("allocated") } else { &self.rhs };
+        match contact {
+            None => {
+                let info = self.op.ksp.solve(rhs, &mut self.du).map_err(with_step)?;
+                Ok((info.iterations, None))
+            }
+            Some(solver) => {
+                let (c, its) = solver
+                    .solve(StepSystem {
+                        k: &mut self.op.k,
+                        ksp: &mut self.op.ksp,
+                        rhs,
+                        u: &self.u,
+                        du: &mut self.du,
+                        step: n + 1,
+                        time: t_next,
+                    })
+                    .map_err(with_step)?;
+                Ok((its, Some(c)))
+            }
+        }
+    }
+
+    /// The solver's forces are those of the midpoint equation (factor 2 on every row); on
+    /// the level scheme's massless rows the static equation is taken once, so the force at
+    /// `t_{n+1}` is twice it.
+    fn level_forces(c: &mut StepContact) {
+        let f = Self::CONTACT_FORCE_FACTOR;
+        c.row.force.iter_mut().for_each(|x| *x *= f);
+        c.resultant.iter_mut().for_each(|x| *x *= f);
+        c.obstacle_force.iter_mut().for_each(|x| *x *= f);
+    }
+
+    /// `x -= sum_c (e_c.x / e_c.M1) (M1)_c` on each component `c`, with the Dirichlet rows set
+    /// to zero first: the correction force `-xi M du` so projected has no resultant (it
+    /// exchanges energy with the body's motion relative to its mean translation and leaves
+    /// the momentum balance, impulse = momentum change, as it was). `M1` is `M` times ones
+    /// (the mass per DOF), built once.
+    fn without_translations(&mut self, x: &mut Vector) -> Result<()> {
+        let lo = self.first_dof;
+        let dim = self.dim.max(1);
+        if self.m_ones.is_none() {
+            let mut ones = self.u.duplicate()?;
+            ones.set(1.0)?;
+            let mut m1 = self.u.duplicate()?;
+            self.m.mult(&ones, &mut m1)?;
+            m1.with_local_slice_mut(|v| {
+                for &d in self.dirichlet.dofs() {
+                    v[d as usize - lo] = 0.0;
+                }
+            })?;
+            self.m_ones = Some(m1);
+        }
+        let m1 = self.m_ones.as_ref().expect("built above");
+        let mut sums = [0.0f64; 6];
+        x.with_local_slice_mut(|v| {
+            for &d in self.dirichlet.dofs() {
+                v[d as usize - lo] = 0.0;
+            }
+        })?;
+        x.with_local_slice(|v| {
+            m1.with_local_slice(|m| {
+                for i in 0..v.len() {
+                    sums[i % dim] += v[i];
+                    sums[3 + i % dim] += m[i];
+                }
+            })
+        })??;
+        let mut all = [0.0f64; 6];
+        SimpleCommunicator::world().all_reduce_into(
+            &sums[..],
+            &mut all[..],
+            SystemOperation::sum(),
+        );
+        let ratio: Vec<f64> =
+            (0..dim).map(|c| if all[3 + c] > 0.0 { all[c] / all[3 + c] } else { 0.0 }).collect();
+        m1.with_local_slice(|m| {
+            x.with_local_slice_mut(|v| {
+                for i in 0..v.len() {
+                    v[i] -= ratio[i % dim] * m[i];
+                }
+            })
+        })??;
+        Ok(())
+    }
+
+    /// The energy correction of a level step whose active set changed (a node arrived or
+    /// left within the step): the contact work `W` of such a step is O(tau^2) per node but
+    /// not zero (an arriving node loses `g^n lambda^{n+1}/2`, a leaving one gains
+    /// `g^{n+1} lambda^n / 2`). Like a discrete gradient (Gonzalez 1996) the massive rows get
+    /// the force `-xi P M du` with `xi = W / du.P M du`, which does the work `-W`: the step
+    /// keeps the energy exactly. `P` takes out the mean translation per component
+    /// ([`Midpoint::without_translations`]), so the force has no resultant and the momentum
+    /// balance is untouched. `du` depends on `xi`, so the step is solved again until the two
+    /// works cancel (a fixed point; the force changes `du` by O(xi tau^2)). A step whose
+    /// motion is too small to carry the correction (`|xi| tau^2 > 1/2`, e.g. a body that
+    /// arrives translating, with hardly any motion relative to its mean) hands the work on
+    /// to the next steps (`Corrections::pending`), which correct it when they can.
+    /// Returns the extra solves' KSP iterations, the last contact data and the step's
+    /// contact work with the correction's.
+    fn correct_energy<'c>(
+        &mut self,
+        work: f64,
+        mut contact: Option<&mut (dyn ContactSolver + 'c)>,
+        n: usize,
+        t_next: f64,
+        loads: bool,
+    ) -> Result<(usize, Option<StepContact>, f64)> {
+        const MAX_SOLVES: usize = 8;
+        let scale = self.energy.total().abs().max(self.energy.kinetic).max(f64::MIN_POSITIVE);
+        let tol = 1e-10 * scale;
+        let debt = self.corrections.pending;
+        let level = self.scheme == MasslessScheme::Level;
+        // The midpoint rows only ever lose energy at contact (`-lambda g^n <= 0`): a gain is
+        // solver noise, and only losses are put back (so the energy never exceeds E^0 + W).
+        if (work + debt).abs() <= tol || (!level && work + debt > 0.0) {
+            self.corrections.pending = 0.0;
+            return Ok((0, None, work));
+        }
+        if self.rhs_corr.is_none() {
+            self.rhs_corr = Some(self.u.duplicate()?);
+            self.corr = Some((self.u.duplicate()?, self.u.duplicate()?));
+        }
+        let (mut its, mut last, mut total) = (0, None, work);
+        let mut w_c = work;
+        let mut corr_work = 0.0;
+        for _ in 0..MAX_SOLVES {
+            // M du without the Dirichlet rows (their increment is prescribed).
+            let (mut mdu, mut force) = self.corr.take().expect("allocated");
+            let r = (|| -> Result<Option<f64>> {
+                self.m.mult(&self.du, &mut mdu)?;
+                self.without_translations(&mut mdu)?;
+                let dmd = mdu.dot(&self.du)?;
+                let xi = if dmd > 0.0 { (w_c + debt) / dmd } else { f64::INFINITY };
+                if !(xi.abs() * self.tau * self.tau <= 0.5) {
+                    return Ok(None);
+                }
+                // The du form is the midpoint equation times 2.
+                force.copy_from(&mdu)?;
+                force.scale(-2.0 * xi)?;
+                let rc = self.rhs_corr.as_mut().expect("allocated");
+                rc.waxpy(1.0, &force, &self.rhs)?;
+                Ok(Some(xi))
+            })();
+            self.corr = Some((mdu, force));
+            if r?.is_none() {
+                if self.corrections_this_step == 0 {
+                    self.corrections.skipped += 1;
+                }
+                break;
+            }
+            let (i, c) = self.solve_system(true, contact.as_deref_mut(), n, t_next)?;
+            its += i;
+            self.corrections.extra_solves += 1;
+            self.corrections_this_step += 1;
+            let mut c = c;
+            if level {
+                if let Some(c) = c.as_mut() {
+                    Self::level_forces(c);
+                }
+                w_c = self.level_work(loads)?;
+            } else {
+                w_c = c.as_ref().map_or(0.0, |c| c.work);
+            }
+            let (_, force) = self.corr.as_ref().expect("allocated");
+            corr_work = 0.5 * force.dot(&self.du)?;
+            total = w_c + corr_work;
+            last = c;
+            if (total + debt).abs() <= tol {
+                break;
+            }
+        }
+        // What is left (a step too slow to carry it, or not converged) waits for the next
+        // steps.
+        self.corrections.pending = debt + total;
+        if self.corrections.pending.abs() <= tol {
+            self.corrections.pending = 0.0;
+        }
+        if self.corrections_this_step > 0 {
+            self.corrections.steps += 1;
+            self.corrections.energy += corr_work;
+            // The reactions at Dirichlet rows see the correction force too.
+            if let Some((_, _, full)) = self.lifting.as_mut() {
+                full.axpy(1.0, &self.corr.as_ref().expect("allocated").1)?;
+            }
+        }
+        self.corrections_this_step = 0;
+        if let Some(c) = last.as_mut() {
+            c.work = total;
+        }
+        Ok((its, last, total))
+    }
+
     /// One step `n -> n + 1`, with the contact solver inside it when there is one.
     pub fn step<'c>(
         &mut self,
         n: usize,
         forces: &dyn Forces,
-        contact: Option<&mut (dyn ContactSolver + 'c)>,
+        mut contact: Option<&mut (dyn ContactSolver + 'c)>,
     ) -> Result<StepReport> {
         let tau = self.tau;
         let t_next = (n + 1) as f64 * tau;
+        let level = self.scheme == MasslessScheme::Level;
         // f^{n+1/2} = (f(t_n) + f(t_{n+1}))/2
         if forces.present() {
             if forces.time_dependent() {
@@ -321,46 +715,54 @@ impl Midpoint {
         if forces.present() {
             self.rhs.axpy(2.0, &self.f_half)?;
         }
+        if level {
+            // F^n, the massless rows' reaction at t_n (the contact force where active).
+            let (mut f_prev, tmp) = self.level_force.take().expect("level scheme");
+            let r = self.level_reaction(false, forces.present(), &mut f_prev);
+            self.level_force = Some((f_prev, tmp));
+            r?;
+            self.level_rows(forces.present())?;
+        }
         if let Some((_, _, full)) = self.lifting.as_mut() {
             full.copy_from(&self.rhs)?;
         }
         self.dirichlet_rows(t_next)?;
-        let with_step = |e: Error| match e {
-            Error::Solver(m) if !m.starts_with("contact") => {
-                Error::Solver(format!("step {} (t = {t_next:e}): {m}", n + 1))
-            }
-            other => other,
-        };
         // The active set before the step (obstacle contact): nodes it loses are released.
-        let mut released_dofs: Option<Vec<bool>> = None;
+        let before: Option<Vec<bool>> = contact.as_deref().map(|c| c.active().to_vec());
+        let (mut its, mut report) = self.solve_system(false, contact.as_deref_mut(), n, t_next)?;
         let mut hold: Vec<i32> = Vec::new();
-        let (its, contact) = match contact {
-            None => {
-                let info = self.op.ksp.solve(&self.rhs, &mut self.du).map_err(with_step)?;
-                (info.iterations, None)
+        let mut project = false;
+        if let Some(c) = report.as_mut() {
+            let changed = before.as_deref().is_some_and(|b| b != c.row.active.as_slice());
+            if level {
+                Self::level_forces(c);
+                c.work = self.level_work(forces.present())?;
             }
-            Some(solver) => {
-                released_dofs = Some(solver.active().to_vec());
-                let (c, its) = solver
-                    .solve(StepSystem {
-                        k: &mut self.op.k,
-                        ksp: &mut self.op.ksp,
-                        rhs: &self.rhs,
-                        u: &self.u,
-                        du: &mut self.du,
-                        step: n + 1,
-                        time: t_next,
-                    })
-                    .map_err(with_step)?;
-                self.energy.contact_work += c.work;
+            if self.correct && (changed || self.corrections.pending != 0.0) {
+                let (extra_its, last, work) = self.correct_energy(
+                    c.work,
+                    contact.as_deref_mut(),
+                    n,
+                    t_next,
+                    forces.present(),
+                )?;
+                its += extra_its;
+                if let Some(new) = last {
+                    *c = new;
+                }
+                c.work = work;
+            }
+            let changed = before.as_deref().is_some_and(|b| b != c.row.active.as_slice());
+            if !level && changed {
                 // Released massless nodes: their static rows lose the contact force at once,
                 // and the midpoint rule would carry that residual on as a period-2 jump of
                 // the node. Held: the nodes still active (all their DOFs). Pairs are left as
                 // they are (their constraints live in the mortar basis).
-                let before = released_dofs.take().unwrap_or_default();
+                let solver = contact.as_deref().expect("contact solver");
                 let nodes = solver.nodes();
-                let released = !solver.is_pair()
-                    && before.iter().zip(&c.row.active).any(|(&was, &is)| was && !is);
+                let b = before.as_deref().unwrap_or_default();
+                let released =
+                    !solver.is_pair() && b.iter().zip(&c.row.active).any(|(&was, &is)| was && !is);
                 if released {
                     let dim = nodes.dim;
                     for (k, &a) in c.row.active.iter().enumerate() {
@@ -368,11 +770,13 @@ impl Midpoint {
                             hold.extend((0..dim).map(|i| nodes.dofs[k * dim + i].0));
                         }
                     }
-                    released_dofs = Some(Vec::new());
+                    project = true;
                 }
-                (its, Some(c))
             }
-        };
+        }
+        if let Some(c) = &report {
+            self.energy.contact_work += c.work;
+        }
         self.ksp_iterations += its;
         if forces.present() {
             self.energy.external_work += self.f_half.dot(&self.du)?;
@@ -389,7 +793,7 @@ impl Midpoint {
             }
         }
         self.update_energies()?;
-        if released_dofs.is_some() {
+        if project {
             let before = self.energy.total();
             if self.project_massless(forces.present(), &hold)?.is_some() {
                 self.update_energies()?;
@@ -397,9 +801,13 @@ impl Midpoint {
                 self.energy.contact_work += removed;
                 self.release_energy += removed;
                 self.release_projections += 1;
+                if self.correct {
+                    // Put back by the next steps' correction.
+                    self.corrections.pending += removed;
+                }
             }
         }
-        Ok(StepReport { ksp_iterations: its, contact })
+        Ok(StepReport { ksp_iterations: its, contact: report })
     }
 
     /// Steps after which released massless contact nodes were put back in static
