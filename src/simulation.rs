@@ -36,8 +36,7 @@ use crate::scene::{Field, MeshSource, Scene};
 use crate::stability::{self, ContactSeries, EnergySeries, Stability};
 use crate::stress_output::StressOutput;
 use crate::time::{
-    Corrections, Dirichlet, Energy, Forces, MasslessScheme, Midpoint, StepOperator,
-    StepSolverDefaults,
+    Corrections, Dirichlet, Energy, Forces, Midpoint, StepOperator, StepSolverDefaults,
 };
 
 /// What the command line adds to a scene.
@@ -141,9 +140,6 @@ pub struct RunSummary {
     pub release_projections: usize,
     #[serde(default)]
     pub release_energy: f64,
-    /// How the massless DOFs were stepped (`None` without massless DOFs).
-    #[serde(default)]
-    pub massless_scheme: Option<MasslessScheme>,
     /// What the level scheme's energy correction did.
     #[serde(default)]
     pub energy_corrections: Corrections,
@@ -789,18 +785,8 @@ impl<'a> Simulation<'a> {
                 hold.extend(dofs);
             }
         }
-        // The massless DOFs (`-massless_scheme midpoint|level`, `-massless_energy_correction`):
-        // midpoint rows with the energy correction by default; the level scheme only against
-        // obstacles when every contact DOF is massless (pairs keep the midpoint rows).
-        let level = match crate::petsc::Petsc::options_get_string("-massless_scheme")?.as_deref() {
-            None | Some("midpoint") => false,
-            Some("level") => true,
-            Some(other) => {
-                return Err(Error::Usage(format!(
-                    "-massless_scheme {other}: unknown scheme (midpoint or level)"
-                )))
-            }
-        };
+        // The energy correction of contact steps with massless DOFs (on unless
+        // `-massless_energy_correction false`).
         let correct = match crate::petsc::Petsc::options_get_string("-massless_energy_correction")?
             .as_deref()
         {
@@ -812,9 +798,7 @@ impl<'a> Simulation<'a> {
                 )))
             }
         };
-        let pair = contact.as_ref().is_some_and(|c| c.is_pair());
-        let dofs = contact.as_ref().map(|c| c.nodes().dofs.clone());
-        midpoint.configure_massless(level && !pair, dofs.as_deref(), correct, self.part.dim)?;
+        midpoint.configure_massless(correct, self.part.dim)?;
         let restart = match self.opts.restart.clone() {
             Some(path) => {
                 Some(self.restore(&path, &mut midpoint, contact.as_deref_mut(), forces)?)
@@ -1203,7 +1187,6 @@ impl<'a> Simulation<'a> {
             massless_initialization: self.massless_initialized,
             release_projections: midpoint.release_projections().0,
             release_energy: midpoint.release_projections().1,
-            massless_scheme: midpoint.has_massless().then(|| midpoint.scheme()),
             energy_corrections: midpoint.corrections(),
             ksp_iterations_step_max: record.ksp_step_max,
             cfl: self.cfl,
@@ -1891,10 +1874,6 @@ pub fn summary_lines(sim: &Simulation, s: &RunSummary) -> Vec<String> {
         lines.push(format!(
             "massless DOFs: the initial displacement made statically consistent there (largest change {d:.3e})"
         ));
-    }
-    if s.massless_scheme == Some(MasslessScheme::Level) {
-        lines
-            .push("massless DOFs: static at every time level (-massless_scheme level)".to_string());
     }
     if s.energy_corrections.enabled {
         let c = &s.energy_corrections;

@@ -144,7 +144,7 @@ fn two_discs_mass_free_layer_removes_chatter() {
         assert!(c.last_contact_step.abs_diff(last_m) <= 5, "{k}: end");
         // Energy only changes by the accounted contact work; the loss is small.
         assert!(s.energy_balance < 1e-8, "{k}: energy balance {}", s.energy_balance);
-        // (Of either sign at solver tolerance: with M_H the level scheme keeps the energy.)
+        // (Of either sign at solver tolerance: with M_H the energy correction keeps it.)
         let loss = (s.energy_initial - s.energy_final) / s.energy_initial;
         assert!((-1e-8..1e-3).contains(&loss), "{k}: relative energy loss {loss}");
         // Impulse = momentum change (free body, no loads).
@@ -403,8 +403,8 @@ fn energy_loss_of_a_body_released_at_rest_is_relative_to_the_largest_energy() {
             assert_eq!(s.energy_initial, 0.0);
         }
         let expected = -s.contact.as_ref().unwrap().contact_work / s.energy_max;
-        // In [0, 1] up to the solver tolerance (the level scheme of the massless DOFs keeps
-        // the energy: its loss is round-off of either sign).
+        // In [0, 1] up to the solver tolerance (with the mass-free layer the energy
+        // correction keeps the energy: its loss is round-off of either sign).
         assert!((-1e-8..=1.0).contains(&loss), "{mass}: energy loss {loss} in: {line}");
         assert!((loss - expected).abs() <= 0.01 * expected.abs() + 1e-12, "{loss} vs {expected}");
     }

@@ -98,7 +98,7 @@ fn sparse_active_set_agrees_with_the_schur_complement() {
         // most one full-accuracy confirmation per step after inexact iterations.
         let c1 = contact(s1);
         let extra = ((c1.active_set_iterations_mean - 1.0) * c1.contact_steps as f64).round();
-        // The level scheme's energy correction solves a step again (a new call of the
+        // The energy correction solves a step again (a new call of the
         // solver: at most one more iteration and one confirmation each).
         let bound = extra + 1.0 + s1.steps as f64 + 2.0 * s1.energy_corrections.extra_solves as f64;
         assert!(c1.extra_solves as f64 <= bound, "{base}: {} extra solves", c1.extra_solves);

@@ -793,7 +793,6 @@ mod tests {
             massless_initialization: None,
             release_projections: 0,
             release_energy: 0.0,
-            massless_scheme: None,
             energy_corrections: Default::default(),
             ksp_iterations_step_max: 7,
             cfl: 0.5,

@@ -106,46 +106,22 @@ pub struct Midpoint {
     release_energy: f64,
     /// `u` before the last consistent initialization (to take it back).
     before_projection: Option<Vector>,
-    /// How the massless DOFs are stepped ([`MasslessScheme`]).
-    scheme: MasslessScheme,
-    /// With [`MasslessScheme::Level`]: `1` on this rank's massless DOFs, `0` elsewhere.
-    mask: Option<Vector>,
-    /// Work vectors of the level scheme: `F^n` (the massless rows' reaction at `t_n`), `M du`.
-    level_force: Option<(Vector, Vector)>,
     /// Steps whose contact work the energy correction took back, its extra solves, and the
     /// energy it put back (the negative of the contact work it cancelled).
     corrections: Corrections,
     corrections_this_step: usize,
-    /// Whether the level scheme corrects the energy of steps whose active set changed.
+    /// Whether the energy of steps whose active set changed is corrected.
     correct: bool,
     /// The energy correction's right-hand side and work vectors `(M du, -2 xi M du)`.
     rhs_corr: Option<Vector>,
     corr: Option<(Vector, Vector)>,
-    /// Components per node (the level scheme's correction works per component).
+    /// Components per node (the correction works per component).
     dim: usize,
     /// `M 1` without the Dirichlet rows (built on first use).
     m_ones: Option<Vector>,
 }
 
-/// How the massless DOFs (zero rows of `M`) are stepped.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum MasslessScheme {
-    /// Their rows static at the midpoint, `(A u^{n+1/2})_C = f^{n+1/2}_C + F_C`, with the
-    /// contact conditions at `t_{n+1}`: the midpoint rule applied to every row alike. An
-    /// arriving node costs its activation work `-lambda g^n`; consistency is restored by a
-    /// projection after a release.
-    Midpoint,
-    /// Their rows static at every time level, `(A u^{n+1})_C = f^{n+1}_C + F^{n+1}_C`, with
-    /// the contact conditions there (the semi-discrete system with massless contact nodes is
-    /// an ODE in the massive DOFs, the contact nodes following statically: Khenous, Laborde
-    /// and Renard 2008). The massive rows keep the midpoint rule with `u_C^{n+1/2}` the mean
-    /// of the two levels, so the reaction in the energy balance is the mean `(F^n + F^{n+1})/2`;
-    /// with the energy correction the step keeps the energy exactly.
-    Level,
-}
-
-/// What the energy correction did (the level scheme).
+/// What the energy correction of contact steps did ([`Midpoint::configure_massless`]).
 #[derive(Debug, Clone, Copy, Default, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Corrections {
     /// Whether the run corrects (`-massless_energy_correction`, on by default with massless
@@ -219,9 +195,6 @@ impl Midpoint {
             release_projections: 0,
             release_energy: 0.0,
             before_projection: None,
-            scheme: MasslessScheme::Midpoint,
-            mask: None,
-            level_force: None,
             corrections: Corrections::default(),
             corrections_this_step: 0,
             correct: false,
@@ -365,47 +338,15 @@ impl Midpoint {
         Ok(())
     }
 
-    /// How the massless DOFs are stepped from now on: the energy correction (after steps whose
-    /// active set changed) if `correct`, and [`MasslessScheme::Level`] if `level` and it
-    /// applies: every DOF of the contact nodes (`contact_dofs`, global with the owner flag) is
-    /// massless (the level rows replace the midpoint rows of exactly those DOFs; a contact
-    /// node with mass keeps the midpoint rule). `dim` components per node. Nothing without
-    /// massless DOFs. Returns the scheme in use. Collective.
-    pub fn configure_massless(
-        &mut self,
-        level: bool,
-        contact_dofs: Option<&[(i32, bool)]>,
-        correct: bool,
-        dim: usize,
-    ) -> Result<MasslessScheme> {
+    /// Correct the energy of contact steps from now on ([`Midpoint::correct_energy`]) when
+    /// `correct` and there are massless DOFs; `dim` components per node. Collective.
+    pub fn configure_massless(&mut self, correct: bool, dim: usize) -> Result<()> {
         self.dim = dim;
         self.massless()?;
-        let (local, any) = self.massless.as_ref().expect("found").clone();
+        let any = self.massless.as_ref().expect("found").1;
         self.correct = correct && any;
         self.corrections.enabled = self.correct;
-        let (lo, hi) = self.u.ownership_range();
-        let mut massive_contact = 0.0;
-        for &(d, owned) in contact_dofs.unwrap_or(&[]) {
-            if owned && (lo..hi).contains(&(d as usize)) && !local[d as usize - lo] {
-                massive_contact += 1.0;
-            }
-        }
-        let mut all = 0.0;
-        let world = SimpleCommunicator::world();
-        world.all_reduce_into(&massive_contact, &mut all, SystemOperation::sum());
-        if !level || !any || all > 0.0 {
-            return Ok(self.scheme);
-        }
-        let mut mask = self.u.duplicate()?;
-        mask.with_local_slice_mut(|x| {
-            for (xi, &c) in x.iter_mut().zip(&local) {
-                *xi = if c { 1.0 } else { 0.0 };
-            }
-        })?;
-        self.mask = Some(mask);
-        self.level_force = Some((self.u.duplicate()?, self.u.duplicate()?));
-        self.scheme = MasslessScheme::Level;
-        Ok(self.scheme)
+        Ok(())
     }
 
     /// Whether any rank has massless DOFs (once they were looked for: by the consistent
@@ -414,72 +355,9 @@ impl Midpoint {
         self.massless.as_ref().is_some_and(|m| m.1)
     }
 
-    /// The scheme of the massless DOFs.
-    pub fn scheme(&self) -> MasslessScheme {
-        self.scheme
-    }
-
     /// What the energy correction did so far.
     pub fn corrections(&self) -> Corrections {
         self.corrections
-    }
-
-    /// `out = mask (A u^n + A du - f)` with `f` the loads at the step's end when `next` (else at
-    /// `t_n`, and without the `A du` term): the massless rows' reaction `F` at a level.
-    fn level_reaction(&self, next: bool, loads: bool, out: &mut Vector) -> Result<()> {
-        let mask = self.mask.as_ref().expect("level scheme");
-        if next {
-            self.a.mult(&self.du, out)?;
-            out.axpy(1.0, &self.au)?;
-        } else {
-            out.copy_from(&self.au)?;
-        }
-        if loads {
-            out.axpy(-1.0, if next { &self.f_next } else { &self.f_now })?;
-        }
-        mask.with_local_slice(|m| {
-            out.with_local_slice_mut(|x| {
-                for (xi, &mi) in x.iter_mut().zip(m) {
-                    *xi *= mi;
-                }
-            })
-        })??;
-        Ok(())
-    }
-
-    /// The level scheme's right-hand side on the massless rows: `f^{n+1}_C - (A u^n)_C`, so
-    /// that `(K du)_C = (A du)_C` gives `(A u^{n+1})_C = f^{n+1}_C` (plus the contact force).
-    fn level_rows(&mut self, loads: bool) -> Result<()> {
-        let mask = self.mask.as_ref().expect("level scheme");
-        let rhs = &mut self.rhs;
-        let (au, f) = (&self.au, &self.f_next);
-        mask.with_local_slice(|m| {
-            au.with_local_slice(|a| {
-                f.with_local_slice(|f| {
-                    rhs.with_local_slice_mut(|r| {
-                        for i in 0..r.len() {
-                            if m[i] != 0.0 {
-                                r[i] = if loads { f[i] } else { 0.0 } - a[i];
-                            }
-                        }
-                    })
-                })
-            })
-        })????;
-        Ok(())
-    }
-
-    /// The contact work of a level step, `W = (F^n + F^{n+1})/2 . du` (the massless rows'
-    /// reactions at both ends; `F^n` is in `level_force.0`): the energy balance of the
-    /// massive rows' midpoint rule with `u_C^{n+1/2}` the mean of the levels.
-    fn level_work(&mut self, loads: bool) -> Result<f64> {
-        let (f_prev, mut f_next) = self.level_force.take().expect("level scheme");
-        let r = (|| -> Result<f64> {
-            self.level_reaction(true, loads, &mut f_next)?;
-            Ok(0.5 * (f_prev.dot(&self.du)? + f_next.dot(&self.du)?))
-        })();
-        self.level_force = Some((f_prev, f_next));
-        r
     }
 
     /// Solves the step's system (`rhs`, or `rhs_corr` when `corrected`) with the contact
@@ -518,16 +396,6 @@ impl Midpoint {
                 Ok((its, Some(c)))
             }
         }
-    }
-
-    /// The solver's forces are those of the midpoint equation (factor 2 on every row); on
-    /// the level scheme's massless rows the static equation is taken once, so the force at
-    /// `t_{n+1}` is twice it.
-    fn level_forces(c: &mut StepContact) {
-        let f = Self::CONTACT_FORCE_FACTOR;
-        c.row.force.iter_mut().for_each(|x| *x *= f);
-        c.resultant.iter_mut().for_each(|x| *x *= f);
-        c.obstacle_force.iter_mut().for_each(|x| *x *= f);
     }
 
     /// `x -= sum_c (e_c.x / e_c.M1) (M1)_c` on each component `c`, with the Dirichlet rows set
@@ -583,18 +451,24 @@ impl Midpoint {
         Ok(())
     }
 
-    /// The energy correction of a level step whose active set changed (a node arrived or
-    /// left within the step): the contact work `W` of such a step is O(tau^2) per node but
-    /// not zero (an arriving node loses `g^n lambda^{n+1}/2`, a leaving one gains
-    /// `g^{n+1} lambda^n / 2`). Like a discrete gradient (Gonzalez 1996) the massive rows get
-    /// the force `-xi P M du` with `xi = W / du.P M du`, which does the work `-W`: the step
-    /// keeps the energy exactly. `P` takes out the mean translation per component
+    /// The energy correction of a step whose active set changed (a node arrived or left
+    /// within it; METHOD.md and README "Impacts that keep their energy"). With the contact
+    /// conditions at `t_{n+1}` and the force at the midpoint, an arriving node does the work
+    /// `W = -lambda^{n+1/2} g^n <= 0` (it closes the gap `g^n` under the force of the whole
+    /// step): O(tau^2) per node and impact, never a gain, but it adds up over repeated
+    /// impacts. Like a discrete gradient (Gonzalez 1996) the massive rows then get the force
+    /// `-xi P M du` with `xi = W / du.P M du`, which does the work `-W`: the step keeps the
+    /// energy exactly. `P` takes out the mean translation per component
     /// ([`Midpoint::without_translations`]), so the force has no resultant and the momentum
-    /// balance is untouched. `du` depends on `xi`, so the step is solved again until the two
-    /// works cancel (a fixed point; the force changes `du` by O(xi tau^2)). A step whose
-    /// motion is too small to carry the correction (`|xi| tau^2 > 1/2`, e.g. a body that
-    /// arrives translating, with hardly any motion relative to its mean) hands the work on
-    /// to the next steps (`Corrections::pending`), which correct it when they can.
+    /// balance (impulse = momentum change) is untouched. `du` depends on `xi`, so the step is
+    /// solved again until the two works cancel (a fixed point; the force changes `du` by
+    /// O(xi tau^2): two or three solves). Only losses are put back, so the energy never
+    /// exceeds `E^0 + W_loads`. A step whose motion is too small to carry the correction
+    /// (`|xi| tau^2 > 1/2`, e.g. a body arriving in pure translation, or tau far beyond the
+    /// contact time) hands the work on to the next steps (`Corrections::pending`), which
+    /// put it back when they can; so does the energy a release projection removes. The
+    /// correction is a modification of the scheme in O(tau^2) steps around each impact;
+    /// `-massless_energy_correction false` turns it off.
     /// Returns the extra solves' KSP iterations, the last contact data and the step's
     /// contact work with the correction's.
     fn correct_energy<'c>(
@@ -603,16 +477,14 @@ impl Midpoint {
         mut contact: Option<&mut (dyn ContactSolver + 'c)>,
         n: usize,
         t_next: f64,
-        loads: bool,
     ) -> Result<(usize, Option<StepContact>, f64)> {
         const MAX_SOLVES: usize = 8;
         let scale = self.energy.total().abs().max(self.energy.kinetic).max(f64::MIN_POSITIVE);
         let tol = 1e-10 * scale;
         let debt = self.corrections.pending;
-        let level = self.scheme == MasslessScheme::Level;
-        // The midpoint rows only ever lose energy at contact (`-lambda g^n <= 0`): a gain is
-        // solver noise, and only losses are put back (so the energy never exceeds E^0 + W).
-        if (work + debt).abs() <= tol || (!level && work + debt > 0.0) {
+        // The contact steps only ever lose energy (`-lambda g^n <= 0`): a gain is solver
+        // noise, and only losses are put back.
+        if (work + debt).abs() <= tol || work + debt > 0.0 {
             self.corrections.pending = 0.0;
             return Ok((0, None, work));
         }
@@ -652,15 +524,7 @@ impl Midpoint {
             its += i;
             self.corrections.extra_solves += 1;
             self.corrections_this_step += 1;
-            let mut c = c;
-            if level {
-                if let Some(c) = c.as_mut() {
-                    Self::level_forces(c);
-                }
-                w_c = self.level_work(loads)?;
-            } else {
-                w_c = c.as_ref().map_or(0.0, |c| c.work);
-            }
+            w_c = c.as_ref().map_or(0.0, |c| c.work);
             let (_, force) = self.corr.as_ref().expect("allocated");
             corr_work = 0.5 * force.dot(&self.du)?;
             total = w_c + corr_work;
@@ -699,7 +563,6 @@ impl Midpoint {
     ) -> Result<StepReport> {
         let tau = self.tau;
         let t_next = (n + 1) as f64 * tau;
-        let level = self.scheme == MasslessScheme::Level;
         // f^{n+1/2} = (f(t_n) + f(t_{n+1}))/2
         if forces.present() {
             if forces.time_dependent() {
@@ -715,14 +578,6 @@ impl Midpoint {
         if forces.present() {
             self.rhs.axpy(2.0, &self.f_half)?;
         }
-        if level {
-            // F^n, the massless rows' reaction at t_n (the contact force where active).
-            let (mut f_prev, tmp) = self.level_force.take().expect("level scheme");
-            let r = self.level_reaction(false, forces.present(), &mut f_prev);
-            self.level_force = Some((f_prev, tmp));
-            r?;
-            self.level_rows(forces.present())?;
-        }
         if let Some((_, _, full)) = self.lifting.as_mut() {
             full.copy_from(&self.rhs)?;
         }
@@ -734,18 +589,9 @@ impl Midpoint {
         let mut project = false;
         if let Some(c) = report.as_mut() {
             let changed = before.as_deref().is_some_and(|b| b != c.row.active.as_slice());
-            if level {
-                Self::level_forces(c);
-                c.work = self.level_work(forces.present())?;
-            }
             if self.correct && (changed || self.corrections.pending != 0.0) {
-                let (extra_its, last, work) = self.correct_energy(
-                    c.work,
-                    contact.as_deref_mut(),
-                    n,
-                    t_next,
-                    forces.present(),
-                )?;
+                let (extra_its, last, work) =
+                    self.correct_energy(c.work, contact.as_deref_mut(), n, t_next)?;
                 its += extra_its;
                 if let Some(new) = last {
                     *c = new;
@@ -753,7 +599,7 @@ impl Midpoint {
                 c.work = work;
             }
             let changed = before.as_deref().is_some_and(|b| b != c.row.active.as_slice());
-            if !level && changed {
+            if changed {
                 // Released massless nodes: their static rows lose the contact force at once,
                 // and the midpoint rule would carry that residual on as a period-2 jump of
                 // the node. Held: the nodes still active (all their DOFs). Pairs are left as

@@ -18,5 +18,5 @@ pub mod midpoint;
 pub mod operator;
 
 pub use dirichlet::Dirichlet;
-pub use midpoint::{Corrections, Energy, Forces, MasslessScheme, Midpoint, StepReport};
+pub use midpoint::{Corrections, Energy, Forces, Midpoint, StepReport};
 pub use operator::{Regime, StepOperator, StepSolverDefaults};
