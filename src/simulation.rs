@@ -798,7 +798,7 @@ impl<'a> Simulation<'a> {
                 )))
             }
         };
-        midpoint.configure_massless(correct, self.part.dim)?;
+        midpoint.configure_massless(correct, self.part.dim, self.node_bodies())?;
         let restart = match self.opts.restart.clone() {
             Some(path) => {
                 Some(self.restore(&path, &mut midpoint, contact.as_deref_mut(), forces)?)
@@ -1375,6 +1375,23 @@ impl<'a> Simulation<'a> {
         let mut out = vec![0.0; n];
         self.world.all_reduce_into(&sums[..], &mut out[..], SystemOperation::sum());
         Ok(out)
+    }
+
+    /// The body of each owned node, in DOF order: the index of the first `[[body]]` holding
+    /// it, or the number of bodies for the nodes of no body.
+    fn node_bodies(&self) -> Vec<u32> {
+        let n = self.bodies.n_bodies();
+        let lo = self.part.first_dof();
+        let dim = self.part.dim;
+        let mut out = vec![n as u32; self.part.owned_nodes.len()];
+        for b in (0..n).rev() {
+            for &v in self.bodies.body_nodes(b) {
+                if self.part.owns(v) {
+                    out[(self.part.dof(v, 0) - lo) / dim] = b as u32;
+                }
+            }
+        }
+        out
     }
 
     /// The momentum `1_B^T M v` of each body, per component, from `M v`.

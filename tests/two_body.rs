@@ -52,7 +52,7 @@ fn two_discs_as_two_bodies_match_the_disc_on_a_plane() {
     assert!(rel_diff(b.energy_initial, 2.0 * p.energy_initial) < 1e-12);
     assert!(b.energy_balance < 1e-8, "energy balance {}", b.energy_balance);
     let loss = (b.energy_initial - b.energy_final) / b.energy_initial;
-    assert!((0.0..1e-3).contains(&loss), "relative energy loss {loss}");
+    assert!((-1e-8..1e-3).contains(&loss), "relative energy loss {loss}");
     // Total momentum: the contact forces are internal to the pair.
     let scale = b.momentum_initial.iter().map(|x| x.abs()).fold(0.0, f64::max).max(1e-300);
     for c in 0..2 {
@@ -123,7 +123,10 @@ fn two_discs_with_averaged_normals_are_the_half_model_to_solver_tolerance() {
     let dir = scratch("two-discs-average");
     let two = scene_variant("two_discs.toml", &dir, &[]);
     let half = half_model("two_discs.toml", &dir, "half", &[]);
-    let args = ["--steps", "870", "--", "-ksp_rtol", "1e-12"];
+    // Without the energy correction, as in two_bars_are_one_bar_against_a_wall: the release
+    // projections (whose energy it restores) are made against the plane only.
+    let args =
+        ["--steps", "870", "--", "-ksp_rtol", "1e-12", "-massless_energy_correction", "false"];
     run_scene(2, &half, &args);
     run_scene(2, &two, &[&args[..], &["-mortar_normal", "average"]].concat());
     let per_node = |h5: &str| {
@@ -343,7 +346,11 @@ fn two_bars_are_one_bar_against_a_wall() {
                 "obstacle = { type = \"plane\", point = [1.00013125, 0.0], normal = [-1.0, 0.0] }",
             ),
     );
-    let args = ["--steps", "300", "--", "-ksp_rtol", "1e-13"];
+    // Without the energy correction: it restores the energy of the release projections,
+    // which are made against obstacles only (not on pairs), so with it the two runs differ
+    // by that after the first release.
+    let args =
+        ["--steps", "300", "--", "-ksp_rtol", "1e-13", "-massless_energy_correction", "false"];
     let b = run_scene(2, &two, &args);
     let w = run_scene(2, &wall, &args);
     let (fb, ab) = force_history(&dir.join("two_bars-2.h5"));
@@ -546,7 +553,7 @@ fn two_discs_with_the_interface_updated_at_every_step() {
     assert!(contact(&f).mortar.unwrap().evaluations < mu.evaluations);
     assert!(u.energy_balance < 1e-8, "energy balance {}", u.energy_balance);
     let loss = (u.energy_initial - u.energy_final) / u.energy_initial;
-    assert!((0.0..1e-3).contains(&loss), "relative energy loss {loss}");
+    assert!((-1e-8..1e-3).contains(&loss), "relative energy loss {loss}");
     let total = |h5: &std::path::Path| force_history(h5).0;
     let (a, b) = (total(&frozen), total(&updated));
     let peak = a.iter().cloned().fold(0.0, f64::max);
@@ -622,11 +629,11 @@ fn two_bars_against_a_wall_beside_the_pair() {
     // pair's interface x = L), not a node of the wall's group.
     let x_low = reader(&dir.join("two_bars-2.h5")).coordinates().unwrap()[cs.lowest_node][0];
     assert!((x_low - l).abs() < 1e-9, "lowest node at x = {x_low}");
-    // Energy: balanced, and lost only at activation.
+    // Energy: balanced, and lost only at activation (kept to round-off by the correction).
     assert!(s2.energy_balance < 1e-8, "energy balance {}", s2.energy_balance);
     let loss = (s2.energy_initial - s2.energy_final) / s2.energy_initial;
     eprintln!("pair + wall: energy loss {loss:.3e}, contact work {}", cs.contact_work);
-    assert!((0.0..1e-3).contains(&loss), "relative energy loss {loss}");
+    assert!((-1e-8..1e-3).contains(&loss), "relative energy loss {loss}");
     // No contact node (slave nodes and the wall's) penetrates.
     let run = reader(&dir.join("two_bars-2.h5"));
     let gaps = run.series(&massfree::io::layout::contact("gap")).unwrap();

@@ -119,6 +119,8 @@ pub struct Midpoint {
     dim: usize,
     /// `M 1` without the Dirichlet rows (built on first use).
     m_ones: Option<Vector>,
+    /// The body of each owned node (in DOF order): the correction keeps each body's momentum.
+    groups: Vec<u32>,
 }
 
 /// What the energy correction of contact steps did ([`Midpoint::configure_massless`]).
@@ -202,6 +204,7 @@ impl Midpoint {
             corr: None,
             dim: 1,
             m_ones: None,
+            groups: Vec::new(),
         };
         mp.refresh(forces, t0)?;
         Ok(mp)
@@ -339,9 +342,17 @@ impl Midpoint {
     }
 
     /// Correct the energy of contact steps from now on ([`Midpoint::correct_energy`]) when
-    /// `correct` and there are massless DOFs; `dim` components per node. Collective.
-    pub fn configure_massless(&mut self, correct: bool, dim: usize) -> Result<()> {
+    /// `correct` and there are massless DOFs; `dim` components per node, `groups` the body of
+    /// each owned node in DOF order (the correction keeps each body's momentum; empty: one
+    /// body). Collective.
+    pub fn configure_massless(
+        &mut self,
+        correct: bool,
+        dim: usize,
+        groups: Vec<u32>,
+    ) -> Result<()> {
         self.dim = dim;
+        self.groups = groups;
         self.massless()?;
         let any = self.massless.as_ref().expect("found").1;
         self.correct = correct && any;
@@ -398,11 +409,12 @@ impl Midpoint {
         }
     }
 
-    /// `x -= sum_c (e_c.x / e_c.M1) (M1)_c` on each component `c`, with the Dirichlet rows set
-    /// to zero first: the correction force `-xi M du` so projected has no resultant (it
-    /// exchanges energy with the body's motion relative to its mean translation and leaves
-    /// the momentum balance, impulse = momentum change, as it was). `M1` is `M` times ones
-    /// (the mass per DOF), built once.
+    /// `x -= sum_{b,c} (e_bc.x / e_bc.M1) (M1)_bc` on each body `b` (the groups given to
+    /// [`Midpoint::configure_massless`]) and component `c`, with the Dirichlet rows set to
+    /// zero first: the correction force `-xi M du` so projected has no resultant on any body
+    /// (it exchanges energy with each body's motion relative to its mean translation and
+    /// leaves every body's momentum balance, impulse = momentum change, as it was). `M1` is
+    /// `M` times ones (the mass per DOF), built once.
     fn without_translations(&mut self, x: &mut Vector) -> Result<()> {
         let lo = self.first_dof;
         let dim = self.dim.max(1);
@@ -419,7 +431,16 @@ impl Midpoint {
             self.m_ones = Some(m1);
         }
         let m1 = self.m_ones.as_ref().expect("built above");
-        let mut sums = [0.0f64; 6];
+        let groups = self.groups.iter().copied().max().map_or(1, |g| g as usize + 1);
+        let mut n_groups = 0.0f64;
+        SimpleCommunicator::world().all_reduce_into(
+            &(groups as f64),
+            &mut n_groups,
+            SystemOperation::max(),
+        );
+        let ng = n_groups as usize;
+        let group = |i: usize| self.groups.get(i / dim).map_or(0, |&g| g as usize);
+        let mut sums = vec![0.0f64; 2 * ng * dim];
         x.with_local_slice_mut(|v| {
             for &d in self.dirichlet.dofs() {
                 v[d as usize - lo] = 0.0;
@@ -428,23 +449,25 @@ impl Midpoint {
         x.with_local_slice(|v| {
             m1.with_local_slice(|m| {
                 for i in 0..v.len() {
-                    sums[i % dim] += v[i];
-                    sums[3 + i % dim] += m[i];
+                    let k = group(i) * dim + i % dim;
+                    sums[k] += v[i];
+                    sums[ng * dim + k] += m[i];
                 }
             })
         })??;
-        let mut all = [0.0f64; 6];
+        let mut all = vec![0.0f64; sums.len()];
         SimpleCommunicator::world().all_reduce_into(
             &sums[..],
             &mut all[..],
             SystemOperation::sum(),
         );
-        let ratio: Vec<f64> =
-            (0..dim).map(|c| if all[3 + c] > 0.0 { all[c] / all[3 + c] } else { 0.0 }).collect();
+        let ratio: Vec<f64> = (0..ng * dim)
+            .map(|k| if all[ng * dim + k] > 0.0 { all[k] / all[ng * dim + k] } else { 0.0 })
+            .collect();
         m1.with_local_slice(|m| {
             x.with_local_slice_mut(|v| {
                 for i in 0..v.len() {
-                    v[i] -= ratio[i % dim] * m[i];
+                    v[i] -= ratio[group(i) * dim + i % dim] * m[i];
                 }
             })
         })??;
