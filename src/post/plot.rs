@@ -1100,6 +1100,36 @@ mod tests {
     }
 
     #[test]
+    fn log_axis_labels() {
+        let close = |a: &[f64], b: &[f64]| {
+            a.len() == b.len() && a.iter().zip(b).all(|(x, y)| (x - y).abs() <= 1e-9 * y.abs())
+        };
+        // Within a decade: every m 10^k; 1 to 3 decades: 1, 2, 5; more: powers of ten.
+        let t = log_label_ticks(0.25, 0.8, 10);
+        assert!(close(&t, &[0.3, 0.4, 0.5, 0.6, 0.7, 0.8]), "{t:?}");
+        let t = log_label_ticks(3.2e-6, 2.2e-4, 10);
+        assert!(close(&t, &[5e-6, 1e-5, 2e-5, 5e-5, 1e-4, 2e-4]), "{t:?}");
+        let t = log_label_ticks(1e-6, 1.0, 10);
+        assert!(close(&t, &[1e-6, 1e-5, 1e-4, 1e-3, 1e-2, 0.1, 1.0]), "{t:?}");
+        // Too many decades for the labels: every other one.
+        let t = log_label_ticks(1e-9, 1e3, 10);
+        assert!(close(&t, &[1e-9, 1e-7, 1e-5, 1e-3, 0.1, 10.0, 1e3]), "{t:?}");
+        // No two ticks of 1..9: half steps, then log-spaced values.
+        let t = log_label_ticks(1.2, 1.8, 10);
+        assert!(t.len() >= 2 && t.iter().all(|&v| (1.2..=1.8).contains(&v)), "{t:?}");
+        assert!(close(&log_label_ticks(1.4, 2.6, 10), &[1.5, 2.0, 2.5]));
+        // The formatter labels exactly the ticks chosen.
+        for (lo, hi) in [(0.25, 0.8), (3.2e-6, 2.2e-4), (1e-6, 1.0)] {
+            let f = log_formatter(lo, hi);
+            assert!(log_label_ticks(lo, hi, 10).iter().all(|v| !f(v).is_empty()));
+        }
+        // Grid lines: every m 10^k.
+        let g = log_grid_ticks(0.25, 0.8);
+        assert!(close(&g, &[0.3, 0.4, 0.5, 0.6, 0.7, 0.8]), "{g:?}");
+        assert_eq!(log_grid_ticks(1e-9, 1.0).len(), 10);
+    }
+
+    #[test]
     fn segment_box() {
         let b = (0.8, 1.0, 0.8, 1.0);
         assert!(segment_meets_box((0.0, 0.0), (1.0, 1.0), b));

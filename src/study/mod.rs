@@ -1011,6 +1011,29 @@ mod tests {
     use super::*;
 
     #[test]
+    fn the_grid_leaves_out_skipped_points() {
+        let file = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("studies/test.toml");
+        let text = "scene = \"../scenes/beam.toml\"\nend_time = 1e-4\n[sweep]\n\
+            h = [0.25, 0.125]\ntau = [1e-5, 5e-6]\nmass = [\"consistent\", \"lumped\"]\n\
+            skip = [{ h = 0.125, tau = 1e-5 }, { mass = \"lumped\", tau = 5e-6 }]\n";
+        let study = spec::parse(&file, text).unwrap();
+        let labels: Vec<String> = grid(&study).unwrap().into_iter().map(|p| p.label).collect();
+        // 2 x 2 x 2 points, less (1/8, 1e-5) of both kinds and lumped at 5e-6 (one of
+        // them already gone).
+        assert_eq!(
+            labels,
+            vec![
+                "h=1/4 mass=consistent tau=1e-5",
+                "h=1/4 mass=consistent tau=5e-6",
+                "h=1/8 mass=consistent tau=5e-6",
+                "h=1/4 mass=lumped tau=1e-5",
+            ]
+        );
+        assert_eq!(slug("disc (2D)"), "disc-2d");
+        assert_eq!(slug("Ball, 3D: hexes"), "ball-3d-hexes");
+    }
+
+    #[test]
     fn error_line_of_a_failed_run() {
         let stderr = "massfree: PETSc error 86 in KSPSetFromOptions: Unable to find requested KSP type nonsense\n\
             --------------------------------------------------------------------------\n\

@@ -687,3 +687,94 @@ fn default_label(options: &[String]) -> String {
         _ => options.join(" "),
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn file() -> PathBuf {
+        PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("studies/test.toml")
+    }
+
+    fn set(text: &str) -> std::result::Result<StudySet, String> {
+        parse_set(&file(), text).map_err(|e| e.to_string())
+    }
+
+    const TWO: &str = r#"
+title = "two"
+reference = { mass = "consistent" }
+repeat = 2
+[[part]]
+name = "disc"
+scene = "../scenes/disc.toml"
+mesh_param = "hc"
+scaled = { h = 10.0 }
+[part.sweep]
+h = [0.1, 0.05]
+mass = ["consistent", "modified1"]
+[[part]]
+name = "beam"
+scene = "../scenes/beam.toml"
+repeat = 1
+end_time = 1e-4
+[part.sweep]
+h = [0.25, 0.125]
+tau = [1e-5, 5e-6]
+mass = ["consistent"]
+skip = [{ h = 0.125, tau = 1e-5 }]
+"#;
+
+    #[test]
+    fn parts_share_the_top_and_override_it() {
+        let s = set(TWO).unwrap();
+        assert!(s.multi);
+        assert_eq!((s.title.as_str(), s.parts.len()), ("two", 2));
+        let (a, b) = (&s.parts[0], &s.parts[1]);
+        assert_eq!((a.title.as_str(), b.title.as_str()), ("disc", "beam"));
+        assert_eq!((a.repeat, b.repeat), (2, 1));
+        assert_eq!(a.reference, Reference::Mass("consistent".into()));
+        assert_eq!(a.scaled, vec![("h".to_string(), 10.0)]);
+        assert_eq!(a.output, s.output);
+        assert_eq!(b.skip, vec![Skip { h: Some(0.125), tau: Some(1e-5), mass: None }]);
+        // A file without parts is one part.
+        let one = set("scene = \"../scenes/beam.toml\"\n[sweep]\nh = [0.25, 0.125]\n").unwrap();
+        assert!(!one.multi && one.parts.len() == 1);
+    }
+
+    #[test]
+    fn bad_parts_are_one_line_errors_naming_the_key() {
+        let cases = [
+            (TWO.replace("repeat = 1", "repeats = 1"), "part[1] (beam): unknown key repeats"),
+            (TWO.replace("name = \"beam\"", "name = \"disc\""), "part[1].name"),
+            (TWO.replace("name = \"beam\"\n", ""), "part[1].name: missing"),
+            (TWO.replace("name = \"beam\"", "name = \"beam\"\noutput = \"x\""), "part[1].output"),
+            (TWO.replace("title = \"two\"", "title = \"two\"\nscene = \"x\""), "unknown key scene"),
+            (TWO.replace("skip = [{ h", "skip = [{ mesh"), "sweep.skip[0].mesh"),
+            (TWO.replace("skip = [{ h = 0.125, tau = 1e-5 }]", "skip = [{}]"), "sweep.skip[0]"),
+            (TWO.replace("scaled = { h = 10.0 }", "scaled = { h = -1 }"), "scaled.h"),
+            (TWO.replace("scaled = { h = 10.0 }", "scaled = { hc = 2 }"), "scaled.hc"),
+            (TWO.replace("[\"consistent\", \"modified1\"]", "[\"modified1\"]"), "reference.mass"),
+        ];
+        for (text, key) in cases {
+            let e = set(&text).unwrap_err();
+            assert_eq!(e.lines().count(), 1, "{e}");
+            assert!(e.contains(key), "{e} does not name {key}");
+        }
+        let e = set("scene = \"../scenes/beam.toml\"\nscaled = { x = 2 }\n").unwrap_err();
+        assert!(e.contains("scaled: only with sweep.h"), "{e}");
+        let e = parse(&file(), TWO).unwrap_err().to_string();
+        assert!(e.contains("parts"), "{e}");
+    }
+
+    #[test]
+    fn skips_match_every_given_value() {
+        let k = Skip { h: Some(0.04), tau: None, mass: Some("lumped".into()) };
+        assert!(k.matches(Some(0.04), 1.0, Some("lumped")));
+        assert!(k.matches(Some(0.04 * (1.0 + 1e-12)), 2.0, Some("lumped")));
+        assert!(!k.matches(Some(0.04), 1.0, Some("consistent")));
+        assert!(!k.matches(Some(0.05), 1.0, Some("lumped")));
+        assert!(!k.matches(None, 1.0, Some("lumped")));
+        let t = Skip { tau: Some(0.005), ..Default::default() };
+        assert!(t.matches(None, 0.005, None) && !t.matches(None, 0.01, None));
+    }
+}

@@ -453,6 +453,31 @@ mod tests {
     }
 
     #[test]
+    fn each_part_has_its_own_fronts() {
+        let row = |part: usize, t: f64, e: f64, f: f64| Row {
+            part,
+            measured: Some(Measured { run_s: t, ..Default::default() }),
+            err_l2: Some(e),
+            err_force: Some(f),
+            ..Default::default()
+        };
+        // Part 1's rows are all dominated by part 0's first row, which must not matter;
+        // within part 1 the pressure front and the force front differ.
+        let mut rows = vec![
+            row(0, 1.0, 1e-3, 1e-3),
+            row(0, 2.0, 2e-3, 5e-4),
+            row(1, 3.0, 0.5, 0.1),
+            row(1, 4.0, 0.2, 0.2),
+            row(1, 5.0, 0.3, 0.05),
+        ];
+        fill_pareto(&mut rows);
+        let p: Vec<bool> = rows.iter().map(|r| r.pareto).collect();
+        let f: Vec<bool> = rows.iter().map(|r| r.pareto_force).collect();
+        assert_eq!(p, vec![true, false, true, true, false]);
+        assert_eq!(f, vec![true, true, true, false, true]);
+    }
+
+    #[test]
     fn rates_between_consecutive_refinements() {
         let row = |h: f64, e: f64, group: usize| Row {
             h: Some(h),
