@@ -183,6 +183,8 @@ fn bad_study_files_are_one_line_errors_naming_the_key() {
         ("ranks = 0\n", "ranks"),
         ("error_step = 1000\n", "error_step"),
         ("reference = \"best\"\n", "reference"),
+        ("reference = { mass = \"lumped\" }\n[sweep]\nh = [0.25, 0.125]\n", "reference.mass"),
+        ("[sweep]\nh = [0.25]\nskip = [{ size = 1 }]\n", "sweep.skip[0].size"),
     ];
     for (i, (body, key)) in cases.iter().enumerate() {
         let dir = scratch(&format!("bad{i}"));
@@ -197,4 +199,76 @@ fn bad_study_files_are_one_line_errors_naming_the_key() {
     let (o, _) = study(&dir, "disc.toml", "reference = \"exact\"\n[sweep]\nh = [0.2]\n");
     assert_eq!(o.status.code(), Some(1), "{}", text(&o));
     assert!(String::from_utf8_lossy(&o.stderr).contains("[exact]"));
+    // An unknown key in a part of a file with parts.
+    let dir = scratch("bad-part");
+    let scene = repo().join("scenes/beam.toml").display().to_string();
+    let (o, _) =
+        study_file(&dir, &format!("[[part]]\nname = \"a\"\nscene = {scene:?}\nmesh = 1\n"));
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{}", text(&o));
+    assert_eq!(err.trim().lines().count(), 1, "{err}");
+    assert!(err.contains("part[0] (a): unknown key mesh"), "{err}");
+}
+
+/// Runs the study file `text` (a file with parts: it names its scenes itself) from `dir`.
+fn study_file(dir: &Path, text: &str) -> (Output, PathBuf) {
+    let out = dir.join("out");
+    let file = dir.join("study.toml");
+    std::fs::write(&file, format!("output = {:?}\n{text}", out.display().to_string())).unwrap();
+    let output = Command::new(env!("CARGO_BIN_EXE_massfree"))
+        .arg("study")
+        .arg(&file)
+        .env("OMPI_ALLOW_RUN_AS_ROOT", "1")
+        .env("OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1")
+        .env("OMPI_MCA_btl_vader_single_copy_mechanism", "none")
+        .output()
+        .expect("cannot start massfree");
+    (output, out)
+}
+
+#[test]
+fn contact_study_with_two_scenes_against_one_consistent_reference() {
+    let dir = scratch("parts");
+    let scenes = repo().join("scenes");
+    let part = |name: &str, scene: &str, kinds: &str| {
+        format!(
+            "[[part]]\nname = \"{name}\"\nscene = {:?}\nmesh_param = \"hc\"\nsteps = 100\n\
+             params = {{ h = 2.0 }}\n[part.sweep]\nh = [0.2, 0.1]\nmass = [{kinds}]\n",
+            scenes.join(scene).display().to_string()
+        )
+    };
+    let file = format!(
+        "title = \"parts\"\nreference = {{ mass = \"consistent\" }}\n{}{}",
+        part("quads", "disc.toml", "\"consistent\", \"modified1\""),
+        part("triangles", "disc_tri.toml", "\"consistent\", \"modified0\"")
+    );
+    let (o, out) = study_file(&dir, &file);
+    assert!(o.status.success(), "{}", text(&o));
+    let rows = read_csv(&out.join("results.csv"));
+    assert_eq!(rows.len(), 8, "{}", text(&o));
+    for (k, name) in ["quads", "triangles"].iter().enumerate() {
+        let part: Vec<_> = rows[4 * k..4 * k + 4].iter().collect();
+        assert!(part.iter().all(|r| r["scene"] == *name && r["status"] == "ok"), "{part:?}");
+        // One reference per scene: the consistent run at the smaller hc; its errors are
+        // zero by definition, every other run's are positive (a different mesh or mass).
+        let refs: Vec<_> = part.iter().filter(|r| num(r, "err_l2") == 0.0).collect();
+        assert_eq!(refs.len(), 1, "{part:?}");
+        assert_eq!((refs[0]["hc"].as_str(), refs[0]["mass"].as_str()), ("0.1", "consistent"));
+        assert_eq!(num(refs[0], "err_force"), 0.0);
+        for r in part.iter().filter(|r| num(r, "err_l2") != 0.0) {
+            assert!(num(r, "err_l2") > 0.0 && num(r, "err_force") > 0.0, "{r:?}");
+            assert!(num(r, "energy_loss").is_finite() && num(r, "lowest_osc2") >= 0.0);
+        }
+        // Each scene has its own front.
+        assert!(
+            part.iter().any(|r| r["pareto"] == "1")
+                && part.iter().any(|r| r["pareto_force"] == "1")
+        );
+    }
+    for png in
+        ["error_time.png", "error_force_time.png", "quads-error_h.png", "triangles-error_h.png"]
+    {
+        let bytes = std::fs::read(out.join(png)).unwrap_or_default();
+        assert!(bytes.len() > 1000 && &bytes[1..4] == b"PNG", "{png} missing or not a PNG");
+    }
 }

@@ -176,6 +176,90 @@ pub fn stacked_plots(path: &Path, title: &str, panels: &[Plot]) -> Result<()> {
 /// legend entries "slope p". Non-finite slopes are ignored. Points with a non-positive
 /// coordinate cannot be shown on log axes and are skipped.
 pub fn loglog_plot(path: &Path, plot: &Plot, reference_slopes: &[f64]) -> Result<()> {
+    let styles: Vec<SeriesStyle> = (0..plot.series.len()).map(SeriesStyle::default_for).collect();
+    loglog_plot_styled(path, plot, reference_slopes, &styles)
+}
+
+/// Marker shapes of [`SeriesStyle`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Marker {
+    Circle,
+    Square,
+    Triangle,
+    Diamond,
+}
+
+/// How [`loglog_plot_styled`] draws one series: colour, marker (filled or hollow, radius in
+/// pixels) and whether its points are joined by a line (`line_width` pixels).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SeriesStyle {
+    pub color: (u8, u8, u8),
+    pub marker: Option<Marker>,
+    pub filled: bool,
+    pub size: u32,
+    pub line: bool,
+    pub line_width: u32,
+}
+
+impl SeriesStyle {
+    /// Series `i` of a plain plot: palette colour `i`, filled circles, a 2-pixel line.
+    pub fn default_for(i: usize) -> SeriesStyle {
+        let c = color(i);
+        SeriesStyle {
+            color: (c.0, c.1, c.2),
+            marker: Some(Marker::Circle),
+            filled: true,
+            size: 3,
+            line: true,
+            line_width: 2,
+        }
+    }
+
+    /// Palette colour number `i` (the "tab10" colours).
+    pub fn palette(i: usize) -> (u8, u8, u8) {
+        let c = color(i);
+        (c.0, c.1, c.2)
+    }
+}
+
+/// The outline of a marker around (0, 0) in pixels (y down), closed.
+fn marker_outline(m: Marker, r: u32) -> Vec<(i32, i32)> {
+    let r = r as f64;
+    let pts: Vec<(f64, f64)> = match m {
+        Marker::Circle => (0..16)
+            .map(|k| {
+                let a = std::f64::consts::PI * f64::from(k) / 8.0;
+                (r * a.cos(), r * a.sin())
+            })
+            .collect(),
+        Marker::Square => {
+            let q = r * 0.85;
+            vec![(-q, -q), (q, -q), (q, q), (-q, q)]
+        }
+        Marker::Triangle => {
+            let q = r * 1.2;
+            vec![(0.0, -q), (q * 0.866, q * 0.5), (-q * 0.866, q * 0.5)]
+        }
+        Marker::Diamond => {
+            let q = r * 1.2;
+            vec![(0.0, -q), (q, 0.0), (0.0, q), (-q, 0.0)]
+        }
+    };
+    let mut out: Vec<(i32, i32)> =
+        pts.iter().map(|&(x, y)| (x.round() as i32, y.round() as i32)).collect();
+    out.push(out[0]);
+    out
+}
+
+/// [`loglog_plot`] with a style per series (`styles[i]` for `plot.series[i]`; missing
+/// entries get [`SeriesStyle::default_for`]). Series with an empty name get no legend entry,
+/// and an entry is not repeated for a later series of the same name and style.
+pub fn loglog_plot_styled(
+    path: &Path,
+    plot: &Plot,
+    reference_slopes: &[f64],
+    styles: &[SeriesStyle],
+) -> Result<()> {
     check_size(path, plot.width, plot.height)?;
     let b = data_bounds(plot.series, true).ok_or_else(|| {
         io(
@@ -239,25 +323,60 @@ pub fn loglog_plot(path: &Path, plot: &Plot, reference_slopes: &[f64]) -> Result
             ((x / xr.0).log10() / (xr.1 / xr.0).log10(), (y / yr.0).log10() / (yr.1 / yr.0).log10())
         };
         let mut legend = Legend::default();
+        let mut named: Vec<(String, SeriesStyle)> = Vec::new();
         for (i, s) in plot.series.iter().enumerate() {
             let pts: Vec<(f64, f64)> = drawable(s, true).collect();
             if pts.is_empty() {
                 continue;
             }
-            let c = color(i);
+            let st = styles.get(i).copied().unwrap_or_else(|| SeriesStyle::default_for(i));
+            let c = RGBColor(st.color.0, st.color.1, st.color.2);
             legend.add_path(&pts, to_fraction);
-            let line = draw_thick(&mut chart, &pts, c)?;
-            if !s.name.is_empty() {
+            if st.line && pts.len() > 1 {
+                if st.line_width >= 2 {
+                    draw_thick_width(&mut chart, &pts, c, st.line_width)?;
+                } else {
+                    chart
+                        .draw_series(std::iter::once(PathElement::new(
+                            pts.clone(),
+                            c.stroke_width(1),
+                        )))
+                        .map_err(|e| e.to_string())?;
+                }
+            }
+            let (marker, size, filled) = match st.marker {
+                Some(m) => (m, st.size, st.filled),
+                // A series without markers still needs an anchor for its legend entry.
+                None => (Marker::Circle, 0, true),
+            };
+            let outline = marker_outline(marker, size);
+            let fill = if filled { c } else { WHITE };
+            let anno = chart
+                .draw_series(pts.iter().map(|&p| {
+                    EmptyElement::at(p)
+                        + Polygon::new(outline.clone(), fill.filled())
+                        + PathElement::new(
+                            outline.clone(),
+                            c.stroke_width(if size > 0 { 2 } else { 0 }),
+                        )
+                }))
+                .map_err(|e| e.to_string())?;
+            if !s.name.is_empty() && !named.iter().any(|(n, t)| *n == s.name && *t == st) {
+                named.push((s.name.clone(), st));
                 legend.labels.push(s.name.clone());
-                line.label(s.name.as_str()).legend(move |(x, y)| {
+                let line = st.line;
+                let lw = st.line_width.max(1);
+                let outline = outline.clone();
+                anno.label(s.name.as_str()).legend(move |(x, y)| {
+                    let seg = if line { vec![(0, 0), (20, 0)] } else { vec![(10, 0), (10, 0)] };
+                    let moved: Vec<(i32, i32)> =
+                        outline.iter().map(|&(a, b)| (a + 10, b)).collect();
                     EmptyElement::at((x, y))
-                        + PathElement::new(vec![(0, 0), (20, 0)], c.stroke_width(2))
-                        + Circle::new((10, 0), 3, c.filled())
+                        + PathElement::new(seg, c.stroke_width(if line { lw } else { 0 }))
+                        + Polygon::new(moved.clone(), fill.filled())
+                        + PathElement::new(moved, c.stroke_width(if size > 0 { 2 } else { 0 }))
                 });
             }
-            chart
-                .draw_series(pts.into_iter().map(|p| Circle::new(p, 3, c.filled())))
-                .map_err(|e| e.to_string())?;
         }
         for (k, (slope, pts)) in refs.iter().enumerate() {
             let (dash, gap) = DASHES[k % DASHES.len()];
@@ -295,42 +414,88 @@ impl Ranged for LogAxis {
     }
 
     fn key_points<Hint: KeyPointHint>(&self, hint: Hint) -> Vec<f64> {
-        let mut points = self.0.key_points(hint);
-        points.dedup_by(|a, b| (*a - *b).abs() <= 1e-9 * b.abs());
-        if points.len() >= 2 {
-            return points;
-        }
-        // A range inside one decade (e.g. 0.28 .. 0.84) has no power of ten to label: use the
-        // 1-2-5 steps of the decade(s) it spans, else a few log-spaced values.
         let r = self.0.range();
         let (lo, hi) = (r.start.min(r.end), r.start.max(r.end));
-        if !(lo > 0.0 && hi > lo) {
-            return points;
+        if !(lo > 0.0 && hi > lo && hi.is_finite()) {
+            return Vec::new();
         }
-        for mantissas in [&[1.0, 2.0, 5.0][..], &[1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0, 8.0, 9.0][..]]
-        {
-            let mut ticks = Vec::new();
-            let mut decade = 10f64.powf(lo.log10().floor());
-            while decade <= hi {
-                for m in mantissas {
-                    let v = m * decade;
-                    if v >= lo && v <= hi {
-                        ticks.push(v);
-                    }
-                }
-                decade *= 10.0;
-            }
-            if ticks.len() >= 2 {
-                return ticks;
-            }
+        if hint.weight().allow_light_points() {
+            log_grid_ticks(lo, hi)
+        } else {
+            log_label_ticks(lo, hi, hint.max_num_points().max(2))
         }
-        let (a, b) = (lo.ln(), hi.ln());
-        (0..5).map(|i| (a + (b - a) * i as f64 / 4.0).exp()).collect()
     }
 
     fn range(&self) -> std::ops::Range<f64> {
         self.0.range()
     }
+}
+
+/// The values `m 10^k` (`m` in `mantissas`) inside `[lo, hi]`, ascending.
+fn log_ticks_with(lo: f64, hi: f64, mantissas: &[f64]) -> Vec<f64> {
+    let tol = 1e-9;
+    let mut out = Vec::new();
+    let mut k = lo.log10().floor() as i32 - 1;
+    while 10f64.powi(k) <= hi * (1.0 + tol) {
+        for m in mantissas {
+            let v = m * 10f64.powi(k);
+            if v >= lo * (1.0 - tol) && v <= hi * (1.0 + tol) {
+                out.push(v);
+            }
+        }
+        k += 1;
+    }
+    out
+}
+
+/// Grid lines of a log axis over `[lo, hi]`: every `m 10^k` (m = 1..9) up to 6 decades,
+/// only the powers of ten beyond.
+fn log_grid_ticks(lo: f64, hi: f64) -> Vec<f64> {
+    if (hi / lo).log10() <= 6.0 {
+        log_ticks_with(lo, hi, &[1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0, 8.0, 9.0])
+    } else {
+        log_ticks_with(lo, hi, &[1.0])
+    }
+}
+
+/// Labelled ticks of a log axis over `[lo, hi]`, at most `max` of them: the powers of ten
+/// (every k-th one when there are too many) over 3 decades and more; 1, 2 and 5 times them
+/// over 1 to 3 decades; every `m 10^k` (m = 1..9) within a decade. When a set holds fewer
+/// than two ticks the next finer one is used (1-9, then 1, 1.5, 2, ... 9.5, then five
+/// log-spaced values), so that every axis has at least two labels. [`log_formatter`] labels
+/// the same set.
+fn log_label_ticks(lo: f64, hi: f64, max: usize) -> Vec<f64> {
+    let decades = (hi / lo).log10();
+    let sets: [&[f64]; 4] = [
+        &[1.0],
+        &[1.0, 2.0, 5.0],
+        &[1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0, 8.0, 9.0],
+        &[1.0, 1.5, 2.0, 2.5, 3.0, 3.5, 4.0, 4.5, 5.0, 5.5, 6.0, 6.5, 7.0, 7.5, 8.0, 8.5, 9.0, 9.5],
+    ];
+    let first = if decades >= 3.0 {
+        0
+    } else if decades >= 1.0 {
+        1
+    } else {
+        2
+    };
+    for (i, m) in sets.iter().enumerate().skip(first) {
+        let mut t = log_ticks_with(lo, hi, m);
+        if i == 0 && t.len() > max {
+            let every = t.len().div_ceil(max);
+            t = t.into_iter().step_by(every).collect();
+        }
+        if t.len() >= 2 {
+            if t.len() > max && i > first {
+                // A finer set only to reach two labels: keep it short.
+                let every = t.len().div_ceil(max);
+                t = t.into_iter().step_by(every).collect();
+            }
+            return t;
+        }
+    }
+    let (a, b) = (lo.ln(), hi.ln());
+    (0..5).map(|i| (a + (b - a) * f64::from(i) / 4.0).exp()).collect()
 }
 
 /// Reference lines start this factor below their anchor point.
@@ -443,6 +608,20 @@ where
     X: Ranged<ValueType = f64>,
     Y: Ranged<ValueType = f64>,
 {
+    draw_thick_width(chart, pts, color, 2)
+}
+
+/// [`draw_thick`] with a `width` x `width` pixel brush.
+fn draw_thick_width<'a, 'c, X, Y>(
+    chart: &'c mut ChartContext<'a, BitMapBackend<'a>, Cartesian2d<X, Y>>,
+    pts: &[(f64, f64)],
+    color: RGBColor,
+    width: u32,
+) -> std::result::Result<&'c mut SeriesAnno<'a, BitMapBackend<'a>>, String>
+where
+    X: Ranged<ValueType = f64>,
+    Y: Ranged<ValueType = f64>,
+{
     let area = chart.plotting_area();
     let (bx, by) = area.get_base_pixel();
     let pixels: Vec<(i32, i32)> = pts
@@ -453,7 +632,9 @@ where
         })
         .collect();
     let flat = area.strip_coord_spec();
-    for (dx, dy) in [(1, 0), (0, 1), (1, 1)] {
+    let w = width.max(1) as i32;
+    let offsets = (0..w).flat_map(|dx| (0..w).map(move |dy| (dx - (w - 1) / 2, dy - (w - 1) / 2)));
+    for (dx, dy) in offsets.filter(|&(dx, dy)| (dx, dy) != (0, 0) || w == 1) {
         let shifted: Vec<(i32, i32)> = pixels.iter().map(|&(x, y)| (x + dx, y + dy)).collect();
         flat.draw(&PathElement::new(shifted, color.stroke_width(1))).map_err(|e| e.to_string())?;
     }
@@ -782,9 +963,10 @@ fn format_tick(v: f64, step: f64, sci: bool) -> String {
     }
 }
 
-/// Formatter for a log axis over `[lo, hi]`. Over less than a decade every tick is labelled;
-/// over 1 to 3 decades only ticks 1, 2 and 5 times a power of ten; over more, only powers of
-/// ten (the other grid lines stay, unlabelled), so that labels never run into each other.
+/// Formatter for a log axis over `[lo, hi]`: labels the ticks of [`log_label_ticks`] (the
+/// powers of ten over 3 decades and more, 1, 2 and 5 times them over 1 to 3 decades, every
+/// tick within a decade) and leaves any other value blank, so that labels never run into
+/// each other.
 fn log_formatter(lo: f64, hi: f64) -> impl Fn(&f64) -> String {
     let decades = (hi / lo).log10();
     move |v: &f64| {
@@ -915,6 +1097,36 @@ mod tests {
         assert_eq!(f(&2e-5), "");
         let f = log_formatter(0.2, 0.8);
         assert_eq!(f(&0.3), "0.3");
+    }
+
+    #[test]
+    fn log_axis_labels() {
+        let close = |a: &[f64], b: &[f64]| {
+            a.len() == b.len() && a.iter().zip(b).all(|(x, y)| (x - y).abs() <= 1e-9 * y.abs())
+        };
+        // Within a decade: every m 10^k; 1 to 3 decades: 1, 2, 5; more: powers of ten.
+        let t = log_label_ticks(0.25, 0.8, 10);
+        assert!(close(&t, &[0.3, 0.4, 0.5, 0.6, 0.7, 0.8]), "{t:?}");
+        let t = log_label_ticks(3.2e-6, 2.2e-4, 10);
+        assert!(close(&t, &[5e-6, 1e-5, 2e-5, 5e-5, 1e-4, 2e-4]), "{t:?}");
+        let t = log_label_ticks(1e-6, 1.0, 10);
+        assert!(close(&t, &[1e-6, 1e-5, 1e-4, 1e-3, 1e-2, 0.1, 1.0]), "{t:?}");
+        // Too many decades for the labels: every other one.
+        let t = log_label_ticks(1e-9, 1e3, 10);
+        assert!(close(&t, &[1e-9, 1e-7, 1e-5, 1e-3, 0.1, 10.0, 1e3]), "{t:?}");
+        // No two ticks of 1..9: half steps, then log-spaced values.
+        let t = log_label_ticks(1.2, 1.8, 10);
+        assert!(t.len() >= 2 && t.iter().all(|&v| (1.2..=1.8).contains(&v)), "{t:?}");
+        assert!(close(&log_label_ticks(1.4, 2.6, 10), &[1.5, 2.0, 2.5]));
+        // The formatter labels exactly the ticks chosen.
+        for (lo, hi) in [(0.25, 0.8), (3.2e-6, 2.2e-4), (1e-6, 1.0)] {
+            let f = log_formatter(lo, hi);
+            assert!(log_label_ticks(lo, hi, 10).iter().all(|v| !f(v).is_empty()));
+        }
+        // Grid lines: every m 10^k.
+        let g = log_grid_ticks(0.25, 0.8);
+        assert!(close(&g, &[0.3, 0.4, 0.5, 0.6, 0.7, 0.8]), "{g:?}");
+        assert_eq!(log_grid_ticks(1e-9, 1.0).len(), 10);
     }
 
     #[test]

@@ -23,18 +23,18 @@ use std::process::{Command, Stdio};
 use std::time::Instant;
 
 use crate::error::{Error, Result};
-use crate::post::plot::{loglog_plot, Plot, Series};
+use crate::post::plot::{loglog_plot, loglog_plot_styled, Marker, Plot, Series, SeriesStyle};
 use crate::scene::{Field, Scene};
 use crate::simulation::RunSummary;
-use spec::{Reference, Study};
+use spec::{Reference, Study, StudySet};
 use table::{Columns, ContactColumns, Measured, Row};
 
 /// Run the study described by the file.
 pub fn run(path: &Path) -> Result<()> {
-    let study = spec::load(path)?;
+    let set = spec::load(path)?;
     let binary = std::env::current_exe()
         .map_err(|e| Error::Io(format!("study: cannot locate the massfree binary: {e}")))?;
-    let rows = execute(&study, &binary)?;
+    let rows = execute(&set, &binary)?;
     let n_ok = rows.iter().filter(|r| r.ok()).count();
     if n_ok == 0 {
         return Err(Error::Solver(format!(
@@ -58,6 +58,8 @@ struct Point {
     error_step: usize,
     solver: Option<usize>,
     group: usize,
+    /// Index of the study's part (0 without parts).
+    part: usize,
     label: String,
     id: String,
 }
@@ -67,38 +69,56 @@ fn needs_h5(study: &Study) -> bool {
     study.reference != Reference::Exact
 }
 
-/// Runs the whole sweep and writes the results; returns the rows.
-fn execute(study: &Study, binary: &Path) -> Result<Vec<Row>> {
-    let out = &study.output;
+/// Runs the whole sweep (every part) and writes the results; returns the rows.
+fn execute(set: &StudySet, binary: &Path) -> Result<Vec<Row>> {
+    let out = &set.output;
     let runs = out.join("runs");
     std::fs::create_dir_all(&runs)
         .map_err(|e| Error::Io(format!("cannot create {}: {e}", runs.display())))?;
-    let _ = std::fs::copy(&study.file, out.join("study.toml"));
-    let points = grid(study)?;
+    let _ = std::fs::copy(&set.file, out.join("study.toml"));
+    // Every part's points, ids prefixed by the part in files with parts.
+    let mut parts: Vec<(&Study, Vec<Point>)> = Vec::new();
+    for (k, study) in set.parts.iter().enumerate() {
+        let mut points = grid(study)?;
+        for p in &mut points {
+            p.part = k;
+            p.group += k * GROUPS_PER_PART;
+            if set.multi {
+                p.id = format!("p{k}-{}", p.id);
+            }
+        }
+        parts.push((study, points));
+    }
     // The scene file of each point, or why the point cannot run (its one-line error).
     let mut scenes = Vec::new();
-    for p in &points {
-        scenes.push(match variant(study, p).and_then(|s| s.variant_text()) {
-            Ok(text) => Ok(write_scene(&runs.join(format!("{}.scene.toml", p.id)), &text)?),
-            Err(e) => Err(e.to_string()),
-        });
+    for (study, points) in &parts {
+        for p in points {
+            scenes.push(match variant(study, p).and_then(|s| s.variant_text()) {
+                Ok(text) => Ok(write_scene(&runs.join(format!("{}.scene.toml", p.id)), &text)?),
+                Err(e) => Err(e.to_string()),
+            });
+        }
     }
-    let total = points.len() * study.repeat;
-    eprintln!(
-        "study {}: {} points x {} repeat(s) = {} runs of {} on {} rank(s); output {}",
-        study.title,
-        points.len(),
-        study.repeat,
-        total,
-        study.scene_path.display(),
-        study.ranks,
-        out.display()
-    );
+    let all: Vec<(&Study, &Point)> =
+        parts.iter().flat_map(|(s, ps)| ps.iter().map(move |p| (*s, p))).collect();
+    let repeat = set.parts.iter().map(|s| s.repeat).max().unwrap_or(1);
+    let total: usize = all.iter().map(|(s, _)| s.repeat).sum();
+    for (study, points) in &parts {
+        eprintln!(
+            "study {}: {} points x {} repeat(s) of {} on {} rank(s); output {}",
+            study.title,
+            points.len(),
+            study.repeat,
+            study.scene_path.display(),
+            study.ranks,
+            out.display()
+        );
+    }
     let started = Instant::now();
     let mut done = 0usize;
-    let mut rows: Vec<Row> = points
+    let mut rows: Vec<Row> = all
         .iter()
-        .map(|p| Row {
+        .map(|(study, p)| Row {
             label: p.label.clone(),
             h: p.h.or(if study.h.is_empty() { study.h_default } else { None }),
             tau: p.tau,
@@ -110,25 +130,29 @@ fn execute(study: &Study, binary: &Path) -> Result<Vec<Row>> {
                 .unwrap_or_else(|| "scene".into()),
             ranks: study.ranks,
             group: p.group,
+            part: p.part,
+            part_name: if set.multi { study.title.clone() } else { String::new() },
             ..Default::default()
         })
         .collect();
     // Repeats go round the whole grid (not one point after the other), so that a passing
     // load on the machine spreads over the points instead of spoiling one point's median.
-    let mut samples: Vec<Vec<Measured>> = vec![Vec::new(); points.len()];
-    for k in 0..study.repeat {
-        for (i, p) in points.iter().enumerate() {
-            if rows[i].failure.is_some() {
+    let mut samples: Vec<Vec<Measured>> = vec![Vec::new(); all.len()];
+    for k in 0..repeat {
+        for (i, (study, p)) in all.iter().enumerate() {
+            if rows[i].failure.is_some() || k >= study.repeat {
                 continue;
             }
             let res = run_point(study, binary, p, &scenes[i], &runs);
             done += 1;
             let elapsed = started.elapsed().as_secs_f64();
             let eta = elapsed / done as f64 * (total - done) as f64;
+            let name =
+                if set.multi { format!("{}: {}", study.title, p.label) } else { p.label.clone() };
             let what = if study.repeat > 1 {
-                format!("{} (repeat {}/{})", p.label, k + 1, study.repeat)
+                format!("{name} (repeat {}/{})", k + 1, study.repeat)
             } else {
-                p.label.clone()
+                name
             };
             match res {
                 Ok(m) => {
@@ -160,13 +184,27 @@ fn execute(study: &Study, binary: &Path) -> Result<Vec<Row>> {
         }
     }
 
-    compute_errors(study, &points, &mut rows, &runs);
+    let mut offset = 0;
+    for (study, points) in &parts {
+        let n = points.len();
+        compute_errors(study, points, &mut rows[offset..offset + n], &runs);
+        offset += n;
+    }
+    let first = &set.parts[0];
+    let mesh_param = if set.parts.iter().all(|s| s.mesh_param == first.mesh_param) {
+        first.mesh_param.as_str()
+    } else {
+        "h"
+    };
+    let contact_ref = |s: &Study| s.has_contact() && s.reference != Reference::Exact;
     let columns = Columns {
-        h_name: &study.mesh_param,
-        rate_h: study.h.len() >= 2,
-        rate_tau: study.tau.len() >= 2,
-        h1: study.reference == Reference::Exact,
-        contact: study.has_contact(),
+        h_name: mesh_param,
+        rate_h: set.parts.iter().any(|s| s.h.len() >= 2),
+        rate_tau: set.parts.iter().any(|s| s.tau.len() >= 2),
+        h1: set.parts.iter().all(|s| s.reference == Reference::Exact),
+        contact: set.parts.iter().any(Study::has_contact),
+        force: set.parts.iter().any(contact_ref),
+        part: set.multi,
     };
     table::fill_rates(&mut rows, columns.rate_h, columns.rate_tau);
     table::fill_pareto(&mut rows);
@@ -175,15 +213,28 @@ fn execute(study: &Study, binary: &Path) -> Result<Vec<Row>> {
     write(&csv, &table::csv(&rows, &columns))?;
     let md = out.join("results.md");
     let table_md = table::markdown(&rows, &columns);
-    write(&md, &format!("{}\n\n{}", describe(study), table_md))?;
+    let described = describe_set(set);
+    write(&md, &format!("{described}\n\n{table_md}"))?;
     let mut files = vec![csv, md];
-    match plots(study, &rows, &columns) {
-        Ok(p) => files.extend(p),
-        Err(e) => eprintln!("study: warning: {e}"),
+    let mut offset = 0;
+    for (study, points) in &parts {
+        let n = points.len();
+        let prefix = if set.multi { format!("{}-", slug(&study.title)) } else { String::new() };
+        match part_plots(study, &rows[offset..offset + n], &columns, &prefix, !set.multi) {
+            Ok(p) => files.extend(p),
+            Err(e) => eprintln!("study: warning: {e}"),
+        }
+        offset += n;
+    }
+    if set.multi {
+        match set_plots(set, &rows, &columns) {
+            Ok(p) => files.extend(p),
+            Err(e) => eprintln!("study: warning: {e}"),
+        }
     }
 
     let n_ok = rows.iter().filter(|r| r.ok()).count();
-    println!("{}", describe(study));
+    println!("{described}");
     println!();
     print!("{table_md}");
     println!();
@@ -200,6 +251,22 @@ fn execute(study: &Study, binary: &Path) -> Result<Vec<Row>> {
     Ok(rows)
 }
 
+/// Group indices of part k start at k times this (a part has far fewer groups).
+const GROUPS_PER_PART: usize = 1_000_000;
+
+/// A file-name form of a part's name: "disc (2D)" -> "disc-2d".
+pub(crate) fn slug(name: &str) -> String {
+    let mut out = String::new();
+    for c in name.chars() {
+        if c.is_ascii_alphanumeric() {
+            out.push(c.to_ascii_lowercase());
+        } else if !out.ends_with('-') && !out.is_empty() {
+            out.push('-');
+        }
+    }
+    out.trim_end_matches('-').to_string()
+}
+
 pub(crate) fn clock(s: f64) -> String {
     if s < 60.0 {
         format!("{s:.0} s")
@@ -213,16 +280,38 @@ fn write(path: &Path, text: &str) -> Result<()> {
         .map_err(|e| Error::Io(format!("cannot write {}: {e}", path.display())))
 }
 
+/// The heading and one paragraph per part on what was swept and what the errors are
+/// measured against.
+fn describe_set(set: &StudySet) -> String {
+    if !set.multi {
+        return describe(&set.parts[0]);
+    }
+    let mut out = format!("# Study {}: {} parts\n", set.title, set.parts.len());
+    for s in &set.parts {
+        out.push_str(&format!("\n{}", describe(s).replacen("# Study", "## Part", 1)));
+        out.push('\n');
+    }
+    out.trim_end().to_string()
+}
+
 /// One line on what was swept and what the errors are measured against.
 fn describe(study: &Study) -> String {
+    let contact_errors = "error (err_l2) = relative L2 difference in time of the lowest contact node's \
+        pressure history, err_force = the same of the total contact force, both piecewise linear in \
+        time and integrated exactly on the union of the two runs' time grids,";
     let reference = match &study.reference {
         Reference::Exact => "errors against the exact solution (L2 and H1 seminorm, computed by the run)".to_string(),
-        Reference::Finest if study.has_contact() => "error = relative L2 difference over time of the lowest contact node's pressure to the finest run of the same mass kind and solver (reference row)".to_string(),
+        Reference::Finest if study.has_contact() => format!("{contact_errors} against the finest run of the same mass kind and solver (reference row)"),
         Reference::Finest => "error = relative nodal L2 difference of the displacement at the error time to the finest run of the same mass kind and solver (reference row)".to_string(),
-        Reference::File(f) if study.has_contact() => format!("error = relative L2 difference over time of the lowest contact node's pressure to {}", f.display()),
+        Reference::Mass(m) if study.has_contact() => format!("{contact_errors} against one reference for every row: the finest {m} run (smallest {}, then smallest tau; reference row)", study.mesh_param),
+        Reference::Mass(m) => format!("error = relative nodal L2 difference of the displacement at the error time to the finest {m} run (smallest {}, then smallest tau; reference row)", study.mesh_param),
+        Reference::File(f) if study.has_contact() => format!("{contact_errors} against {}", f.display()),
         Reference::File(f) => format!("error = relative nodal L2 difference of the displacement at the error time to {}", f.display()),
     };
     let at = match study.end_time {
+        Some(t) if study.has_contact() && study.reference != Reference::Exact => {
+            format!("over (0, {t})")
+        }
         _ if study.has_contact() && study.reference != Reference::Exact => {
             format!("over all {} steps", study.steps.unwrap_or(study.scene.steps))
         }
@@ -233,10 +322,14 @@ fn describe(study: &Study) -> String {
             format!("at step {s} of {steps}")
         }
     };
+    let mut fixed: Vec<String> = study.params.iter().map(|(k, v)| format!("{k} = {v}")).collect();
+    fixed.extend(study.scaled.iter().map(|(k, f)| format!("{k} = {f} {}", study.mesh_param)));
+    let fixed = if fixed.is_empty() { String::new() } else { format!(" ({})", fixed.join(", ")) };
     format!(
-        "# Study {}: scene {} on {} rank(s), median of {} repeat(s)\n\n{reference}, {at}; run_s = \
+        "# Study {}: scene {}{fixed} on {} rank(s), median of {} repeat(s)\n\n{reference}, {at}; run_s = \
          wall time inside the program (mesh + partition + assembly + setup + stepping + output), \
-         process_s = the whole mpirun process; pareto * = not dominated in (run_s, err_l2), errors within 0.1 % counting as equal.",
+         process_s = the whole mpirun process; pareto * = not dominated in (run_s, err_l2) among the \
+         rows of the same scene, errors within 0.1 % counting as equal.",
         study.title, study.scene.name, study.ranks, study.repeat
     )
 }
@@ -280,6 +373,9 @@ fn grid(study: &Study) -> Result<Vec<Point>> {
             let group = si * masses.len() + mi;
             for (ti, (tau, steps, error_step)) in times.iter().enumerate() {
                 for (hi, h) in opt(&study.h).into_iter().enumerate() {
+                    if study.skip.iter().any(|k| k.matches(h, *tau, m.as_deref())) {
+                        continue;
+                    }
                     let mut label = Vec::new();
                     if let Some(h) = h {
                         label.push(format!("{}={}", study.mesh_param, table::show_h(h)));
@@ -304,6 +400,7 @@ fn grid(study: &Study) -> Result<Vec<Point>> {
                         error_step: *error_step,
                         solver: *s,
                         group,
+                        part: 0,
                         label: label.join(" "),
                         id: format!("s{si}-m{mi}-t{ti}-h{hi}"),
                     });
@@ -321,6 +418,9 @@ fn variant(study: &Study, p: &Point) -> Result<Scene> {
     let mut s = study.scene.clone();
     if let Some(h) = p.h {
         s.set_mesh_param(&format!("{}={h}", study.mesh_param))?;
+        for (k, f) in &study.scaled {
+            s.set_mesh_param(&format!("{k}={}", f * h))?;
+        }
     }
     for (k, v) in &study.params {
         s.set_mesh_param(&format!("{k}={v}"))?;
@@ -336,6 +436,11 @@ fn variant(study: &Study, p: &Point) -> Result<Scene> {
     s.add_error_step(p.error_step)?;
     if needs_h5(study) && !study.has_contact() {
         s.output.every = p.error_step.max(1);
+        s.output.fields = vec![Field::Displacement];
+    }
+    if needs_h5(study) && study.has_contact() {
+        // The errors need the contact tables (written every step) only: the fields once.
+        s.output.every = p.steps.max(1);
         s.output.fields = vec![Field::Displacement];
     }
     Ok(s)
@@ -464,8 +569,14 @@ fn measured(s: &RunSummary, error_step: usize) -> Measured {
         run_s: t.mesh + t.partition + t.assembly + t.setup + t.stepping + t.output,
         peak_mib: s.peak_memory_mib,
         energy_drift: s.energy_drift,
+        energy_loss: if s.energy_initial != 0.0 {
+            (s.energy_initial - s.energy_final) / s.energy_initial
+        } else {
+            0.0
+        },
         contact: s.contact.as_ref().map(|c| ContactColumns {
             lowest_osc2: c.lowest_osc2,
+            lowest_tv_index: c.lowest_tv_index,
             total_force_tv_index: c.total_force_tv_index,
             max_pressure: c.max_pressure,
             episodes_max: c.episodes_max,
@@ -491,18 +602,76 @@ fn median(mut samples: Vec<Measured>) -> Measured {
     m
 }
 
-/// Fills err_l2 / err_h1 (and the reference flags) of the rows.
+/// A run's errors against a reference run.
+#[derive(Debug, Clone, Copy, Default)]
+struct Errors {
+    l2: f64,
+    h1: Option<f64>,
+    force: Option<f64>,
+}
+
+/// Fills err_l2 / err_h1 / err_force (and the reference flags) of one part's rows (`rows[i]`
+/// belongs to `points[i]`).
 fn compute_errors(study: &Study, points: &[Point], rows: &mut [Row], runs: &Path) {
     let h5 = |p: &Point| runs.join(format!("{}.h5", p.id));
-    // Contact scenes: the lowest node's pressure history; others: relative L2 and H1-seminorm
-    // differences of the displacement, integrated with quadrature over the reference's cells.
-    let compare = |p: &Point, r: &Path| -> Result<(f64, Option<f64>)> {
+    // Contact scenes: the lowest node's pressure and the total force over time; others:
+    // relative L2 and H1-seminorm differences of the displacement, integrated with quadrature
+    // over the reference's cells.
+    let compare = |p: &Point, r: &Path| -> Result<Errors> {
         if study.has_contact() {
-            reference::pressure_error(&h5(p), r).map(|e| (e, None))
+            let (run, refr) = (reference::read_contact(&h5(p))?, reference::read_contact(r)?);
+            let (l2, force) = reference::contact_errors(&run, &refr)?;
+            Ok(Errors { l2, h1: None, force: Some(force) })
         } else {
             let t = p.error_step as f64 * p.tau;
             let (run, refr) = (fieldnorm::read(&h5(p), t)?, fieldnorm::read(r, t)?);
-            fieldnorm::relative_errors(&run, &refr).map(|(l2, h1)| (l2, Some(h1)))
+            let (l2, h1) = fieldnorm::relative_errors(&run, &refr)?;
+            Ok(Errors { l2, h1: Some(h1), force: None })
+        }
+    };
+    let fill = |row: &mut Row, e: Result<Errors>| match e {
+        Ok(e) => {
+            row.err_l2 = Some(e.l2);
+            row.err_h1 = e.h1;
+            row.err_force = e.force;
+        }
+        Err(e) => row.failure = Some(format!("error against the reference: {e}")),
+    };
+    // The finest of the given points: smallest tau, then smallest h (`space_first`: smallest
+    // h, then smallest tau).
+    let finest = |members: &[usize], space_first: bool| -> Option<usize> {
+        members.iter().copied().min_by(|&a, &b| {
+            let (pa, pb) = (&points[a], &points[b]);
+            let h = pa.h.unwrap_or(0.0).total_cmp(&pb.h.unwrap_or(0.0));
+            let t = pa.tau.total_cmp(&pb.tau);
+            if space_first {
+                h.then(t)
+            } else {
+                t.then(h)
+            }
+        })
+    };
+    // Marks `f` as the reference of `members` and fills their errors against it.
+    let against = |rows: &mut [Row], f: usize, members: &[usize]| {
+        if !rows[f].ok() {
+            for &i in members {
+                if rows[i].ok() {
+                    rows[i].failure =
+                        Some(format!("no reference: the finest run ({}) failed", points[f].label));
+                }
+            }
+            return;
+        }
+        rows[f].is_reference = true;
+        rows[f].err_l2 = Some(0.0);
+        if study.has_contact() {
+            rows[f].err_force = Some(0.0);
+        }
+        let rpath = h5(&points[f]);
+        for &i in members.iter().filter(|&&i| i != f) {
+            if rows[i].ok() {
+                fill(&mut rows[i], compare(&points[i], &rpath));
+            }
         }
     };
     match &study.reference {
@@ -525,14 +694,16 @@ fn compute_errors(study: &Study, points: &[Point], rows: &mut [Row], runs: &Path
         Reference::File(file) => {
             for (r, p) in rows.iter_mut().zip(points) {
                 if r.ok() {
-                    match compare(p, file) {
-                        Ok((l2, h1)) => {
-                            r.err_l2 = Some(l2);
-                            r.err_h1 = h1;
-                        }
-                        Err(e) => r.failure = Some(format!("error against the reference: {e}")),
-                    }
+                    fill(r, compare(p, file));
                 }
+            }
+        }
+        Reference::Mass(kind) => {
+            let of_kind: Vec<usize> =
+                (0..points.len()).filter(|&i| points[i].mass.as_deref() == Some(kind)).collect();
+            let all: Vec<usize> = (0..points.len()).collect();
+            if let Some(f) = finest(&of_kind, true) {
+                against(rows, f, &all);
             }
         }
         Reference::Finest => {
@@ -544,40 +715,8 @@ fn compute_errors(study: &Study, points: &[Point], rows: &mut [Row], runs: &Path
             for g in groups {
                 let members: Vec<usize> =
                     (0..points.len()).filter(|&i| points[i].group == g).collect();
-                // The finest point: smallest tau, then smallest h.
-                let finest = members.iter().copied().min_by(|&a, &b| {
-                    let (pa, pb) = (&points[a], &points[b]);
-                    pa.tau
-                        .total_cmp(&pb.tau)
-                        .then(pa.h.unwrap_or(0.0).total_cmp(&pb.h.unwrap_or(0.0)))
-                });
-                let Some(f) = finest else { continue };
-                if !rows[f].ok() {
-                    for &i in &members {
-                        if rows[i].ok() {
-                            rows[i].failure = Some(format!(
-                                "no reference: the finest run ({}) failed",
-                                points[f].label
-                            ));
-                        }
-                    }
-                    continue;
-                }
-                rows[f].is_reference = true;
-                rows[f].err_l2 = Some(0.0);
-                let rpath = h5(&points[f]);
-                for &i in members.iter().filter(|&&i| i != f) {
-                    if rows[i].ok() {
-                        match compare(&points[i], &rpath) {
-                            Ok((l2, h1)) => {
-                                rows[i].err_l2 = Some(l2);
-                                rows[i].err_h1 = h1;
-                            }
-                            Err(e) => {
-                                rows[i].failure = Some(format!("error against the reference: {e}"))
-                            }
-                        }
-                    }
+                if let Some(f) = finest(&members, false) {
+                    against(rows, f, &members);
                 }
             }
         }
@@ -638,7 +777,16 @@ fn series(
     out
 }
 
-fn plots(study: &Study, rows: &[Row], c: &Columns) -> Result<Vec<PathBuf>> {
+/// One part's plots: `PREFIXerror_h.png`, `PREFIXerror_tau.png` and, with `with_time`,
+/// `error_time.png` (files with parts draw one error-against-time plot of all parts,
+/// [`set_plots`]).
+fn part_plots(
+    study: &Study,
+    rows: &[Row],
+    c: &Columns,
+    prefix: &str,
+    with_time: bool,
+) -> Result<Vec<PathBuf>> {
     let out = &study.output;
     let mut files = Vec::new();
     let err_name = match study.reference {
@@ -667,7 +815,7 @@ fn plots(study: &Study, rows: &[Row], c: &Columns) -> Result<Vec<PathBuf>> {
         if c.h1 {
             s.extend(series(study, rows, &hx, &h1, &by_tau, h1p, true));
         }
-        let path = out.join("error_h.png");
+        let path = out.join(format!("{prefix}error_h.png"));
         let xl = study.mesh_param.clone();
         let title = format!("{}: {err_name} against {}", study.title, study.mesh_param);
         let plot = Plot {
@@ -686,7 +834,7 @@ fn plots(study: &Study, rows: &[Row], c: &Columns) -> Result<Vec<PathBuf>> {
         if c.h1 {
             s.extend(series(study, rows, &tx, &h1, &by_h, h1p, true));
         }
-        let path = out.join("error_tau.png");
+        let path = out.join(format!("{prefix}error_tau.png"));
         let title = format!("{}: {err_name} against tau", study.title);
         let plot = Plot {
             title: &title,
@@ -698,6 +846,9 @@ fn plots(study: &Study, rows: &[Row], c: &Columns) -> Result<Vec<PathBuf>> {
         };
         loglog_plot(&path, &plot, &[2.0])?;
         files.push(path);
+    }
+    if !with_time {
+        return Ok(files);
     }
     // Error against run time, with the Pareto front.
     let time = |r: &Row| r.measured.as_ref().map(|m| m.run_s).unwrap_or(f64::NAN);
@@ -727,9 +878,160 @@ fn plots(study: &Study, rows: &[Row], c: &Columns) -> Result<Vec<PathBuf>> {
     Ok(files)
 }
 
+/// The palette colour and marker of a mass kind (the same in every plot of parts).
+fn mass_style(kind: &str) -> (usize, Marker) {
+    match kind {
+        "consistent" => (0, Marker::Circle),
+        "lumped" => (1, Marker::Square),
+        "modified0" => (2, Marker::Triangle),
+        "modified1" => (3, Marker::Diamond),
+        _ => (7, Marker::Circle),
+    }
+}
+
+/// The plots of a file with parts: `error_time.png` (err_l2 against run time) and, for
+/// contact parts, `error_force_time.png` (err_force against run time). One colour and
+/// marker per mass kind; part 1 filled markers and solid lines, part 2 hollow markers, part
+/// 3 filled and thin lines...; one curve per (part, mass kind, tau) along the mesh
+/// refinements; each part's Pareto front as a thick grey line through its front points,
+/// which are ringed.
+fn set_plots(set: &StudySet, rows: &[Row], c: &Columns) -> Result<Vec<PathBuf>> {
+    let mut files = Vec::new();
+    let time = |r: &Row| r.measured.as_ref().map(|m| m.run_s).unwrap_or(f64::NAN);
+    let mut measures: Vec<(
+        &str,
+        &str,
+        Box<dyn Fn(&Row) -> Option<f64>>,
+        Box<dyn Fn(&Row) -> bool>,
+    )> = vec![(
+        "error_time.png",
+        if c.force { "pressure error of the lowest node (relative L2 in time)" } else { "error" },
+        Box::new(|r: &Row| r.err_l2),
+        Box::new(|r: &Row| r.pareto),
+    )];
+    if c.force {
+        measures.push((
+            "error_force_time.png",
+            "total contact force error (relative L2 in time)",
+            Box::new(|r: &Row| r.err_force),
+            Box::new(|r: &Row| r.pareto_force),
+        ));
+    }
+    for (file, y_label, err, on_front) in &measures {
+        let mut series: Vec<Series> = Vec::new();
+        let mut styles: Vec<SeriesStyle> = Vec::new();
+        for (k, study) in set.parts.iter().enumerate() {
+            let part_rows: Vec<&Row> =
+                rows.iter().filter(|r| r.part == k && r.ok() && !r.is_reference).collect();
+            // Curves: per mass kind (and solver) and tau, along h, sorted by time.
+            let mut keys: Vec<(usize, u64)> =
+                part_rows.iter().map(|r| (r.group, r.tau.to_bits())).collect();
+            keys.sort();
+            keys.dedup();
+            let mut named: Vec<usize> = Vec::new();
+            for (g, t) in keys {
+                let mut pts: Vec<(f64, f64)> = part_rows
+                    .iter()
+                    .filter(|r| r.group == g && r.tau.to_bits() == t)
+                    .filter_map(|r| Some((time(r), err(r)?)))
+                    .collect();
+                pts.sort_by(|a, b| a.0.total_cmp(&b.0));
+                let Some(r0) = part_rows.iter().find(|r| r.group == g) else { continue };
+                let kind = if r0.mass.is_empty() {
+                    r0.measured.as_ref().map(|m| m.mass_kind.clone()).unwrap_or_default()
+                } else {
+                    r0.mass.clone()
+                };
+                let (ci, marker) = mass_style(&kind);
+                // The legend names each (part, kind) once.
+                let name = if named.contains(&g) {
+                    String::new()
+                } else {
+                    named.push(g);
+                    format!("{}: {}", study.title, group_name(study, r0))
+                };
+                series.push(Series { name, points: pts });
+                styles.push(SeriesStyle {
+                    color: SeriesStyle::palette(ci),
+                    marker: Some(marker),
+                    filled: k % 2 == 0,
+                    size: 5,
+                    line: true,
+                    line_width: if k < 2 { 2 } else { 1 },
+                });
+            }
+            let mut front: Vec<(f64, f64)> = part_rows
+                .iter()
+                .filter(|r| on_front(r))
+                .filter_map(|r| Some((time(r), err(r)?)))
+                .collect();
+            front.sort_by(|a, b| a.0.total_cmp(&b.0));
+            if !front.is_empty() {
+                series
+                    .push(Series { name: format!("{}: Pareto front", study.title), points: front });
+                styles.push(SeriesStyle {
+                    color: (90, 90, 90),
+                    marker: Some(Marker::Circle),
+                    filled: false,
+                    size: 9,
+                    line: true,
+                    line_width: 1,
+                });
+            }
+        }
+        // The fronts go first so that the points are drawn over them.
+        let order: Vec<usize> = (0..series.len())
+            .filter(|&i| styles[i].size == 9)
+            .chain((0..series.len()).filter(|&i| styles[i].size != 9))
+            .collect();
+        let series: Vec<Series> = order.iter().map(|&i| series[i].clone()).collect();
+        let styles: Vec<SeriesStyle> = order.iter().map(|&i| styles[i]).collect();
+        let path = set.output.join(file);
+        let title = format!(
+            "{}: {} against run time",
+            set.title,
+            if c.force && *file != "error_time.png" { "force error" } else { "error" }
+        );
+        let plot = Plot {
+            title: &title,
+            x_label: "run time inside the program (s, median)",
+            y_label,
+            series: &series,
+            width: 1000,
+            height: 720,
+        };
+        loglog_plot_styled(&path, &plot, &[], &styles)?;
+        files.push(path);
+    }
+    Ok(files)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_grid_leaves_out_skipped_points() {
+        let file = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("studies/test.toml");
+        let text = "scene = \"../scenes/beam.toml\"\nend_time = 1e-4\n[sweep]\n\
+            h = [0.25, 0.125]\ntau = [1e-5, 5e-6]\nmass = [\"consistent\", \"lumped\"]\n\
+            skip = [{ h = 0.125, tau = 1e-5 }, { mass = \"lumped\", tau = 5e-6 }]\n";
+        let study = spec::parse(&file, text).unwrap();
+        let labels: Vec<String> = grid(&study).unwrap().into_iter().map(|p| p.label).collect();
+        // 2 x 2 x 2 points, less (1/8, 1e-5) of both kinds and lumped at 5e-6 (one of
+        // them already gone).
+        assert_eq!(
+            labels,
+            vec![
+                "h=1/4 mass=consistent tau=1e-5",
+                "h=1/4 mass=consistent tau=5e-6",
+                "h=1/8 mass=consistent tau=5e-6",
+                "h=1/4 mass=lumped tau=1e-5",
+            ]
+        );
+        assert_eq!(slug("disc (2D)"), "disc-2d");
+        assert_eq!(slug("Ball, 3D: hexes"), "ball-3d-hexes");
+    }
 
     #[test]
     fn error_line_of_a_failed_run() {

@@ -14,7 +14,8 @@
 //! error_step = 250                   # step of the errors (default: the last); not with sweep.tau
 //! end_time = 0.8                     # with sweep.tau: steps = end_time / tau, errors at the end
 //! reference = "exact"                # "exact" (default with [exact]), "finest" (default
-//!                                    # otherwise) or { file = "run.h5" }
+//!                                    # otherwise), { file = "run.h5" } or { mass = "consistent" }
+//! scaled = { h = 5.0 }               # params that follow the mesh parameter: h = 5 x hc
 //! [sweep]                            # every key optional; the grid is the product
 //! h = [0.25, 0.125, 0.0625]          # values of the mesh parameter
 //! mass = ["consistent", "modified1"] # consistent | lumped | modified0 | modified1
@@ -23,6 +24,25 @@
 //!   ["-ksp_type", "cg", "-pc_type", "jacobi"],
 //!   { label = "gamg", options = ["-ksp_type", "cg", "-pc_type", "gamg"] },
 //! ]
+//! skip = [{ h = 0.04, tau = 0.005 }] # points of the product not run (all given keys match)
+//! ```
+//!
+//! Several scenes in one study: a list of parts, each a study of its own (the keys above but
+//! `output` and `title`; `name` names the part), sharing `ranks`, `repeat` and `reference`
+//! given at the top (a part may override them). The parts' rows go into one table and their
+//! error-against-time curves into one plot:
+//!
+//! ```toml
+//! title = "contact"
+//! output = "out/study-contact"
+//! reference = { mass = "consistent" }
+//! [[part]]
+//! name = "disc (2D)"
+//! scene = "../scenes/disc.toml"
+//! ...
+//! [[part]]
+//! name = "ball (3D)"
+//! ...
 //! ```
 
 use std::path::{Path, PathBuf};
@@ -41,6 +61,10 @@ pub enum Reference {
     Finest,
     /// A given HDF5 file of an earlier run.
     File(PathBuf),
+    /// One reference for every row of the study (of the part): the finest run of this mass
+    /// kind (smallest h, then smallest tau), so that all kinds are measured against the same
+    /// approximation of the solution.
+    Mass(String),
 }
 
 /// One PETSc option list of `sweep.solver`.
@@ -48,6 +72,36 @@ pub enum Reference {
 pub struct Solver {
     pub label: String,
     pub options: Vec<String>,
+}
+
+/// A study file: one study, or several parts (one scene each) reported together.
+#[derive(Debug, Clone)]
+pub struct StudySet {
+    pub file: PathBuf,
+    pub title: String,
+    pub output: PathBuf,
+    /// One study per part; a file without `[[part]]` is one part.
+    pub parts: Vec<Study>,
+    /// Whether the file lists parts (`[[part]]`).
+    pub multi: bool,
+}
+
+/// A point of the product grid that is not run (`sweep.skip`): every given value matches.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Skip {
+    pub h: Option<f64>,
+    pub tau: Option<f64>,
+    pub mass: Option<String>,
+}
+
+impl Skip {
+    /// Whether the point (h, tau, mass) is skipped (values equal within 1e-9 relative).
+    pub fn matches(&self, h: Option<f64>, tau: f64, mass: Option<&str>) -> bool {
+        let near = |a: f64, b: f64| (a - b).abs() <= 1e-9 * a.abs().max(b.abs());
+        self.h.map_or(true, |x| h.is_some_and(|y| near(x, y)))
+            && self.tau.map_or(true, |x| near(x, tau))
+            && self.mass.as_deref().map_or(true, |m| mass == Some(m))
+    }
 }
 
 #[derive(Debug, Clone)]
@@ -64,6 +118,8 @@ pub struct Study {
     pub repeat: usize,
     pub mesh_param: String,
     pub params: Vec<(String, f64)>,
+    /// Parameters set to a factor times the swept mesh parameter (`scaled`).
+    pub scaled: Vec<(String, f64)>,
     pub steps: Option<usize>,
     pub error_step: Option<usize>,
     pub end_time: Option<f64>,
@@ -72,6 +128,7 @@ pub struct Study {
     pub mass: Vec<String>,
     pub tau: Vec<f64>,
     pub solver: Vec<Solver>,
+    pub skip: Vec<Skip>,
 }
 
 impl Study {
@@ -80,7 +137,7 @@ impl Study {
     }
 }
 
-const TOP_KEYS: [&str; 13] = [
+const TOP_KEYS: [&str; 15] = [
     "scene",
     "output",
     "title",
@@ -94,25 +151,121 @@ const TOP_KEYS: [&str; 13] = [
     "reference",
     "sweep",
     "description",
+    "scaled",
+    "part",
 ];
-const SWEEP_KEYS: [&str; 4] = ["h", "mass", "tau", "solver"];
+const SWEEP_KEYS: [&str; 5] = ["h", "mass", "tau", "solver", "skip"];
+/// The top of a file with parts: what the parts share.
+const SET_KEYS: [&str; 7] =
+    ["title", "output", "description", "ranks", "repeat", "reference", "part"];
+/// Shared keys a part inherits unless it sets them.
+const INHERITED: [&str; 3] = ["ranks", "repeat", "reference"];
 
-/// Reads and validates a study file.
-pub fn load(path: &Path) -> Result<Study> {
+/// Reads and validates a study file (one study or parts).
+pub fn load(path: &Path) -> Result<StudySet> {
     let text = std::fs::read_to_string(path)
         .map_err(|e| Error::Usage(format!("study {}: cannot read: {e}", path.display())))?;
-    parse(path, &text)
+    parse_set(path, &text)
 }
 
-/// Validates the text of a study file (`path` names it in errors and anchors `scene`).
-pub fn parse(path: &Path, text: &str) -> Result<Study> {
+/// Validates the text of a study file with or without `[[part]]`.
+pub fn parse_set(path: &Path, text: &str) -> Result<StudySet> {
     let shown = path.display().to_string();
     let bad = |m: String| Error::Usage(format!("study {shown}: {m}"));
     let table: Table = text.parse().map_err(|e: toml::de::Error| {
         bad(format!("not valid TOML: {}", e.message().lines().next().unwrap_or("")))
     })?;
-    check_keys(&table, "", &TOP_KEYS).map_err(&bad)?;
+    let Some(parts) = table.get("part") else {
+        let study = parse_table(path, &table, None)?;
+        return Ok(StudySet {
+            file: path.to_path_buf(),
+            title: study.title.clone(),
+            output: study.output.clone(),
+            parts: vec![study],
+            multi: false,
+        });
+    };
+    check_keys(&table, "", &SET_KEYS).map_err(&bad)?;
+    let Value::Array(list) = parts else {
+        return Err(bad(format!(
+            "part = {parts} is impossible: a list of tables [[part]] is expected"
+        )));
+    };
+    if list.is_empty() {
+        return Err(bad("part is empty".into()));
+    }
+    let stem = path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
+    let output = get_str(&table, "output")
+        .map_err(&bad)?
+        .map(PathBuf::from)
+        .unwrap_or_else(|| PathBuf::from(format!("out/study-{stem}")));
+    let title = get_str(&table, "title").map_err(&bad)?.unwrap_or_else(|| stem.clone());
+    get_str(&table, "description").map_err(&bad)?;
+    let mut studies: Vec<Study> = Vec::new();
+    for (i, p) in list.iter().enumerate() {
+        let Value::Table(pt) = p else {
+            return Err(bad(format!("part[{i}] = {p} is impossible: a table is expected")));
+        };
+        let name = match pt.get("name") {
+            Some(Value::String(s)) if !s.trim().is_empty() => s.clone(),
+            Some(v) => {
+                return Err(bad(format!("part[{i}].name = {v} is impossible: a name is expected")))
+            }
+            None => return Err(bad(format!("part[{i}].name: missing (the part's name)"))),
+        };
+        if studies.iter().any(|s| s.title == name) {
+            return Err(bad(format!("part[{i}].name = {name:?}: two parts have this name")));
+        }
+        let mut merged = Table::new();
+        for k in INHERITED {
+            if let Some(v) = table.get(k) {
+                merged.insert(k.to_string(), v.clone());
+            }
+        }
+        for (k, v) in pt {
+            match k.as_str() {
+                "name" => {}
+                "output" | "title" | "part" => {
+                    return Err(bad(format!(
+                        "unknown key part[{i}].{k} (a part has no {k}: the file's top sets it)"
+                    )))
+                }
+                _ => {
+                    merged.insert(k.clone(), v.clone());
+                }
+            }
+        }
+        let mut study = parse_table(path, &merged, Some(&format!("part[{i}] ({name})")))?;
+        study.title = name;
+        study.output = output.clone();
+        studies.push(study);
+    }
+    Ok(StudySet { file: path.to_path_buf(), title, output, parts: studies, multi: true })
+}
 
+/// Validates the text of a single-scene study file (`path` names it in errors and anchors
+/// `scene`).
+pub fn parse(path: &Path, text: &str) -> Result<Study> {
+    let set = parse_set(path, text)?;
+    if set.multi {
+        return Err(Error::Usage(format!(
+            "study {}: a file with parts where one study was expected",
+            path.display()
+        )));
+    }
+    Ok(set.parts.into_iter().next().expect("one part"))
+}
+
+/// Validates one study's table; `part` names the part in errors (files with parts).
+fn parse_table(path: &Path, table: &Table, part: Option<&str>) -> Result<Study> {
+    let shown = match part {
+        Some(p) => format!("{}: {p}", path.display()),
+        None => path.display().to_string(),
+    };
+    let bad = |m: String| Error::Usage(format!("study {shown}: {m}"));
+    check_keys(table, "", &TOP_KEYS[..TOP_KEYS.len() - 1]).map_err(&bad)?;
+
+    let table = table.clone();
     let scene_rel = get_str(&table, "scene")
         .map_err(&bad)?
         .ok_or_else(|| bad("scene: missing (the scene file, relative to the study file)".into()))?;
@@ -168,6 +321,28 @@ pub fn parse(path: &Path, text: &str) -> Result<Study> {
             )))
         }
     }
+    let mut scaled = Vec::new();
+    match table.get("scaled") {
+        None => {}
+        Some(Value::Table(t)) => {
+            for (k, v) in t {
+                let x = number(v).filter(|x| *x > 0.0 && x.is_finite()).ok_or_else(|| {
+                    bad(format!("scaled.{k} = {v} is impossible: a factor > 0 is expected"))
+                })?;
+                if *k == mesh_param || params.iter().any(|(n, _)| n == k) {
+                    return Err(bad(format!(
+                        "scaled.{k}: {k} is already set (by sweep.h or params)"
+                    )));
+                }
+                scaled.push((k.clone(), x));
+            }
+        }
+        Some(v) => {
+            return Err(bad(format!(
+                "scaled = {v} is impossible: a table NAME = FACTOR is expected"
+            )))
+        }
+    }
     let steps = get_count(&table, "steps", 1, 100_000_000).map_err(&bad)?;
     let error_step = get_count(&table, "error_step", 0, 100_000_000).map_err(&bad)?;
     let end_time = match table.get("end_time") {
@@ -213,6 +388,7 @@ pub fn parse(path: &Path, text: &str) -> Result<Study> {
         no_duplicates(&mass, "sweep.mass").map_err(&bad)?;
     }
     let solver = solvers(sweep).map_err(&bad)?;
+    let skip = skips(sweep).map_err(&bad)?;
 
     // Time: a tau sweep runs to a fixed end time.
     if !tau.is_empty() {
@@ -264,8 +440,18 @@ pub fn parse(path: &Path, text: &str) -> Result<Study> {
             Reference::Exact
         }
         Some(Value::String(s)) if s == "finest" => Reference::Finest,
+        Some(Value::Table(t)) if t.contains_key("mass") => {
+            check_keys(t, "reference.", &["mass"]).map_err(&bad)?;
+            let m = get_str(t, "mass").map_err(|m| bad(format!("reference.{m}")))?.unwrap_or_default();
+            if !mass.contains(&m) {
+                return Err(bad(format!(
+                    "reference.mass = {m:?} is impossible: sweep.mass must list it (the reference is the finest run of that kind)"
+                )));
+            }
+            Reference::Mass(m)
+        }
         Some(Value::Table(t)) => {
-            check_keys(t, "reference.", &["file"]).map_err(&bad)?;
+            check_keys(t, "reference.", &["file", "mass"]).map_err(&bad)?;
             let f = get_str(t, "file")
                 .map_err(|m| bad(format!("reference.{m}")))?
                 .ok_or_else(|| bad("reference: a table needs file = \"run.h5\"".into()))?;
@@ -281,10 +467,13 @@ pub fn parse(path: &Path, text: &str) -> Result<Study> {
             )))
         }
     };
-    if reference == Reference::Finest && h.len() < 2 && tau.len() < 2 {
+    if matches!(reference, Reference::Finest | Reference::Mass(_)) && h.len() < 2 && tau.len() < 2 {
         return Err(bad(
             "reference = \"finest\" needs at least two values of sweep.h or sweep.tau".into(),
         ));
+    }
+    if !scaled.is_empty() && h.is_empty() {
+        return Err(bad("scaled: only with sweep.h (the factors multiply its values)".into()));
     }
     if !h.is_empty() && !matches!(scene.mesh, MeshSource::Geo { .. }) {
         return Err(bad(format!(
@@ -303,6 +492,7 @@ pub fn parse(path: &Path, text: &str) -> Result<Study> {
         repeat,
         mesh_param,
         params,
+        scaled,
         steps,
         error_step,
         end_time,
@@ -311,6 +501,7 @@ pub fn parse(path: &Path, text: &str) -> Result<Study> {
         mass,
         tau,
         solver,
+        skip,
     })
 }
 
@@ -399,6 +590,39 @@ fn no_duplicates(list: &[String], key: &str) -> std::result::Result<(), String> 
     Ok(())
 }
 
+fn skips(sweep: &Table) -> std::result::Result<Vec<Skip>, String> {
+    let Some(v) = sweep.get("skip") else { return Ok(Vec::new()) };
+    let Value::Array(a) = v else {
+        return Err(format!(
+            "sweep.skip = {v} is impossible: a list of tables {{ h, tau, mass }} is expected"
+        ));
+    };
+    let mut out = Vec::new();
+    for (i, e) in a.iter().enumerate() {
+        let what = format!("sweep.skip[{i}]");
+        let Value::Table(t) = e else {
+            return Err(format!(
+                "{what} = {e} is impossible: a table {{ h, tau, mass }} is expected"
+            ));
+        };
+        check_keys(t, &format!("{what}."), &["h", "tau", "mass"])?;
+        if t.is_empty() {
+            return Err(format!("{what} is empty (it would skip every point)"));
+        }
+        let num = |k: &str| -> std::result::Result<Option<f64>, String> {
+            match t.get(k) {
+                None => Ok(None),
+                Some(v) => number(v).filter(|x| *x > 0.0).map(Some).ok_or_else(|| {
+                    format!("{what}.{k} = {v} is impossible: a number > 0 is expected")
+                }),
+            }
+        };
+        let mass = get_str(t, "mass").map_err(|m| format!("{what}.{m}"))?;
+        out.push(Skip { h: num("h")?, tau: num("tau")?, mass });
+    }
+    Ok(out)
+}
+
 fn solvers(sweep: &Table) -> std::result::Result<Vec<Solver>, String> {
     let Some(v) = sweep.get("solver") else { return Ok(Vec::new()) };
     let Value::Array(a) = v else {
@@ -461,5 +685,96 @@ fn default_label(options: &[String]) -> String {
         (Some(k), Some(p)) if options.len() == 4 => format!("{k}+{p}"),
         _ if options.is_empty() => "default".to_string(),
         _ => options.join(" "),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn file() -> PathBuf {
+        PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("studies/test.toml")
+    }
+
+    fn set(text: &str) -> std::result::Result<StudySet, String> {
+        parse_set(&file(), text).map_err(|e| e.to_string())
+    }
+
+    const TWO: &str = r#"
+title = "two"
+reference = { mass = "consistent" }
+repeat = 2
+[[part]]
+name = "disc"
+scene = "../scenes/disc.toml"
+mesh_param = "hc"
+scaled = { h = 10.0 }
+[part.sweep]
+h = [0.1, 0.05]
+mass = ["consistent", "modified1"]
+[[part]]
+name = "beam"
+scene = "../scenes/beam.toml"
+repeat = 1
+end_time = 1e-4
+[part.sweep]
+h = [0.25, 0.125]
+tau = [1e-5, 5e-6]
+mass = ["consistent"]
+skip = [{ h = 0.125, tau = 1e-5 }]
+"#;
+
+    #[test]
+    fn parts_share_the_top_and_override_it() {
+        let s = set(TWO).unwrap();
+        assert!(s.multi);
+        assert_eq!((s.title.as_str(), s.parts.len()), ("two", 2));
+        let (a, b) = (&s.parts[0], &s.parts[1]);
+        assert_eq!((a.title.as_str(), b.title.as_str()), ("disc", "beam"));
+        assert_eq!((a.repeat, b.repeat), (2, 1));
+        assert_eq!(a.reference, Reference::Mass("consistent".into()));
+        assert_eq!(a.scaled, vec![("h".to_string(), 10.0)]);
+        assert_eq!(a.output, s.output);
+        assert_eq!(b.skip, vec![Skip { h: Some(0.125), tau: Some(1e-5), mass: None }]);
+        // A file without parts is one part.
+        let one = set("scene = \"../scenes/beam.toml\"\n[sweep]\nh = [0.25, 0.125]\n").unwrap();
+        assert!(!one.multi && one.parts.len() == 1);
+    }
+
+    #[test]
+    fn bad_parts_are_one_line_errors_naming_the_key() {
+        let cases = [
+            (TWO.replace("repeat = 1", "repeats = 1"), "part[1] (beam): unknown key repeats"),
+            (TWO.replace("name = \"beam\"", "name = \"disc\""), "part[1].name"),
+            (TWO.replace("name = \"beam\"\n", ""), "part[1].name: missing"),
+            (TWO.replace("name = \"beam\"", "name = \"beam\"\noutput = \"x\""), "part[1].output"),
+            (TWO.replace("title = \"two\"", "title = \"two\"\nscene = \"x\""), "unknown key scene"),
+            (TWO.replace("skip = [{ h", "skip = [{ mesh"), "sweep.skip[0].mesh"),
+            (TWO.replace("skip = [{ h = 0.125, tau = 1e-5 }]", "skip = [{}]"), "sweep.skip[0]"),
+            (TWO.replace("scaled = { h = 10.0 }", "scaled = { h = -1 }"), "scaled.h"),
+            (TWO.replace("scaled = { h = 10.0 }", "scaled = { hc = 2 }"), "scaled.hc"),
+            (TWO.replace("[\"consistent\", \"modified1\"]", "[\"modified1\"]"), "reference.mass"),
+        ];
+        for (text, key) in cases {
+            let e = set(&text).unwrap_err();
+            assert_eq!(e.lines().count(), 1, "{e}");
+            assert!(e.contains(key), "{e} does not name {key}");
+        }
+        let e = set("scene = \"../scenes/beam.toml\"\nscaled = { x = 2 }\n").unwrap_err();
+        assert!(e.contains("scaled: only with sweep.h"), "{e}");
+        let e = parse(&file(), TWO).unwrap_err().to_string();
+        assert!(e.contains("parts"), "{e}");
+    }
+
+    #[test]
+    fn skips_match_every_given_value() {
+        let k = Skip { h: Some(0.04), tau: None, mass: Some("lumped".into()) };
+        assert!(k.matches(Some(0.04), 1.0, Some("lumped")));
+        assert!(k.matches(Some(0.04 * (1.0 + 1e-12)), 2.0, Some("lumped")));
+        assert!(!k.matches(Some(0.04), 1.0, Some("consistent")));
+        assert!(!k.matches(Some(0.05), 1.0, Some("lumped")));
+        assert!(!k.matches(None, 1.0, Some("lumped")));
+        let t = Skip { tau: Some(0.005), ..Default::default() };
+        assert!(t.matches(None, 0.005, None) && !t.matches(None, 0.01, None));
     }
 }

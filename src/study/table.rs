@@ -22,6 +22,8 @@ pub struct Measured {
     pub process_s: f64,
     pub peak_mib: f64,
     pub energy_drift: f64,
+    /// `(E_0 - E_end) / E_0`: the share of the initial energy lost by the end of the run.
+    pub energy_loss: f64,
     pub contact: Option<ContactColumns>,
     /// The run's own errors against the exact solution at the error step: (L2, H1 seminorm).
     pub exact: Option<(f64, f64)>,
@@ -30,6 +32,7 @@ pub struct Measured {
 #[derive(Debug, Clone, Copy, Default)]
 pub struct ContactColumns {
     pub lowest_osc2: f64,
+    pub lowest_tv_index: f64,
     pub total_force_tv_index: f64,
     pub max_pressure: f64,
     pub episodes_max: usize,
@@ -44,20 +47,30 @@ pub struct Row {
     pub mass: String,
     pub solver: String,
     pub ranks: usize,
-    /// Index of the (mass, solver) combination: rows of a group differ only in h and tau.
+    /// Index of the (mass, solver) combination: rows of a group differ only in h and tau
+    /// (unique across the parts of a study).
     pub group: usize,
+    /// The study part (scene) of the row and its name (empty without parts).
+    pub part: usize,
+    pub part_name: String,
     pub measured: Option<Measured>,
     /// The one-line error of a failed point.
     pub failure: Option<String>,
     pub err_l2: Option<f64>,
     pub err_h1: Option<f64>,
+    /// Contact scenes against a reference run: the total contact force's relative L2
+    /// difference in time (err_l2 is the lowest node's pressure's).
+    pub err_force: Option<f64>,
     /// This row is the reference of its group (its error is zero by definition).
     pub is_reference: bool,
     pub rate_l2_h: Option<f64>,
     pub rate_h1_h: Option<f64>,
     pub rate_l2_tau: Option<f64>,
     pub rate_h1_tau: Option<f64>,
+    /// On the Pareto front of (run time, err_l2) among the rows of its part.
     pub pareto: bool,
+    /// On the Pareto front of (run time, err_force) among the rows of its part.
+    pub pareto_force: bool,
 }
 
 impl Row {
@@ -140,17 +153,30 @@ pub fn pareto_front(points: &[(f64, f64)], tol: f64) -> Vec<bool> {
 /// four digits, and a difference in the fifth is no gain in accuracy worth paying for.
 pub const PARETO_TOLERANCE: f64 = 1e-3;
 
-/// Marks the rows on the Pareto front of (run time, L2 error).
+/// Marks the rows on the Pareto fronts of (run time, err_l2) and (run time, err_force),
+/// each part (scene) on its own: the runs of different scenes solve different problems.
 pub fn fill_pareto(rows: &mut [Row]) {
-    let pts: Vec<(f64, f64)> = rows
-        .iter()
-        .map(|r| match (&r.measured, r.err_l2) {
-            (Some(m), Some(e)) if r.ok() && !r.is_reference && e > 0.0 => (m.run_s, e),
-            _ => (f64::NAN, f64::NAN),
-        })
-        .collect();
-    for (r, p) in rows.iter_mut().zip(pareto_front(&pts, PARETO_TOLERANCE)) {
-        r.pareto = p;
+    let parts: Vec<usize> = {
+        let mut p: Vec<usize> = rows.iter().map(|r| r.part).collect();
+        p.sort_unstable();
+        p.dedup();
+        p
+    };
+    let point = |r: &Row, e: Option<f64>| match (&r.measured, e) {
+        (Some(m), Some(e)) if r.ok() && !r.is_reference && e > 0.0 => (m.run_s, e),
+        _ => (f64::NAN, f64::NAN),
+    };
+    for k in parts {
+        let idx: Vec<usize> = (0..rows.len()).filter(|&i| rows[i].part == k).collect();
+        let pts: Vec<(f64, f64)> = idx.iter().map(|&i| point(&rows[i], rows[i].err_l2)).collect();
+        for (&i, p) in idx.iter().zip(pareto_front(&pts, PARETO_TOLERANCE)) {
+            rows[i].pareto = p;
+        }
+        let pts: Vec<(f64, f64)> =
+            idx.iter().map(|&i| point(&rows[i], rows[i].err_force)).collect();
+        for (&i, p) in idx.iter().zip(pareto_front(&pts, PARETO_TOLERANCE)) {
+            rows[i].pareto_force = p;
+        }
     }
 }
 
@@ -163,6 +189,10 @@ pub struct Columns<'a> {
     pub rate_tau: bool,
     pub h1: bool,
     pub contact: bool,
+    /// The total force's error (and its front) beside err_l2 (contact against a reference).
+    pub force: bool,
+    /// A first column naming the part (files with parts).
+    pub part: bool,
 }
 
 fn sci(x: Option<f64>) -> String {
@@ -192,7 +222,11 @@ pub fn show_tau(tau: f64) -> String {
 }
 
 fn header(c: &Columns) -> Vec<String> {
-    let mut h: Vec<String> = vec![
+    let mut h: Vec<String> = Vec::new();
+    if c.part {
+        h.push("scene".into());
+    }
+    h.extend([
         c.h_name.to_string(),
         "dofs".into(),
         "tau".into(),
@@ -201,7 +235,10 @@ fn header(c: &Columns) -> Vec<String> {
         "solver".into(),
         "ranks".into(),
         "err_l2".into(),
-    ];
+    ]);
+    if c.force {
+        h.push("err_force".into());
+    }
     if c.rate_h {
         h.push(format!("rate_l2_{}", c.h_name));
     }
@@ -231,13 +268,22 @@ fn header(c: &Columns) -> Vec<String> {
         h.push(s.into());
     }
     if c.contact {
-        for s in
-            ["energy_drift", "lowest_osc2", "total_force_tv_index", "max_pressure", "episodes_max"]
-        {
+        for s in [
+            "energy_drift",
+            "energy_loss",
+            "lowest_osc2",
+            "lowest_tv_index",
+            "total_force_tv_index",
+            "max_pressure",
+            "episodes_max",
+        ] {
             h.push(s.into());
         }
     }
     h.push("pareto".into());
+    if c.force {
+        h.push("pareto_force".into());
+    }
     h.push("status".into());
     h
 }
@@ -256,7 +302,11 @@ fn cells(r: &Row, c: &Columns, md: bool) -> Vec<String> {
             sci(e)
         }
     };
-    let mut v = vec![
+    let mut v = Vec::new();
+    if c.part {
+        v.push(r.part_name.clone());
+    }
+    v.extend([
         h,
         m.map(|m| m.dofs.to_string()).unwrap_or_default(),
         show_tau(r.tau),
@@ -265,7 +315,10 @@ fn cells(r: &Row, c: &Columns, md: bool) -> Vec<String> {
         r.solver.clone(),
         r.ranks.to_string(),
         err(r.err_l2),
-    ];
+    ]);
+    if c.force {
+        v.push(err(r.err_force));
+    }
     if c.rate_h {
         v.push(fix(r.rate_l2_h, 3));
     }
@@ -294,22 +347,25 @@ fn cells(r: &Row, c: &Columns, md: bool) -> Vec<String> {
     if c.contact {
         let k = m.and_then(|m| m.contact);
         v.push(sci(m.map(|m| m.energy_drift)));
+        v.push(sci(m.map(|m| m.energy_loss)));
         v.push(sci(k.map(|k| k.lowest_osc2)));
+        v.push(fix(k.map(|k| k.lowest_tv_index), 3));
         v.push(fix(k.map(|k| k.total_force_tv_index), 3));
         v.push(sci(k.map(|k| k.max_pressure)));
         v.push(k.map(|k| k.episodes_max.to_string()).unwrap_or_default());
     }
-    v.push(if r.pareto {
-        if md {
-            "*".into()
-        } else {
-            "1".into()
+    let mark = |on: bool| -> String {
+        match (on, md) {
+            (true, true) => "*".into(),
+            (true, false) => "1".into(),
+            (false, true) => String::new(),
+            (false, false) => "0".into(),
         }
-    } else if md {
-        String::new()
-    } else {
-        "0".into()
-    });
+    };
+    v.push(mark(r.pareto));
+    if c.force {
+        v.push(mark(r.pareto_force));
+    }
     v.push(match &r.failure {
         Some(e) => format!("failed: {e}"),
         None => "ok".into(),
@@ -394,6 +450,31 @@ mod tests {
         fill_pareto(&mut rows);
         let marks: Vec<bool> = rows.iter().map(|r| r.pareto).collect();
         assert_eq!(marks, vec![true, true, false, false, false]);
+    }
+
+    #[test]
+    fn each_part_has_its_own_fronts() {
+        let row = |part: usize, t: f64, e: f64, f: f64| Row {
+            part,
+            measured: Some(Measured { run_s: t, ..Default::default() }),
+            err_l2: Some(e),
+            err_force: Some(f),
+            ..Default::default()
+        };
+        // Part 1's rows are all dominated by part 0's first row, which must not matter;
+        // within part 1 the pressure front and the force front differ.
+        let mut rows = vec![
+            row(0, 1.0, 1e-3, 1e-3),
+            row(0, 2.0, 2e-3, 5e-4),
+            row(1, 3.0, 0.5, 0.1),
+            row(1, 4.0, 0.2, 0.2),
+            row(1, 5.0, 0.3, 0.05),
+        ];
+        fill_pareto(&mut rows);
+        let p: Vec<bool> = rows.iter().map(|r| r.pareto).collect();
+        let f: Vec<bool> = rows.iter().map(|r| r.pareto_force).collect();
+        assert_eq!(p, vec![true, false, true, true, false]);
+        assert_eq!(f, vec![true, true, true, false, true]);
     }
 
     #[test]
