@@ -1895,8 +1895,8 @@ pub fn summary_lines(sim: &Simulation, s: &RunSummary) -> Vec<String> {
     if s.energy_corrections.enabled {
         let c = &s.energy_corrections;
         lines.push(format!(
-            "massless DOFs: contact work put back on {} steps ({} extra solves, {} steps handed it on): {:.3e}, pending at the end {:.3e}",
-            c.steps, c.extra_solves, c.skipped, c.energy, c.pending
+            "massless DOFs: contact work put back on {} steps ({} extra solves, {} steps handed it on, {} unsettled): {:.3e}, pending at the end {:.3e}",
+            c.steps, c.extra_solves, c.skipped, c.unconverged, c.energy, c.pending
         ));
     }
     if s.release_projections > 0 {

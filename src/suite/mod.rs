@@ -137,8 +137,9 @@ fn execute(spec: &Spec, binary: &Path) -> Result<Vec<Row>> {
             if let (Ok((path, _, _)), Ok(_)) = (&scene, &row.result) {
                 for &r in spec.rank_sweep.iter().filter(|&&r| r != spec.ranks) {
                     let other = runs.join(format!("{}-n{r}.h5", p.id));
-                    let diff = run_point(case, binary, path, &other, r)
-                        .and_then(|_| compare(&h5, &other).map_err(|e| e.to_string()));
+                    let diff = run_point(case, binary, path, &other, r).and_then(|_| {
+                        compare(&h5, &other, case.rank_steps).map_err(|e| e.to_string())
+                    });
                     done += 1;
                     let elapsed = started.elapsed().as_secs_f64();
                     eprintln!(
@@ -271,15 +272,23 @@ const ENERGIES: [&str; 6] = [
 
 /// The largest relative difference between two runs of the same scene: the energy series
 /// relative to the energy scale, the contact forces relative to the largest force, the active
-/// flags (any mismatch counts as 1).
-pub fn compare(a: &Path, b: &Path) -> Result<f64> {
+/// flags (any mismatch counts as 1); over the first `steps` steps when given (the series have
+/// one row per step from step 0).
+pub fn compare(a: &Path, b: &Path, steps: Option<usize>) -> Result<f64> {
     let (ra, rb) = (RunReader::open(a)?, RunReader::open(b)?);
     let read = |name: &str| -> Result<Option<(Vec<f64>, Vec<f64>)>> {
         let has = |r: &RunReader| r.file.dataset(name).is_ok();
         match (has(&ra), has(&rb)) {
             (false, false) => Ok(None),
             (true, true) => {
-                let (x, y) = (ra.series(name)?, rb.series(name)?);
+                let (mut x, mut y) = (ra.series(name)?, rb.series(name)?);
+                if let Some(k) = steps {
+                    // Rows of this series: as many as the energy series has values.
+                    let rows = ra.series("/energy/total")?.len().max(1);
+                    let keep = (k + 1).min(rows) * (x.len() / rows);
+                    x.truncate(keep);
+                    y.truncate(keep.min(y.len()));
+                }
                 if x.len() != y.len() {
                     return Err(Error::Io(format!(
                         "{name}: {} against {} values",

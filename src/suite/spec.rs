@@ -24,6 +24,8 @@
 //!                                    # a string "= expr" becomes the number it evaluates to
 //! petsc = ["-ksp_rtol", "1e-12"]     # optional PETSc options of the runs
 //! rank_sweep = true                  # also run on the suite's rank_sweep counts
+//! rank_steps = 500                   # optional: compare the rank sweep's first 500 steps only
+//!                                    # (chaotic histories: round-off differences grow)
 //! single_episode = true              # theory: one contact episode per node and impact with M_H
 //! [case.reduced]                     # with --reduced: replaces mass / sweep / petsc, merges
 //! skip = false                       # params and set; skip = true leaves the case out
@@ -78,6 +80,7 @@ struct RawCase {
     petsc: Option<Vec<String>>,
     #[serde(default)]
     rank_sweep: bool,
+    rank_steps: Option<usize>,
     #[serde(default)]
     single_episode: bool,
     reduced: Option<RawCaseReduced>,
@@ -122,6 +125,8 @@ pub struct Case {
     pub set: Table,
     pub petsc: Vec<String>,
     pub rank_sweep: bool,
+    /// The rank sweep compares the first so many steps (all without).
+    pub rank_steps: Option<usize>,
     pub single_episode: bool,
 }
 
@@ -276,6 +281,7 @@ fn case(base: &Path, c: &RawCase) -> std::result::Result<Case, String> {
         set: c.set.clone().unwrap_or_default(),
         petsc: c.petsc.clone().unwrap_or_default(),
         rank_sweep: c.rank_sweep,
+        rank_steps: c.rank_steps,
         single_episode: c.single_episode,
     })
 }

@@ -142,6 +142,10 @@ pub struct Corrections {
     /// to the next steps (they are corrected until it is gone).
     #[serde(default)]
     pub pending: f64,
+    /// Corrected steps whose fixed point did not settle in the solves allowed (the rest is
+    /// pending).
+    #[serde(default)]
+    pub unconverged: usize,
 }
 
 impl Midpoint {
@@ -505,9 +509,10 @@ impl Midpoint {
         let scale = self.energy.total().abs().max(self.energy.kinetic).max(f64::MIN_POSITIVE);
         let tol = 1e-10 * scale;
         let debt = self.corrections.pending;
-        // The contact steps only ever lose energy (`-lambda g^n <= 0`): a gain is solver
-        // noise, and only losses are put back.
-        if (work + debt).abs() <= tol || work + debt > 0.0 {
+        // The contact steps only ever lose energy (`-lambda g^n <= 0`, a gain is solver noise
+        // below `tol`); a gain left pending is what an unconverged correction put back too
+        // much, and is taken back like a loss is put back.
+        if (work + debt).abs() <= tol {
             self.corrections.pending = 0.0;
             return Ok((0, None, work));
         }
@@ -518,7 +523,7 @@ impl Midpoint {
         let (mut its, mut last, mut total) = (0, None, work);
         let mut w_c = work;
         let mut corr_work = 0.0;
-        for _ in 0..MAX_SOLVES {
+        for k in 0..MAX_SOLVES {
             // M du without the Dirichlet rows (their increment is prescribed).
             let (mut mdu, mut force) = self.corr.take().expect("allocated");
             let r = (|| -> Result<Option<f64>> {
@@ -554,6 +559,9 @@ impl Midpoint {
             last = c;
             if (total + debt).abs() <= tol {
                 break;
+            }
+            if k + 1 == MAX_SOLVES {
+                self.corrections.unconverged += 1;
             }
         }
         // What is left (a step too slow to carry it, or not converged) waits for the next
