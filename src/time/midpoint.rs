@@ -109,6 +109,7 @@ pub struct Midpoint {
     /// Steps whose contact work the energy correction took back, its extra solves, and the
     /// energy it put back (the negative of the contact work it cancelled).
     corrections: Corrections,
+    /// Solves of the current step's correction so far.
     corrections_this_step: usize,
     /// Whether the energy of steps whose active set changed is corrected.
     correct: bool,
@@ -134,7 +135,7 @@ pub struct Corrections {
     pub steps: usize,
     /// Solves beyond each corrected step's first.
     pub extra_solves: usize,
-    /// Steps whose contact work was too large for the step's motion to correct (left as it is).
+    /// Steps whose motion was too small to carry the correction (their work was handed on).
     pub skipped: usize,
     /// The energy the correction put back (sum of `-xi du.M du`).
     pub energy: f64,
