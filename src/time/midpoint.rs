@@ -490,13 +490,14 @@ impl Midpoint {
     /// ([`Midpoint::without_translations`]), so the force has no resultant and the momentum
     /// balance (impulse = momentum change) is untouched. `du` depends on `xi`, so the step is
     /// solved again until the two works cancel (a fixed point; the force changes `du` by
-    /// O(xi tau^2): two or three solves). Only losses are put back, so the energy never
-    /// exceeds `E^0 + W_loads`. A step whose motion is too small to carry the correction
+    /// O(xi tau^2): two or three solves). Only losses are put back (a gain an unsettled fixed
+    /// point leaves is taken back by the next steps), so the energy never exceeds
+    /// `E^0 + W_loads` beyond the step tolerance. A step whose motion is too small to carry the correction
     /// (`|xi| tau^2 > 1/2`, e.g. a body arriving in pure translation, or tau far beyond the
     /// contact time) hands the work on to the next steps (`Corrections::pending`), which
     /// put it back when they can; so does the energy a release projection removes. The
-    /// correction is a modification of the scheme in O(tau^2) steps around each impact;
-    /// `-massless_energy_correction false` turns it off.
+    /// correction modifies the scheme only in the steps where the active set changes (and
+    /// those that take pending work); `-massless_energy_correction false` turns it off.
     /// Returns the extra solves' KSP iterations, the last contact data and the step's
     /// contact work with the correction's.
     fn correct_energy<'c>(
