@@ -533,7 +533,8 @@ impl Midpoint {
                 self.without_translations(&mut mdu)?;
                 let dmd = mdu.dot(&self.du)?;
                 let xi = if dmd > 0.0 { (w_c + debt) / dmd } else { f64::INFINITY };
-                if !(xi.abs() * self.tau * self.tau <= 0.5) {
+                // Too large (or not a number: no motion relative to the mean): hand it on.
+                if xi.is_nan() || xi.abs() * self.tau * self.tau > 0.5 {
                     return Ok(None);
                 }
                 // The du form is the midpoint equation times 2.
