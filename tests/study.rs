@@ -31,15 +31,19 @@ fn study(dir: &Path, scene: &str, text: &str) -> (Output, PathBuf) {
         out.display().to_string()
     );
     std::fs::write(&file, full).unwrap();
-    let output = Command::new(env!("CARGO_BIN_EXE_massfree"))
+    (run_study(&file), out)
+}
+
+/// `massfree study FILE`.
+fn run_study(file: &Path) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_massfree"))
         .arg("study")
-        .arg(&file)
+        .arg(file)
         .env("OMPI_ALLOW_RUN_AS_ROOT", "1")
         .env("OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1")
         .env("OMPI_MCA_btl_vader_single_copy_mechanism", "none")
         .output()
-        .expect("cannot start massfree");
-    (output, out)
+        .expect("cannot start massfree")
 }
 
 fn text(o: &Output) -> String {
@@ -215,15 +219,7 @@ fn study_file(dir: &Path, text: &str) -> (Output, PathBuf) {
     let out = dir.join("out");
     let file = dir.join("study.toml");
     std::fs::write(&file, format!("output = {:?}\n{text}", out.display().to_string())).unwrap();
-    let output = Command::new(env!("CARGO_BIN_EXE_massfree"))
-        .arg("study")
-        .arg(&file)
-        .env("OMPI_ALLOW_RUN_AS_ROOT", "1")
-        .env("OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1")
-        .env("OMPI_MCA_btl_vader_single_copy_mechanism", "none")
-        .output()
-        .expect("cannot start massfree");
-    (output, out)
+    (run_study(&file), out)
 }
 
 #[test]

@@ -122,6 +122,8 @@ pub struct Midpoint {
     m_ones: Option<Vector>,
     /// The body of each owned node (in DOF order): the correction keeps each body's momentum.
     groups: Vec<u32>,
+    /// The number of bodies over all ranks.
+    n_groups: usize,
 }
 
 /// What the energy correction of contact steps did ([`Midpoint::configure_massless`]).
@@ -210,6 +212,7 @@ impl Midpoint {
             dim: 1,
             m_ones: None,
             groups: Vec::new(),
+            n_groups: 1,
         };
         mp.refresh(forces, t0)?;
         Ok(mp)
@@ -357,6 +360,11 @@ impl Midpoint {
         groups: Vec<u32>,
     ) -> Result<()> {
         self.dim = dim;
+        // The number of bodies, the same on every rank (a rank may own nodes of few of them).
+        let local = groups.iter().copied().max().map_or(1, |g| g as usize + 1) as f64;
+        let mut n = 0.0f64;
+        SimpleCommunicator::world().all_reduce_into(&local, &mut n, SystemOperation::max());
+        self.n_groups = n as usize;
         self.groups = groups;
         self.massless()?;
         let any = self.massless.as_ref().expect("found").1;
@@ -436,14 +444,7 @@ impl Midpoint {
             self.m_ones = Some(m1);
         }
         let m1 = self.m_ones.as_ref().expect("built above");
-        let groups = self.groups.iter().copied().max().map_or(1, |g| g as usize + 1);
-        let mut n_groups = 0.0f64;
-        SimpleCommunicator::world().all_reduce_into(
-            &(groups as f64),
-            &mut n_groups,
-            SystemOperation::max(),
-        );
-        let ng = n_groups as usize;
+        let ng = self.n_groups.max(1);
         let group = |i: usize| self.groups.get(i / dim).map_or(0, |&g| g as usize);
         let mut sums = vec![0.0f64; 2 * ng * dim];
         x.with_local_slice_mut(|v| {
