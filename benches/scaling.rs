@@ -9,7 +9,7 @@
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-use massfree::simulation::RunSummary;
+use massfree::report::RunSummary;
 
 struct Case {
     scene: &'static str,

@@ -19,6 +19,8 @@ pub mod partition;
 pub mod petsc;
 pub mod phase;
 pub mod post;
+pub mod report;
+pub mod rows;
 pub mod scene;
 pub mod simulation;
 pub mod stability;

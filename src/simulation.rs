@@ -31,13 +31,12 @@ use crate::partition::Partition;
 use crate::petsc::{Matrix, NullSpace, Scatter, Vector};
 use crate::phase::{self, HangTimeout, Phase, Watchdog};
 use crate::post::{picture_paths, write_pictures, RunCurves};
+use crate::report::{BodySummary, ErrorSample, MassCheck, RunSummary, Timings};
 use crate::scene::effects::short_number;
 use crate::scene::{Field, MeshSource, Scene};
 use crate::stability::{self, ContactSeries, EnergySeries, Stability};
 use crate::stress_output::StressOutput;
-use crate::time::{
-    Corrections, Dirichlet, Energy, Forces, Midpoint, StepOperator, StepSolverDefaults,
-};
+use crate::time::{Dirichlet, Energy, Forces, Midpoint, StepOperator, StepSolverDefaults};
 
 /// What the command line adds to a scene.
 #[derive(Debug, Clone, Default)]
@@ -58,130 +57,6 @@ pub struct RunOptions {
     pub petsc_args: Vec<String>,
     /// When the watchdog ends a rank that waits for the others (a collective that hangs).
     pub hang_timeout: Option<HangTimeout>,
-}
-
-/// Wall time of the phases of a run, in seconds (max over ranks).
-#[derive(Debug, Clone, Default, serde::Serialize, serde::Deserialize)]
-pub struct Timings {
-    pub mesh: f64,
-    pub partition: f64,
-    pub assembly: f64,
-    pub setup: f64,
-    pub stepping: f64,
-    /// Writing the output (the stress-type fields' computation excluded).
-    pub output: f64,
-    /// Computing the stress-type output fields (`stress`, `von_mises_nodal`, ...): zero in a
-    /// run that writes none.
-    #[serde(default)]
-    pub stress: f64,
-}
-
-/// Errors of the displacement against the scene's exact solution at one step.
-#[derive(Debug, Clone, Copy, serde::Serialize, serde::Deserialize)]
-pub struct ErrorSample {
-    pub step: usize,
-    pub time: f64,
-    pub l2: f64,
-    pub h1_semi: f64,
-}
-
-/// What a finished run reports (written by `--summary FILE` as TOML).
-#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
-pub struct RunSummary {
-    pub n_nodes: usize,
-    pub n_dofs: usize,
-    pub steps: usize,
-    pub timings: Timings,
-    pub ksp_iterations: usize,
-    pub energy_initial: f64,
-    pub energy_final: f64,
-    pub external_work: f64,
-    /// max_n |E^n - E^0 - W^n| / max_n E^n: the integrator's energy balance.
-    pub energy_balance: f64,
-    /// max_n |E^n - E^0| / E^0 (0 when E^0 = 0).
-    pub energy_drift: f64,
-    /// max_n |E^n|: the scale of the run's energy (a body released at rest under gravity
-    /// starts at E^0 = 0).
-    #[serde(default)]
-    pub energy_max: f64,
-    pub errors: Vec<ErrorSample>,
-    pub output: Option<PathBuf>,
-    /// Wall time of one MatMult with the step operator (the floor of a step's cost).
-    pub matmult_seconds: f64,
-    /// Peak resident memory summed over the ranks, in MiB.
-    pub peak_memory_mib: f64,
-    pub ranks: usize,
-    /// The step solver as PETSc finally configured it (defaults < scene < command line).
-    pub ksp_type: String,
-    pub pc_type: String,
-    pub mass_kind: String,
-    /// Contact nodes and layer cells of the mass-free layer (0 without one).
-    pub layer_contact_nodes: usize,
-    pub layer_cells: usize,
-    pub mass: MassCheck,
-    /// Total momentum `1^T M v` at the start and the end, per component.
-    pub momentum_initial: Vec<f64>,
-    pub momentum_final: Vec<f64>,
-    pub contact: Option<ContactSummary>,
-    /// PNG pictures written (rank 0's list).
-    pub pictures: Vec<PathBuf>,
-    /// What the run simulated and what it did not build (`Effects::summary`).
-    pub effects: String,
-    /// Each `[[body]]` (empty without).
-    #[serde(default)]
-    pub bodies: Vec<BodySummary>,
-    /// The largest change the consistent initialization made to the massless DOFs' initial
-    /// displacement (`None` without massless DOFs, or on a restart).
-    #[serde(default)]
-    pub massless_initialization: Option<f64>,
-    /// Steps after which released massless contact nodes were put back in static equilibrium
-    /// (`Midpoint::step`), and the energy that took (<= 0, part of the contact work).
-    #[serde(default)]
-    pub release_projections: usize,
-    #[serde(default)]
-    pub release_energy: f64,
-    /// What the level scheme's energy correction did.
-    #[serde(default)]
-    pub energy_corrections: Corrections,
-    /// The largest number of KSP iterations of one step (`ksp_iterations` is the sum).
-    #[serde(default)]
-    pub ksp_iterations_step_max: usize,
-    /// The CFL number `c_p tau / h_min` of the step solver's regime (largest over the bodies).
-    #[serde(default)]
-    pub cfl: f64,
-    /// Stability metrics (energy rise and loss against the work, penetration, chatter,
-    /// episodes per impact, iterations; `stability::Stability`).
-    #[serde(default)]
-    pub stability: Option<Stability>,
-}
-
-/// One `[[body]]` of a finished run.
-#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
-pub struct BodySummary {
-    pub group: String,
-    #[serde(rename = "E")]
-    pub e: f64,
-    pub nu: f64,
-    pub rho: f64,
-    /// The mass treatment its cells got: consistent, lumped, modified0, modified1 (a modified
-    /// kind without a contact group on the body gives the consistent mass: `consistent`).
-    pub mass_kind: String,
-    pub cells: usize,
-    /// `1_B^T M 1` per component, `1_B` one on the body's nodes: the body's mass when it shares
-    /// no node with another body.
-    pub total_mass: Vec<f64>,
-    /// `1_B^T M v` per component at the start and the end: the body's momentum (a restarted
-    /// run starts at its checkpoint).
-    pub momentum_initial: Vec<f64>,
-    pub momentum_final: Vec<f64>,
-    /// The mass-free layer's contact nodes and cells on the body.
-    pub layer_contact_nodes: usize,
-    pub layer_cells: usize,
-    /// The impulse the contact gave the body, `tau sum_n` of the contact forces on its nodes
-    /// (a pair's slave: `D lambda`; its master: `-M^T lambda`; zero off the contact): with no
-    /// other load it equals the momentum change.
-    #[serde(default)]
-    pub contact_impulse: Vec<f64>,
 }
 
 /// Mesh the scene's geometry (gmsh on rank 0, others wait) and read it on every rank.
@@ -415,22 +290,6 @@ impl Record {
         }
         self.energies.push([total, e.external_work, e.dirichlet_work, e.contact_work]);
     }
-}
-
-/// Mass-matrix diagnostics (see `check_mass`), per displacement component.
-#[derive(Debug, Clone, Default, serde::Serialize, serde::Deserialize)]
-pub struct MassCheck {
-    pub total_mass: Vec<f64>,
-    pub first_moment: Vec<f64>,
-    pub second_moment: Vec<f64>,
-    /// max |(M 1)_q| over contact DOFs q (exactly zero for the mass-free layer).
-    pub contact_row_max: f64,
-    /// M r for r_i = sin(i + 1) (natural DOF order), this rank's natural block.
-    #[serde(skip)]
-    pub probe: Vec<f64>,
-    /// Per body, `1_B^T M 1` per component (reported in `RunSummary::bodies`).
-    #[serde(skip)]
-    pub body_mass: Vec<Vec<f64>>,
 }
 
 fn max_over_ranks(world: &SimpleCommunicator, x: f64) -> f64 {

@@ -238,65 +238,6 @@ pub fn body_size(coords: &[[f64; 3]]) -> f64 {
     (0..3).map(|i| hi[i] - lo[i]).filter(|d| d.is_finite()).fold(0.0, f64::max)
 }
 
-/// The metrics of a finished run read back from its HDF5 file: the series of `/energy` and
-/// `/contact`, the coordinates, and from the file's summary the lowest contact node and the
-/// KSP iterations (not in the datasets); the written fields (and the final checkpoint) are
-/// scanned for non-finite values too.
-pub fn from_file(path: &std::path::Path) -> crate::Result<Stability> {
-    use crate::io::layout::{self, RunReader};
-    let run = RunReader::open(path)?;
-    let summary = run.summary().ok_or_else(|| {
-        crate::Error::Io(format!("{}: no run summary (the run did not finish)", path.display()))
-    })?;
-    let series = |name: &str| run.series(&layout::energy(name));
-    let total = series("total")?;
-    let ext = series("external_work")?;
-    let dir = series("dirichlet_work")?;
-    let con = series("contact_work")?;
-    let energy = EnergySeries {
-        total: &total,
-        external_work: &ext,
-        dirichlet_work: &dir,
-        contact_work: &con,
-    };
-    let coords = run.coordinates()?;
-    let steps = total.len().saturating_sub(1);
-    let ksp = (summary.ksp_iterations, summary.ksp_iterations_step_max, steps);
-    let mut s = if run.file.dataset(&layout::contact("force")).is_ok() {
-        let nodes = run.series(&layout::contact("nodes"))?;
-        let nc = nodes.len();
-        let force = run.series(&layout::contact("force"))?;
-        let gap = run.series(&layout::contact("gap"))?;
-        let active: Vec<bool> =
-            run.series(&layout::contact("active"))?.iter().map(|&a| a != 0.0).collect();
-        let weights = run.series(&layout::contact("weights"))?;
-        let iterations = run.series(&layout::contact("iterations"))?;
-        let lowest = summary
-            .contact
-            .as_ref()
-            .and_then(|c| nodes.iter().position(|&v| v as usize == c.lowest_node))
-            .unwrap_or(0);
-        let c = ContactSeries {
-            nodes: nc,
-            force: &force,
-            gap: &gap,
-            active: &active,
-            weights: &weights,
-            iterations: &iterations,
-            lowest,
-        };
-        measure(&energy, Some(&c), body_size(&coords), ksp)
-    } else {
-        measure(&energy, None, body_size(&coords), ksp)
-    };
-    for name in ["fields/displacement", "fields/velocity", "checkpoint/u", "checkpoint/v"] {
-        if run.file.dataset(name).is_ok() {
-            s.non_finite += run.series(name)?.iter().filter(|x| !x.is_finite()).count();
-        }
-    }
-    Ok(s)
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;

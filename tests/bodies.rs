@@ -20,7 +20,7 @@ fn two_bars(
     scene_text(dir, &format!("{name}.toml"), &text)
 }
 
-fn body<'a>(s: &'a RunSummary, group: &str) -> &'a massfree::simulation::BodySummary {
+fn body<'a>(s: &'a RunSummary, group: &str) -> &'a massfree::report::BodySummary {
     s.bodies.iter().find(|b| b.group == group).unwrap_or_else(|| panic!("no body {group}"))
 }
 

@@ -37,6 +37,7 @@ use crate::mesh::Mesh;
 use crate::partition::Partition;
 use crate::petsc::{Ksp, Matrix, Vector};
 
+pub use crate::rows::ContactRow;
 pub use obstacle::{Obstacle, Obstacles, Shape};
 
 /// The contact boundary as every rank sees it: nodes (original indices, sorted), their
@@ -107,27 +108,6 @@ impl ContactBoundary {
             nodes: all.iter().map(|&(v, _)| v).collect(),
             weights: all.iter().map(|&(_, w)| w).collect(),
         })
-    }
-}
-
-/// One step on the contact boundary, per contact node in the order of the boundary's nodes:
-/// the one row type that the solver returns, the history keeps, the file stores (with the
-/// pressure `force / weight` beside it) and `post` reads back.
-#[derive(Debug, Clone, Default, PartialEq)]
-pub struct ContactRow {
-    /// Midpoint contact force `lambda_q` (of the unscaled equation).
-    pub force: Vec<f64>,
-    /// Gap at `t_{n+1}` (NaN before the first step).
-    pub gap: Vec<f64>,
-    pub active: Vec<bool>,
-    /// Active-set iterations of the step.
-    pub iterations: usize,
-}
-
-impl ContactRow {
-    /// Pressure `lambda_q / D_qq` with the boundary weights `D_qq`.
-    pub fn pressure(&self, weights: &[f64]) -> Vec<f64> {
-        self.force.iter().zip(weights).map(|(f, w)| f / w).collect()
     }
 }
 

@@ -8,7 +8,6 @@ use hdf5::types::VarLenUnicode;
 
 use crate::error::{Error, Result};
 use crate::fem::element::ElementKind;
-use crate::simulation::RunSummary;
 
 pub const COORDINATES: &str = "mesh/coordinates";
 pub const NODE_TAGS: &str = "mesh/node_tags";
@@ -189,9 +188,10 @@ impl RunReader {
         names
     }
 
-    /// The run's summary (absent for a run that did not finish).
-    pub fn summary(&self) -> Option<RunSummary> {
-        toml::from_str(&self.text("summary")).ok()
+    /// The run's summary as TOML text (empty for a run that did not finish; parsed by
+    /// `report::RunSummary::read`).
+    pub fn summary_text(&self) -> String {
+        self.text("summary")
     }
 
     /// The value of one `settings` line (`key = value`).

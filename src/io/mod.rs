@@ -54,7 +54,8 @@ pub mod layout;
 pub mod meta;
 pub mod xdmf;
 
-pub use fields::{FieldSpec, Location, PlannedField};
+pub use crate::rows::{FieldSpec, Location};
+pub use fields::PlannedField;
 pub use meta::{Meta, MetaValue, RunFile};
 
 use std::path::{Path, PathBuf};
@@ -64,10 +65,9 @@ use hdf5::{Dataset, File};
 use mpi::collective::SystemOperation;
 use mpi::traits::*;
 
-use crate::contact::ContactRow;
 use crate::error::{Error, Result};
 use crate::mesh::Mesh;
-use crate::time::Energy;
+use crate::rows::{ContactRow, Energy};
 
 fn h5err(path: &Path, what: &str, e: hdf5::Error) -> Error {
     Error::Io(format!("{}: {what}: {e}", path.display()))

@@ -7,6 +7,7 @@ use std::path::{Path, PathBuf};
 
 use crate::error::{Error, Result};
 use crate::io::layout::{self, RunReader};
+use crate::report::RunSummary;
 use plot::{line_plot, stacked_plots, Plot, Series};
 
 /// The histories a run's pictures are drawn from.
@@ -134,7 +135,7 @@ pub fn read_curves(path: &Path) -> Result<RunCurves> {
     if run.file.dataset(&layout::contact("pressure")).is_ok() {
         let p = run.table(&layout::contact("pressure"))?;
         // The lowest node (closest to the obstacle at t = 0) is recorded in the summary.
-        let lowest = run.summary().and_then(|s| s.contact).map(|c| c.lowest_node as f64);
+        let lowest = RunSummary::read(&run).and_then(|s| s.contact).map(|c| c.lowest_node as f64);
         let nodes = run.series(layout::CONTACT_NODES)?;
         if let Some(k) = lowest.and_then(|l| nodes.iter().position(|&n| n == l)) {
             lowest_pressure = p.column(k).to_vec();
@@ -303,7 +304,7 @@ pub fn post(path: &Path, opts: &PostOptions) -> Result<Vec<String>> {
                 )
             };
             // The node whose pressure `compare` draws: the slave node closest to the master.
-            if let Some(c) = run.summary().and_then(|s| s.contact) {
+            if let Some(c) = RunSummary::read(&run).and_then(|s| s.contact) {
                 let x = &coords[3 * c.lowest_node..3 * c.lowest_node + 3];
                 let at = if x[2] == 0.0 {
                     format!("({}, {})", x[0], x[1])

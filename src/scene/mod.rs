@@ -325,9 +325,9 @@ impl Field {
 
     /// For a stress-type field: the quantity and where it lives (cell values or their nodal
     /// projection); `None` for the state (displacement, velocity) and the contact traction.
-    pub fn derived(self) -> Option<(crate::fem::stress::Quantity, crate::io::Location)> {
+    pub fn derived(self) -> Option<(crate::fem::stress::Quantity, crate::rows::Location)> {
         use crate::fem::stress::Quantity as Q;
-        use crate::io::Location::{Cell, Nodal};
+        use crate::rows::Location::{Cell, Nodal};
         Some(match self {
             Field::Displacement | Field::Velocity | Field::ContactTraction => return None,
             Field::Stress => (Q::Stress, Cell),
@@ -344,8 +344,8 @@ impl Field {
     }
 
     /// What the output writes for this field on a `dim`-dimensional mesh.
-    pub fn spec(self, dim: usize) -> crate::io::FieldSpec {
-        use crate::io::{FieldSpec, Location};
+    pub fn spec(self, dim: usize) -> crate::rows::FieldSpec {
+        use crate::rows::{FieldSpec, Location};
         match self.derived() {
             None => FieldSpec::nodal(self.name(), dim),
             Some((q, Location::Cell)) => FieldSpec::cell(self.name(), q.components()),

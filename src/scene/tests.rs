@@ -235,7 +235,7 @@ fn stress_fields_and_their_periods() {
     assert_eq!(s.every_of(Field::Displacement), 5);
     assert_eq!(s.every_of(Field::PressureNodal), 5);
     // Specs: cell values and nodal projections, 6 components for tensors (also in 2D).
-    use crate::io::{FieldSpec, Location};
+    use crate::rows::{FieldSpec, Location};
     assert_eq!(Field::VonMises.spec(2), FieldSpec::cell("von_mises", 1));
     assert_eq!(Field::Stress.spec(2), FieldSpec::cell("stress", 6));
     assert_eq!(Field::StrainNodal.spec(3), FieldSpec::nodal("strain_nodal", 6));

@@ -24,8 +24,8 @@ use std::time::Instant;
 
 use crate::error::{Error, Result};
 use crate::post::plot::{loglog_plot, loglog_plot_styled, Marker, Plot, Series, SeriesStyle};
+use crate::report::RunSummary;
 use crate::scene::{Field, Scene};
-use crate::simulation::RunSummary;
 use spec::{Reference, Study, StudySet};
 use table::{Columns, ContactColumns, Measured, Row};
 
@@ -525,7 +525,7 @@ fn run_point(
     }
     let text = std::fs::read_to_string(&summary)
         .map_err(|e| format!("the run wrote no summary {}: {e}", summary.display()))?;
-    let s = parse_summary(&text).map_err(|e| format!("summary {}: {e}", summary.display()))?;
+    let s = RunSummary::parse(&text).map_err(|e| format!("summary {}: {e}", summary.display()))?;
     let mut m = measured(&s, p.error_step);
     m.process_s = process_s;
     Ok(m)
@@ -544,11 +544,6 @@ pub(crate) fn last_error_line(stderr: &str, code: Option<i32>) -> String {
         Some(c) => format!("the run exited with code {c}"),
         None => "the run was killed by a signal".into(),
     }
-}
-
-/// A run's summary as `massfree run --summary` writes it.
-pub(crate) fn parse_summary(text: &str) -> std::result::Result<RunSummary, String> {
-    toml::from_str(text).map_err(|e: toml::de::Error| e.message().to_string())
 }
 
 /// The table's columns of a run; its errors against the exact solution at `error_step`.
@@ -1050,7 +1045,7 @@ mod tests {
     #[test]
     fn summary_columns() {
         use crate::contact::history::ContactSummary;
-        use crate::simulation::{ErrorSample, MassCheck, Timings};
+        use crate::report::{ErrorSample, MassCheck, Timings};
         let run = RunSummary {
             n_nodes: 729,
             n_dofs: 1458,
@@ -1101,7 +1096,7 @@ mod tests {
             stability: None,
         };
         // The text `massfree run --summary` writes, read back.
-        let s = parse_summary(&toml::to_string(&run).unwrap()).unwrap();
+        let s = RunSummary::parse(&toml::to_string(&run).unwrap()).unwrap();
         let m = measured(&s, 30);
         assert_eq!(m.dofs, 1458);
         assert_eq!((m.ksp_type.as_str(), m.mass_kind.as_str()), ("cg", "consistent"));
@@ -1111,6 +1106,6 @@ mod tests {
         let c = m.contact.unwrap();
         assert_eq!((c.max_pressure, c.episodes_max), (2.5, 1));
         assert!(measured(&s, 31).exact.is_none());
-        assert!(parse_summary("n_dofs = 1").is_err());
+        assert!(RunSummary::parse("n_dofs = 1").is_err());
     }
 }

@@ -26,7 +26,8 @@ use std::time::Instant;
 use crate::error::{Error, Result};
 use crate::io::layout::RunReader;
 use crate::post::plot::{status_panels, StatusPanel, StatusPoint};
-use crate::study::{clock, last_error_line, launcher, parse_summary};
+use crate::report::{stability_from_file, RunSummary};
+use crate::study::{clock, last_error_line, launcher};
 use spec::Spec;
 use table::{Done, Row, Tolerances};
 
@@ -253,8 +254,8 @@ fn run_point(
     }
     let text = std::fs::read_to_string(&summary)
         .map_err(|e| format!("the run wrote no summary {}: {e}", summary.display()))?;
-    let summary = parse_summary(&text).map_err(|e| format!("summary: {e}"))?;
-    let stability = crate::stability::from_file(h5).map_err(|e| e.to_string())?;
+    let summary = RunSummary::parse(&text).map_err(|e| format!("summary: {e}"))?;
+    let stability = stability_from_file(h5).map_err(|e| e.to_string())?;
     Ok(Done { summary, stability, process_s, ranks: Vec::new() })
 }
 

@@ -1,6 +1,6 @@
 //! The suite's rows: the checks of each run, the Markdown and CSV tables, the per-case summary.
 
-use crate::simulation::RunSummary;
+use crate::report::RunSummary;
 use crate::stability::Stability;
 
 use super::spec::Spec;
@@ -9,7 +9,7 @@ use super::spec::Spec;
 #[derive(Debug, Clone)]
 pub struct Done {
     pub summary: RunSummary,
-    /// From the HDF5 file (`stability::from_file`).
+    /// From the HDF5 file (`report::stability_from_file`).
     pub stability: Stability,
     /// The whole mpirun process, seconds.
     pub process_s: f64,

@@ -46,28 +46,7 @@ impl Forces for NoForces {
     }
 }
 
-/// The energies of the current state and the works done since the start: the midpoint rule
-/// keeps `kinetic + potential - E^0 = external_work + contact_work + dirichlet_work` to solver
-/// tolerance.
-#[derive(Debug, Clone, Copy, Default, PartialEq)]
-pub struct Energy {
-    /// `1/2 v.Mv`
-    pub kinetic: f64,
-    /// `1/2 u.Au`
-    pub potential: f64,
-    /// `sum_k f^{k+1/2}.du^k`
-    pub external_work: f64,
-    /// `-sum_k lambda^{k+1/2}.B du^k` (<= 0)
-    pub contact_work: f64,
-    /// Work of the reactions at non-zero Dirichlet boundaries.
-    pub dirichlet_work: f64,
-}
-
-impl Energy {
-    pub fn total(&self) -> f64 {
-        self.kinetic + self.potential
-    }
-}
+pub use crate::rows::Energy;
 
 /// What one step did.
 pub struct StepReport {

@@ -8,7 +8,7 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 
 #[allow(unused_imports)] // not every test file reads dataset names
 pub use massfree::io::layout::{self, RunReader};
-pub use massfree::simulation::RunSummary;
+pub use massfree::report::RunSummary;
 
 /// A run's file through the reader post and study use (panics with the path if it fails).
 pub fn reader(h5: &Path) -> RunReader {
