@@ -8,6 +8,7 @@
 
 pub mod assembly;
 pub mod bodies;
+pub mod comm;
 pub mod console;
 pub mod contact;
 pub mod error;
@@ -21,10 +22,9 @@ pub mod phase;
 pub mod post;
 pub mod report;
 pub mod rows;
+pub mod run;
 pub mod scene;
-pub mod simulation;
 pub mod stability;
-pub mod stress_output;
 pub mod study;
 pub mod suite;
 pub mod time;

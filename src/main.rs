@@ -11,7 +11,7 @@ use massfree::error::{Error, Result};
 use massfree::petsc::Petsc;
 use massfree::phase::{self, HangTimeout};
 use massfree::post::snapshot::{self, SnapshotArgs};
-use massfree::simulation::{summary_lines, RunOptions, Simulation};
+use massfree::run::{RunOptions, Simulation};
 
 #[derive(Parser, Debug)]
 #[command(
@@ -288,7 +288,7 @@ fn run(
             };
             let mut sim = Simulation::setup(&world, agree, &console, scene, opts)?;
             let summary = sim.run()?;
-            for line in summary_lines(&sim, &summary) {
+            for line in sim.summary_lines(&summary) {
                 console.result(line);
             }
             if let (Some(path), 0) = (summary_file, rank) {
@@ -340,7 +340,7 @@ fn main() {
         let world = universe.world();
         // Used only to find out whether an error happened on every rank (see phase::all_reached).
         let agree = world.duplicate();
-        let result = massfree::simulation::guard(|| run(cli, &universe, &agree));
+        let result = massfree::run::guard(|| run(cli, &universe, &agree));
         match result {
             Ok(()) => 0,
             Err(e) => report(&world, &agree, &e),

@@ -44,6 +44,20 @@ impl ContactRow {
     pub fn pressure(&self, weights: &[f64]) -> Vec<f64> {
         self.force.iter().zip(weights).map(|(f, w)| f / w).collect()
     }
+
+    /// The traction on the body at each contact node, `-p_q n_q`, `dim` components per node
+    /// (zero for a node without a normal yet: before its first step).
+    pub fn traction(&self, weights: &[f64], normals: &[[f64; 3]], dim: usize) -> Vec<f64> {
+        let pressure = self.pressure(weights);
+        let nc = self.force.len();
+        let mut traction = vec![0.0; nc * dim];
+        for q in 0..nc.min(normals.len()) {
+            for i in 0..dim {
+                traction[q * dim + i] = -pressure[q] * normals[q][i];
+            }
+        }
+        traction
+    }
 }
 
 /// Where a field lives.

@@ -749,12 +749,7 @@ impl Output {
             .map_err(|e| h5err(&path, "write /contact/active", e))?;
         // The traction on the body, -p_q n_q (a node's normal is zero before its first step).
         let dim = c.dim;
-        let mut traction = vec![0.0; nc * dim];
-        for q in 0..nc.min(normals.len()) {
-            for i in 0..dim {
-                traction[q * dim + i] = -pressure[q] * normals[q][i];
-            }
-        }
+        let traction = row.traction(&c.weights, normals, dim);
         c.traction
             .resize((k + 1, nc, dim))
             .map_err(|e| h5err(&path, "resize /contact/traction", e))?;

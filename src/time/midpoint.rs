@@ -50,6 +50,8 @@ pub use crate::rows::Energy;
 
 /// What one step did.
 pub struct StepReport {
+    /// The time the step reached, `t_{n+1}`.
+    pub time: f64,
     /// KSP iterations of the step's solves.
     pub ksp_iterations: usize,
     /// The contact solver's result (scenes with contact).
@@ -576,7 +578,7 @@ impl Midpoint {
         mut contact: Option<&mut (dyn ContactSolver + 'c)>,
     ) -> Result<StepReport> {
         let tau = self.tau;
-        let t_next = (n + 1) as f64 * tau;
+        let t_next = self.time_at(n + 1);
         // f^{n+1/2} = (f(t_n) + f(t_{n+1}))/2
         if forces.present() {
             if forces.time_dependent() {
@@ -667,7 +669,7 @@ impl Midpoint {
                 }
             }
         }
-        Ok(StepReport { ksp_iterations: its, contact: report })
+        Ok(StepReport { time: t_next, ksp_iterations: its, contact: report })
     }
 
     /// Steps after which released massless contact nodes were put back in static
@@ -738,6 +740,10 @@ impl Midpoint {
 
     pub fn tau(&self) -> f64 {
         self.tau
+    }
+    /// The time of step n, `t_n = n tau` (the one place it is computed).
+    pub fn time_at(&self, n: usize) -> f64 {
+        n as f64 * self.tau
     }
     pub fn energy(&self) -> &Energy {
         &self.energy

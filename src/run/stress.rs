@@ -7,7 +7,7 @@
 //!
 //! - Work on this rank's own cells only (`Partition::local_cells`), each with its own material
 //!   (`Bodies::material`), from the displacement at their nodes, ghosts included: the run's
-//!   local view (`Simulation::local_values`, one `VecScatter` built once).
+//!   local view (`Views::local_values`, one `VecScatter` built once).
 //! - Cell values: each rank puts its cells' values into a vector laid out by its own cells; a
 //!   scatter built once (per number of components) INSERTs them into a vector laid out by the
 //!   writer's natural cell blocks (`Output::block(Location::Cell)`: cells in the file's order,
@@ -37,6 +37,7 @@ use crate::io::{natural_cell_index, natural_range, Location};
 use crate::mesh::Mesh;
 use crate::partition::Partition;
 use crate::petsc::{Scatter, Vector};
+use crate::run::views::Views;
 
 /// A scatter from this rank's own entries to the natural blocks, with its two vectors.
 struct Mover {
@@ -295,4 +296,45 @@ impl StressOutput {
 
 fn cell_error(mesh: &Mesh, c: usize, e: Error) -> Error {
     Error::Mesh(format!("stress: {e} (gmsh element tag {})", mesh.cells[c].tag))
+}
+
+/// The stress-type fields of a run as the output asks for them: the [`StressOutput`] is built
+/// at the first step one is due (a run without one never builds it).
+pub struct StressFields<'a> {
+    world: &'a SimpleCommunicator,
+    mesh: Rc<Mesh>,
+    part: Rc<Partition>,
+    output: Option<StressOutput>,
+}
+
+impl<'a> StressFields<'a> {
+    pub fn new(world: &'a SimpleCommunicator, mesh: Rc<Mesh>, part: Rc<Partition>) -> Self {
+        StressFields { world, mesh, part, output: None }
+    }
+
+    /// This rank's natural blocks of the stress-type fields `wanted` (in that order), from the
+    /// displacement `u`. Timed, with the fetch of `u`'s local values, as `Timings::stress`.
+    pub fn blocks(
+        &mut self,
+        views: &mut Views,
+        bodies: &Bodies,
+        u: &Vector,
+        wanted: &[(Quantity, Location)],
+    ) -> Result<Vec<Vec<f64>>> {
+        let t0 = Instant::now();
+        let (vals, view) = views.local_values(u)?;
+        let fetch = t0.elapsed().as_secs_f64();
+        if self.output.is_none() {
+            let (mesh, part) = (Rc::clone(&self.mesh), Rc::clone(&self.part));
+            self.output = Some(StressOutput::new(self.world, mesh, part, &view.nodes, &view.slot)?);
+        }
+        let stress = self.output.as_mut().expect("stress output");
+        stress.seconds += fetch;
+        stress.compute(self.world, bodies, &vals, &view.slot, wanted)
+    }
+
+    /// Wall time of the stress work so far on this rank (zero before the first stress field).
+    pub fn seconds(&self) -> f64 {
+        self.output.as_ref().map_or(0.0, |s| s.seconds)
+    }
 }

@@ -1,0 +1,302 @@
+//! What a run measures besides the state: the mass matrix's moments (checked against the
+//! paper's Lemma 3.3), momenta and contact impulses per body, errors against an exact
+//! solution, the shortest edges (the CFL number), the cost of one product with the step
+//! operator and the peak memory. Free functions of the run's [`Domain`]; collective where
+//! they reduce over the ranks.
+
+use std::time::Instant;
+
+use mpi::collective::SystemOperation;
+use mpi::traits::*;
+
+use super::views::Views;
+use super::Domain;
+use crate::assembly;
+use crate::comm::{max_over_ranks, sum_over_ranks};
+use crate::contact::history::History as ContactHistory;
+use crate::contact::ContactSolver;
+use crate::error::Result;
+use crate::fem::kernels;
+use crate::mass::MassFreeLayer;
+use crate::petsc::{Matrix, Vector};
+use crate::report::MassCheck;
+
+/// Mass-matrix diagnostics, computed once: total mass, first and second moments per component
+/// (`1^T M 1`, `x^T M 1`, `x^T M x` with x the nodal coordinates in one component), and the
+/// largest entry of `M 1` on contact DOFs (zero for M_H).
+pub fn check_mass(
+    d: &Domain,
+    views: &mut Views,
+    m: &Matrix,
+    layer: Option<&MassFreeLayer>,
+) -> Result<MassCheck> {
+    let part = &d.part;
+    let dim = part.dim;
+    let mut check = MassCheck::default();
+    let mut one = assembly::new_vector(part)?;
+    let mut x = one.duplicate()?;
+    let mut y = one.duplicate()?;
+    for c in 0..dim {
+        let owned = &part.owned_nodes;
+        one.zero()?;
+        one.with_local_slice_mut(|s| {
+            for i in 0..owned.len() {
+                s[i * dim + c] = 1.0;
+            }
+        })?;
+        x.zero()?;
+        x.with_local_slice_mut(|s| {
+            for (i, &v) in owned.iter().enumerate() {
+                s[i * dim + c] = d.mesh.coords[v][c];
+            }
+        })?;
+        m.mult(&one, &mut y)?;
+        check.total_mass.push(one.dot(&y)?);
+        let per_body = body_sums(d, &y, c)?;
+        check.body_mass.resize(per_body.len(), Vec::new());
+        for (b, m) in per_body.into_iter().enumerate() {
+            check.body_mass[b].push(m);
+        }
+        check.first_moment.push(x.dot(&y)?);
+        let contact_max = match layer.map(|l| &l.contact_nodes) {
+            Some(nodes) => {
+                let lo = part.first_dof();
+                let mut mx: f64 = 0.0;
+                y.with_local_slice(|s| {
+                    for &v in nodes {
+                        if part.owns(v) {
+                            mx = mx.max(s[part.dof(v, c) - lo].abs());
+                        }
+                    }
+                })?;
+                max_over_ranks(d.world, mx)
+            }
+            None => 0.0,
+        };
+        check.contact_row_max = check.contact_row_max.max(contact_max);
+        m.mult(&x, &mut y)?;
+        check.second_moment.push(x.dot(&y)?);
+    }
+    // The probe: M applied to r_i = sin(i + 1), i the natural (gmsh-order) DOF index.
+    let owned = &part.owned_nodes;
+    x.with_local_slice_mut(|s| {
+        for (i, &v) in owned.iter().enumerate() {
+            for c in 0..dim {
+                s[i * dim + c] = ((v * dim + c + 1) as f64).sin();
+            }
+        }
+    })?;
+    m.mult(&x, &mut y)?;
+    check.probe = views.to_natural(&y)?;
+    Ok(check)
+}
+
+/// The shortest cell edge (any two nodes of a cell: for simplices the edges, for quads and
+/// hexes their diagonals too, which are longer) of each region (`Bodies`), over the cells of
+/// all ranks (`f64::MAX` for a region without cells).
+pub fn min_edges(d: &Domain) -> Vec<f64> {
+    let mut h = vec![f64::MAX; d.bodies.regions.len()];
+    for &c in &d.part.local_cells {
+        let r = d.bodies.region_of(c);
+        let nodes = d.mesh.cells[c].nodes();
+        for (i, &a) in nodes.iter().enumerate() {
+            for &b in &nodes[i + 1..] {
+                let (x, y) = (d.mesh.coords[a], d.mesh.coords[b]);
+                let d2: f64 = (0..3).map(|k| (x[k] - y[k]).powi(2)).sum();
+                h[r] = h[r].min(d2.sqrt());
+            }
+        }
+    }
+    let mut global = vec![0.0; h.len()];
+    d.world.all_reduce_into(&h[..], &mut global[..], SystemOperation::min());
+    global
+}
+
+/// Per body, the sum of component `c` of `x` over the body's nodes (all ranks).
+fn body_sums(d: &Domain, x: &Vector, c: usize) -> Result<Vec<f64>> {
+    let n = d.bodies.n_bodies();
+    if n == 0 {
+        return Ok(Vec::new());
+    }
+    let part = &d.part;
+    let lo = part.first_dof();
+    let mut sums = vec![0.0; n];
+    x.with_local_slice(|s| {
+        for (b, sum) in sums.iter_mut().enumerate() {
+            for &v in d.bodies.body_nodes(b) {
+                if part.owns(v) {
+                    *sum += s[part.dof(v, c) - lo];
+                }
+            }
+        }
+    })?;
+    let mut out = vec![0.0; n];
+    d.world.all_reduce_into(&sums[..], &mut out[..], SystemOperation::sum());
+    Ok(out)
+}
+
+/// The body of each owned node, in DOF order: the index of the first `[[body]]` holding it,
+/// or the number of bodies for the nodes of no body.
+pub fn node_bodies(d: &Domain) -> Vec<u32> {
+    let n = d.bodies.n_bodies();
+    let part = &d.part;
+    let lo = part.first_dof();
+    let dim = part.dim;
+    let mut out = vec![n as u32; part.owned_nodes.len()];
+    for b in (0..n).rev() {
+        for &v in d.bodies.body_nodes(b) {
+            if part.owns(v) {
+                out[(part.dof(v, 0) - lo) / dim] = b as u32;
+            }
+        }
+    }
+    out
+}
+
+/// The momentum `1_B^T M v` of each body, per component, from `M v`.
+pub fn body_momenta(d: &Domain, mv: &Vector) -> Result<Vec<Vec<f64>>> {
+    let mut p = vec![Vec::new(); d.bodies.n_bodies()];
+    for c in 0..d.part.dim {
+        for (b, x) in body_sums(d, mv, c)?.into_iter().enumerate() {
+            p[b].push(x);
+        }
+    }
+    Ok(p)
+}
+
+/// The contact nodes and the cells of the layer on each `[[body]]`.
+pub fn body_layers(d: &Domain, layer: Option<&MassFreeLayer>) -> Vec<(usize, usize)> {
+    (0..d.bodies.n_bodies())
+        .map(|i| {
+            let Some(layer) = layer else { return (0, 0) };
+            let nodes = d.bodies.body_nodes(i);
+            let contact =
+                layer.contact_nodes.iter().filter(|v| nodes.binary_search(v).is_ok()).count();
+            let cells =
+                layer.layer_cells.iter().filter(|&&c| d.bodies.region_of(c) == i + 1).count();
+            (contact, cells)
+        })
+        .collect()
+}
+
+/// Total momentum `1^T M v` per component (from the product `M v` the step keeps).
+pub fn momentum(d: &Domain, mv: &Vector) -> Result<[f64; 3]> {
+    let dim = d.part.dim;
+    let mut p = [0.0; 3];
+    mv.with_local_slice(|s| {
+        for (i, x) in s.iter().enumerate() {
+            p[i % dim] += x;
+        }
+    })?;
+    let mut out = [0.0; 3];
+    d.world.all_reduce_into(&p[..], &mut out[..], SystemOperation::sum());
+    Ok(out)
+}
+
+/// The impulse the contact gave each `[[body]]`: the sum over its contact nodes (slave nodes
+/// and nodes meeting obstacles) and its master nodes of what they received. A node on two
+/// bodies counts for the first.
+pub fn contact_impulses(
+    d: &Domain,
+    contact: Option<&dyn ContactSolver>,
+    history: &ContactHistory,
+) -> Vec<Vec<f64>> {
+    let dim = d.part.dim;
+    let n = d.bodies.n_bodies();
+    let Some(c) = contact else { return vec![vec![0.0; dim]; n] };
+    let first_body = |v: usize| (0..n).find(|&b| d.bodies.body_nodes(b).binary_search(&v).is_ok());
+    (0..n)
+        .map(|b| {
+            let imp = history
+                .impulse_on(&c.boundary().nodes, c.master_nodes(), |v| first_body(v) == Some(b));
+            imp[..dim].to_vec()
+        })
+        .collect()
+}
+
+/// L2 and H1-seminorm errors of `u` against the scene's exact displacement at time t (`None`
+/// for a scene without one).
+pub fn exact_errors(
+    d: &Domain,
+    views: &mut Views,
+    u: &Vector,
+    t: f64,
+) -> Result<Option<(f64, f64)>> {
+    let Some(exact) = &d.scene.exact else { return Ok(None) };
+    let (vals, view) = views.local_values(u)?;
+    let slot = &view.slot;
+    let dim = d.part.dim;
+    let disp = &exact.displacement;
+    let grad = exact.gradient.as_ref();
+    let f = |x: [f64; 3]| -> ([f64; 3], [[f64; 3]; 3]) {
+        let val = disp.eval(x, t);
+        let mut g = [[0.0; 3]; 3];
+        match grad {
+            Some(rows) => {
+                for i in 0..dim {
+                    let r = rows[i].eval(x, t);
+                    g[i][..dim].copy_from_slice(&r[..dim]);
+                }
+            }
+            None => {
+                // Central differences: O(h^2) = 1e-12 relative, far below discretization error.
+                for j in 0..dim {
+                    let hstep = 1e-6 * (1.0 + x[j].abs());
+                    let (mut xp, mut xm) = (x, x);
+                    xp[j] += hstep;
+                    xm[j] -= hstep;
+                    let (fp, fm) = (disp.eval(xp, t), disp.eval(xm, t));
+                    for i in 0..dim {
+                        g[i][j] = (fp[i] - fm[i]) / (2.0 * hstep);
+                    }
+                }
+            }
+        }
+        (val, g)
+    };
+    let (mut l2, mut h1) = (0.0, 0.0);
+    let mut xy = [[0.0; 3]; 8];
+    let mut ue = [0.0; assembly::MAX_EDOFS];
+    for &c in &d.part.local_cells {
+        let cell = &d.mesh.cells[c];
+        let n = assembly::cell_coords(&d.mesh, cell, &mut xy);
+        for (i, &v) in cell.nodes().iter().enumerate() {
+            for k in 0..dim {
+                ue[i * dim + k] = vals[slot[v] * dim + k];
+            }
+        }
+        let (a, b) = kernels::error_sq(cell.kind, &xy[..n], &ue[..n * dim], &f, 6);
+        l2 += a;
+        h1 += b;
+    }
+    let l2 = sum_over_ranks(d.world, l2).sqrt();
+    let h1 = sum_over_ranks(d.world, h1).sqrt();
+    Ok(Some((l2, h1)))
+}
+
+/// Mean wall time of one `y = K x` (max over ranks), timed after the run: the unit in which
+/// the benchmark expresses the cost of a step.
+pub fn time_matmult(d: &Domain, k: &Matrix, x: &Vector, y: &mut Vector) -> Result<f64> {
+    let reps = 20;
+    k.mult(x, y)?;
+    d.world.barrier();
+    let t0 = Instant::now();
+    for _ in 0..reps {
+        k.mult(x, y)?;
+    }
+    let dt = t0.elapsed().as_secs_f64() / reps as f64;
+    Ok(max_over_ranks(d.world, dt))
+}
+
+/// Peak resident set size of this process (VmHWM), in MiB; 0 where /proc is unavailable.
+pub fn peak_rss_mib() -> f64 {
+    std::fs::read_to_string("/proc/self/status")
+        .ok()
+        .and_then(|s| {
+            s.lines()
+                .find(|l| l.starts_with("VmHWM:"))
+                .and_then(|l| l.split_whitespace().nth(1).and_then(|k| k.parse::<f64>().ok()))
+        })
+        .map(|kib| kib / 1024.0)
+        .unwrap_or(0.0)
+}

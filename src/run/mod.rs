@@ -1,0 +1,419 @@
+//! One run of a scene, top to bottom in [`Simulation::run`] (like MFEM's ex10p): the output
+//! file, mesh and partition ([`Simulation::setup`]) -> the physics ([`physics`]: `A`, `M` or
+//! `M_H`, loads, Dirichlet data, the contact solver) -> the start ([`start`]: the step
+//! operator and its solver set up once, the initial state) -> the time loop (the integrator
+//! `time::Midpoint` steps, [`record`] keeps the balance, [`output`] writes) -> the summary.
+//!
+//! The rooms, each with explicit inputs (the run's [`Domain`] and what the phase needs):
+//! - [`options`]: the command line's additions to the scene;
+//! - [`physics`]: the operators and loads, assembled once;
+//! - [`start`]: step solver defaults, initial state, massless initialization, restart;
+//! - [`output`]: the HDF5 file's life (create, open, steps, checkpoints, finish, failure);
+//! - [`views`]: natural-order and local views of distributed vectors;
+//! - [`record`]: the per-step record and the summary;
+//! - [`diagnostics`]: mass check, momenta, impulses, exact errors, costs;
+//! - [`stress`]: the stress-type output fields.
+
+pub mod diagnostics;
+pub mod options;
+pub mod output;
+pub mod physics;
+pub mod record;
+pub mod start;
+pub mod stress;
+pub mod views;
+
+use std::path::{Path, PathBuf};
+use std::rc::Rc;
+use std::time::Instant;
+
+use mpi::topology::SimpleCommunicator;
+use mpi::traits::*;
+
+use crate::bodies::Bodies;
+use crate::comm::max_over_ranks;
+use crate::console::{Console, Progress};
+use crate::error::{Error, Result};
+use crate::mesh::Mesh;
+use crate::partition::Partition;
+use crate::phase::{self, HangTimeout, Phase, Watchdog};
+use crate::post::{picture_paths, write_pictures};
+use crate::report::{RunSummary, Timings};
+use crate::scene::{MeshSource, Scene};
+use crate::time::Midpoint;
+pub use options::RunOptions;
+use output::{ContactStep, RunOutput};
+use physics::Physics;
+use record::{Record, SetupFacts};
+use stress::StressFields;
+use views::Views;
+
+/// What every phase of a run reads and none changes: the communicator, the scene, the mesh
+/// with its partition and bodies, and the number of steps.
+pub struct Domain<'a> {
+    pub world: &'a SimpleCommunicator,
+    pub scene: Scene,
+    /// The cells of each `[[body]]`: material and mass treatment per cell, the layer's groups.
+    pub bodies: Bodies,
+    /// Shared with the loads and the stress output.
+    pub mesh: Rc<Mesh>,
+    pub part: Rc<Partition>,
+    pub rank: usize,
+    pub size: usize,
+    /// The steps to run: the scene's, or the command line's `--steps`.
+    pub n_steps: usize,
+}
+
+impl Domain<'_> {
+    /// The effects line, with the mass treatment as the mesh resolved it.
+    pub fn effects(&self) -> String {
+        let layer = self.bodies.layer.as_ref().map(|(k, g)| (*k, g.as_slice()));
+        self.scene.effects().resolve(self.bodies.standard_masses(), layer).summary()
+    }
+}
+
+/// One run: the domain, the options, the output file and the run's views of its vectors.
+pub struct Simulation<'a> {
+    /// A duplicate of the world used only to find out whether an error happened on every rank.
+    agree: &'a SimpleCommunicator,
+    console: &'a Console,
+    pub domain: Domain<'a>,
+    opts: RunOptions,
+    timings: Timings,
+    output: RunOutput,
+    views: Views<'a>,
+    stress: StressFields<'a>,
+    /// Contact nodes and cells of the mass-free layer (once assembled).
+    layer: Option<(usize, usize)>,
+}
+
+impl<'a> Simulation<'a> {
+    /// Output file, scene, mesh and partition. The output file is created first, so that a
+    /// run that fails or is stopped in any later phase says so in its file.
+    pub fn setup(
+        world: &'a SimpleCommunicator,
+        agree: &'a SimpleCommunicator,
+        console: &'a Console,
+        scene: Scene,
+        opts: RunOptions,
+    ) -> Result<Simulation<'a>> {
+        phase::enter(Phase::Start);
+        let rank = world.rank() as usize;
+        let size = world.size() as usize;
+        let output = RunOutput::create(world, &scene, &opts)?;
+        let parts = guard(|| {
+            phase::enter(Phase::Meshing);
+            let t0 = Instant::now();
+            let mesh = load_mesh(world, &scene)?;
+            scene.check_dim(mesh.dim)?;
+            let bodies = Bodies::resolve(&scene, &mesh)?;
+            let t_mesh = t0.elapsed().as_secs_f64();
+            phase::check_signal(world)?;
+            phase::enter(Phase::Partitioning);
+            let t1 = Instant::now();
+            let part = Partition::with_strategy(&mesh, rank, size, opts.partition)?;
+            let t_part = t1.elapsed().as_secs_f64();
+            phase::check_signal(world)?;
+            let timings = Timings {
+                mesh: max_over_ranks(world, t_mesh),
+                partition: max_over_ranks(world, t_part),
+                ..Default::default()
+            };
+            Ok((mesh, part, timings, bodies))
+        });
+        let (mesh, part, timings, bodies) = match parts {
+            Ok((mesh, part, timings, bodies)) => (Rc::new(mesh), Rc::new(part), timings, bodies),
+            Err(e) => {
+                output.fail(world, agree, &e);
+                return Err(e);
+            }
+        };
+        let n_steps = opts.steps.unwrap_or(scene.steps);
+        let views = Views::new(world, Rc::clone(&mesh), Rc::clone(&part));
+        let stress = StressFields::new(world, Rc::clone(&mesh), Rc::clone(&part));
+        let domain = Domain { world, scene, bodies, mesh, part, rank, size, n_steps };
+        Ok(Simulation { agree, console, domain, opts, timings, output, views, stress, layer: None })
+    }
+
+    /// The run after `setup`, top to bottom. On an error (or a signal) in any step the output
+    /// file is marked, and the error comes back.
+    pub fn run(&mut self) -> Result<RunSummary> {
+        let result = guard(|| self.phases());
+        if let Err(e) = &result {
+            let output = std::mem::replace(&mut self.output, RunOutput::None);
+            output.fail(self.domain.world, self.agree, e);
+        }
+        result
+    }
+
+    fn phases(&mut self) -> Result<RunSummary> {
+        let d = &self.domain;
+        let (world, console) = (d.world, self.console);
+
+        // 1. The physics: A, M (or M_H), loads, Dirichlet data, contact.
+        console.say(format!(
+            "{}: {} nodes, {} cells ({}D), {} DOFs on {} rank(s); assembling",
+            d.scene.name,
+            d.mesh.n_nodes(),
+            d.mesh.cells.len(),
+            d.mesh.dim,
+            d.part.n_global_dofs(),
+            d.size
+        ));
+        console.say(d.effects());
+        phase::enter(Phase::Assembling);
+        let t0 = Instant::now();
+        let physics = Physics::assemble(d, console)?;
+        self.timings.assembly = max_over_ranks(world, t0.elapsed().as_secs_f64());
+        let mass_check =
+            diagnostics::check_mass(d, &mut self.views, &physics.m, physics.layer.as_ref())?;
+        phase::check_signal(world)?;
+
+        // 2. The start: K = 4/tau^2 M + A and its solver, set up once; the initial state.
+        phase::enter(Phase::SolverSetup);
+        let t1 = Instant::now();
+        let Physics { a, m, dirichlet, layer, mut contact, loads } = physics;
+        let (op, cfl) = start::step_operator(d, console, &m, &a, &dirichlet, contact.is_some())?;
+        if let Some(c) = contact.as_mut() {
+            c.prepare(&op.k)?;
+        }
+        self.timings.setup = max_over_ranks(world, t1.elapsed().as_secs_f64());
+        let (u0, v0) = start::initial_state(d)?;
+        let mut midpoint = Midpoint::new(op, m, a, dirichlet, d.scene.tau, u0, v0, 0.0, &loads)?;
+        let massless_initialized = match self.opts.restart {
+            // A restart's state already is consistent.
+            Some(_) => None,
+            None => start::make_massless_consistent(d, &mut midpoint, contact.as_deref(), &loads)?,
+        };
+        // The energy correction of contact steps with massless DOFs (on unless
+        // `-massless_energy_correction false`).
+        let correct = match crate::petsc::Petsc::options_get_string("-massless_energy_correction")?
+            .as_deref()
+        {
+            None | Some("1" | "true" | "yes") => true,
+            Some("0" | "false" | "no") => false,
+            Some(other) => {
+                return Err(Error::Usage(format!(
+                    "-massless_energy_correction {other}: give true or false"
+                )))
+            }
+        };
+        midpoint.configure_massless(correct, d.part.dim, diagnostics::node_bodies(d))?;
+        let restart = match &self.opts.restart {
+            Some(path) => Some(start::restore(
+                d,
+                &mut self.views,
+                console,
+                path,
+                &mut midpoint,
+                contact.as_deref_mut(),
+                &loads,
+            )?),
+            None => None,
+        };
+        let first = restart.as_ref().map_or(0, |cp| cp.step);
+        if first > d.n_steps {
+            return Err(Error::Usage(format!(
+                "--restart: the checkpoint is at step {first}, beyond the {} steps of the scene",
+                d.n_steps
+            )));
+        }
+        if let (Some(c), None) = (contact.as_deref(), &restart) {
+            start::check_no_penetration(d, c, midpoint.u())?;
+        }
+        self.timings.output += self.output.open(
+            d,
+            &self.opts,
+            midpoint.operator(),
+            contact.as_deref(),
+            layer.as_ref(),
+            &mass_check,
+        )?;
+        phase::check_signal(world)?;
+        let mut record = Record::new(d, &midpoint, contact.as_deref(), restart.as_ref(), first)?;
+        self.layer = layer.as_ref().map(|l| (l.n_contact_nodes(), l.n_layer_cells()));
+        let body_layers = diagnostics::body_layers(d, layer.as_ref());
+        let at_start = contact.as_deref().map(|solver| ContactStep {
+            solver,
+            row: record.history.last_row().expect("the history's first row"),
+            normals: record.history.last_normals(),
+        });
+        self.output.write_step(d, &mut self.views, &mut self.stress, first, &midpoint, at_start)?;
+        if self.opts.verbose {
+            let e = midpoint.energy();
+            console.say(format!(
+                "step {first}  t = {:e}  kinetic {:.10e}  potential {:.10e}  total {:.10e}",
+                midpoint.time_at(first),
+                e.kinetic,
+                e.potential,
+                record.e0
+            ));
+        }
+        record.errors_at(d, &mut self.views, first, &midpoint)?;
+
+        // 3. The time loop: step, record, output, progress.
+        let mut watchdog =
+            Watchdog::start(self.opts.hang_timeout.unwrap_or(HangTimeout::Auto), d.rank);
+        watchdog.arm();
+        phase::enter(Phase::Stepping);
+        phase::step_done(first);
+        let mut progress = Progress::new(console, d.n_steps, d.scene.output.progress);
+        let t_loop = Instant::now();
+        let stress_before_loop = self.stress.seconds();
+        let mut output_seconds = 0.0;
+        for n in first..d.n_steps {
+            let t_step = Instant::now();
+            let report = midpoint.step(n, &loads, contact.as_deref_mut())?;
+            record.step(&report, midpoint.energy(), t_step.elapsed().as_secs_f64(), midpoint.tau());
+            if self.opts.verbose {
+                let e = midpoint.energy();
+                console.say(format!(
+                    "step {}  t = {:.6e}  kinetic {:.10e}  potential {:.10e}  total {:.10e}  external work {:.10e}  contact work {:.10e}",
+                    n + 1, report.time, e.kinetic, e.potential, e.total(), e.external_work, e.contact_work
+                ));
+            }
+            // Write step n + 1; a signal on any rank stops all ranks after it, with a
+            // checkpoint (every rank learns it here).
+            let t_out = Instant::now();
+            let stress_before = self.stress.seconds();
+            let now = contact
+                .as_deref()
+                .zip(report.contact.as_ref())
+                .map(|(solver, c)| ContactStep { solver, row: &c.row, normals: &c.normals });
+            self.output.write_step(d, &mut self.views, &mut self.stress, n + 1, &midpoint, now)?;
+            let stop = phase::stop_requested(world);
+            // Checkpoints: every 10 field outputs (they hold three fields), at the end, and
+            // when a signal stops the run.
+            let due = (n + 1) % (10 * d.scene.output.every) == 0;
+            if due || stop || n + 1 == d.n_steps {
+                let cp = record.checkpoint(n + 1, &midpoint, contact.as_deref());
+                self.output.write_checkpoint(&mut self.views, &cp, &midpoint)?;
+            }
+            // The stress-type fields' computation is timed on its own (`Timings::stress`).
+            output_seconds +=
+                t_out.elapsed().as_secs_f64() - (self.stress.seconds() - stress_before);
+            phase::step_done(n + 1);
+            watchdog.step_time(t_step.elapsed().as_secs_f64());
+            // A signal after the last step is the final phase's business: the run still
+            // writes its summary, then says it was interrupted.
+            if stop && n + 1 < d.n_steps {
+                progress.finish();
+                return Err(Error::Interrupted(format!(
+                    "a signal stopped the run after step {} (t = {:e}); continue it with --restart",
+                    n + 1,
+                    report.time
+                )));
+            }
+            record.errors_at(d, &mut self.views, n + 1, &midpoint)?;
+            progress.update(n + 1, report.time, record.balance);
+        }
+        progress.finish();
+
+        // 4. The summary, the pictures and the file's final metadata.
+        phase::enter(Phase::Final);
+        // Stepping is the loop without its output and stress work (each timed on its own).
+        let stepping = t_loop.elapsed().as_secs_f64()
+            - output_seconds
+            - (self.stress.seconds() - stress_before_loop);
+        self.timings.stepping = max_over_ranks(world, stepping);
+        self.timings.output = max_over_ranks(world, self.timings.output + output_seconds);
+        self.timings.stress = max_over_ranks(world, self.stress.seconds());
+        if let Some(c) = contact.as_deref() {
+            record.curves.lowest_pressure = record.history.pressure(c.lowest());
+        }
+        let pictures = self.pictures(std::mem::take(&mut record.curves), contact.is_some());
+        let facts = SetupFacts {
+            timings: self.timings.clone(),
+            mass_check,
+            layer: self.layer,
+            body_layers,
+            massless_initialized,
+            cfl,
+        };
+        let path = self.output.open_file().map(|o| o.path().to_path_buf());
+        let summary =
+            record::summarize(d, &facts, record, &midpoint, contact.as_deref(), path, pictures)?;
+        self.output.finish(world, &summary, d.n_steps)?;
+        watchdog.disarm();
+        Ok(summary)
+    }
+
+    /// The run's pictures beside the output file, drawn by rank 0 from the histories in
+    /// memory. A picture that cannot be drawn (e.g. no font) is a warning, not a failed run;
+    /// every rank learns the outcome, since the summary must be the same on all.
+    fn pictures(&self, curves: crate::post::RunCurves, with_contact: bool) -> Vec<PathBuf> {
+        let Some(out) = self.output.open_file() else { return Vec::new() };
+        let world = self.domain.world;
+        let prefix = out.path().with_extension("");
+        let mut pictures = Vec::new();
+        let mut ok = 1i32;
+        if self.domain.rank == 0 {
+            match write_pictures(&prefix, &[curves]) {
+                Ok(p) => pictures = p,
+                Err(e) => {
+                    ok = 0;
+                    eprintln!("massfree: warning: pictures not written: {e}");
+                }
+            }
+        }
+        world.process_at_rank(0).broadcast_into(&mut ok);
+        if ok == 1 && self.domain.rank != 0 {
+            pictures = picture_paths(&prefix, with_contact);
+        } else if ok == 0 {
+            pictures.clear();
+        }
+        pictures
+    }
+
+    /// Human summary lines of the finished run.
+    pub fn summary_lines(&self, s: &RunSummary) -> Vec<String> {
+        record::summary_lines(&self.domain, self.layer, s)
+    }
+}
+
+/// Mesh the scene's geometry (gmsh on rank 0, others wait) and read it on every rank.
+pub fn load_mesh(world: &SimpleCommunicator, scene: &Scene) -> Result<Mesh> {
+    let rank = world.rank();
+    let path = match &scene.mesh {
+        MeshSource::Msh { path } => path.clone(),
+        MeshSource::Geo { path, params, binary } => {
+            let cache = path.parent().unwrap_or(Path::new(".")).join(".cache");
+            let dim_guess = 3; // gmsh -3 meshes the highest dimension present in the .geo
+            let mut result = Ok(PathBuf::new());
+            if rank == 0 {
+                result = crate::mesh::gmsh::mesh_geo(path, params, dim_guess, *binary, &cache);
+            }
+            // 1: meshed, 0: failed, 2: stopped by a signal.
+            let mut code = match &result {
+                Ok(_) => 1i32,
+                Err(Error::Interrupted(_)) => 2,
+                Err(_) => 0,
+            };
+            world.process_at_rank(0).broadcast_into(&mut code);
+            if code != 1 {
+                return Err(match result {
+                    Err(e) => e,
+                    Ok(_) if code == 2 => phase::interrupted(),
+                    Ok(_) => Error::Mesh(format!("meshing {} failed on rank 0", path.display())),
+                });
+            }
+            // The others find rank 0's mesh in the cache (same key, no second gmsh run).
+            match result {
+                Ok(p) if rank == 0 => p,
+                _ => crate::mesh::gmsh::mesh_geo(path, params, dim_guess, *binary, &cache)?,
+            }
+        }
+    };
+    let mesh = crate::mesh::msh::read_msh(&path)?;
+    crate::mesh::check::check_geometry(&mesh)?;
+    Ok(mesh)
+}
+
+/// Run `f`, turning a panic into an error (its message was kept by the panic hook), so that a
+/// panic ends the run like any other error: the file says `failed: ...`.
+pub fn guard<T>(f: impl FnOnce() -> Result<T>) -> Result<T> {
+    match std::panic::catch_unwind(std::panic::AssertUnwindSafe(f)) {
+        Ok(r) => r,
+        Err(payload) => Err(Error::Internal(crate::error::panic_message(payload.as_ref()))),
+    }
+}

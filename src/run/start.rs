@@ -1,0 +1,207 @@
+//! How a run starts: the step solver (its defaults chosen by the regime, then the scene's and
+//! the command line's options), the initial state (the scene's initial fields, the massless
+//! DOFs made statically consistent, or a checkpoint's state), and the check that no contact
+//! node starts inside an obstacle.
+
+use std::path::Path;
+
+use super::views::Views;
+use super::{diagnostics, physics, Domain};
+use crate::assembly;
+use crate::console::Console;
+use crate::contact::ContactSolver;
+use crate::error::{Error, Result};
+use crate::io::{natural_range, read_checkpoint, Checkpoint};
+use crate::petsc::{Matrix, Petsc};
+use crate::time::{Dirichlet, Energy, Forces, Midpoint, StepOperator, StepSolverDefaults};
+
+/// The step operator `K = 4/tau^2 M + A` and its solver, set up once. The solver's defaults
+/// follow the regime (the CFL number `c_p tau / h_min`, returned); the scene and the command
+/// line still win.
+pub fn step_operator(
+    d: &Domain,
+    console: &Console,
+    m: &Matrix,
+    a: &Matrix,
+    dirichlet: &Dirichlet,
+    with_contact: bool,
+) -> Result<(StepOperator, f64)> {
+    let null_space = physics::near_null_space(d)?;
+    let regime = d.bodies.regime(d.scene.tau, &diagnostics::min_edges(d));
+    let solver = &d.scene.solver;
+    let (mut defaults, why) = StepSolverDefaults::for_regime(&regime, with_contact);
+    if let Some(k) = &solver.ksp_type {
+        defaults.ksp_type = k.clone();
+    }
+    if let Some(p) = &solver.pc_type {
+        defaults.pc_type = p.clone();
+    }
+    if let Some(r) = solver.rtol {
+        defaults.rtol = r;
+    }
+    apply_scene_options(&solver.options)?;
+    let op = StepOperator::new(
+        m,
+        a,
+        d.scene.tau,
+        dirichlet.dofs().to_vec(),
+        dirichlet.nonzero,
+        Some(&null_space),
+        &defaults,
+    )?;
+    let (ksp_type, pc_type) = (op.ksp.ksp_type()?, op.ksp.pc_type()?);
+    let chosen = if pc_type == defaults.pc_type && solver.pc_type.is_none() {
+        why
+    } else {
+        "set by the scene or the command line".to_string()
+    };
+    console.say(format!("step solver: {ksp_type} + {pc_type} ({chosen})"));
+    Ok((op, regime.cfl))
+}
+
+/// The scene's extra PETSc options (`solver.options`), entered only where the command line did
+/// not set the same option: the command line wins.
+fn apply_scene_options(tokens: &[String]) -> Result<()> {
+    let mut i = 0;
+    while i < tokens.len() {
+        let name = &tokens[i];
+        if !name.starts_with('-') || name.parse::<f64>().is_ok() {
+            return Err(Error::Scene(format!(
+                "solver.options: expected an option name starting with '-', found \"{name}\""
+            )));
+        }
+        let value = tokens
+            .get(i + 1)
+            .filter(|v| !v.starts_with('-') || v.parse::<f64>().is_ok())
+            .map(|v| v.as_str());
+        i += if value.is_some() { 2 } else { 1 };
+        if !Petsc::options_has(name)? {
+            Petsc::options_set(name, value)?;
+        }
+    }
+    Ok(())
+}
+
+/// The initial state: the nodal interpolants of the scene's initial displacement and
+/// velocity (zero where the scene gives none).
+pub fn initial_state(d: &Domain) -> Result<(crate::petsc::Vector, crate::petsc::Vector)> {
+    let u0 = match &d.scene.initial_displacement {
+        Some(e) => assembly::interpolate(&d.mesh, &d.part, e, 0.0)?,
+        None => assembly::new_vector(&d.part)?,
+    };
+    let v0 = match &d.scene.initial_velocity {
+        Some(e) => assembly::interpolate(&d.mesh, &d.part, e, 0.0)?,
+        None => assembly::new_vector(&d.part)?,
+    };
+    Ok((u0, v0))
+}
+
+/// The massless DOFs start in static equilibrium (METHOD.md: their rows carry no inertia).
+/// Contact nodes the projection would push through an obstacle or the master side need their
+/// contact force for it (bodies touching at t = 0): they are held as given, and the projection
+/// is made again without them. Returns the largest change (`None` without massless DOFs).
+pub fn make_massless_consistent(
+    d: &Domain,
+    midpoint: &mut Midpoint,
+    contact: Option<&dyn ContactSolver>,
+    forces: &dyn Forces,
+) -> Result<Option<f64>> {
+    let mut hold: Vec<i32> = Vec::new();
+    loop {
+        let change = midpoint.make_massless_consistent(forces, 0.0, &hold)?;
+        let through = match contact {
+            Some(c) => c.penetrating(midpoint.u(), 0.0)?,
+            None => Vec::new(),
+        };
+        let dofs: Vec<i32> = (through.iter())
+            .flat_map(|&(v, _)| (0..d.part.dim).map(move |c| (v, c)))
+            .map(|(v, c)| d.part.dof(v, c) as i32)
+            .filter(|dof| !hold.contains(dof))
+            .collect();
+        if through.is_empty() {
+            return Ok(change);
+        }
+        midpoint.undo_massless(forces, 0.0)?;
+        if dofs.is_empty() {
+            // Penetrating as given: `check_no_penetration` says so.
+            return Ok(None);
+        }
+        hold.extend(dofs);
+    }
+}
+
+/// Continue from a checkpoint: u, v, the last increment (the solver's initial guess), the
+/// loads at the checkpoint's time, the running work totals and the active set.
+pub fn restore(
+    d: &Domain,
+    views: &mut Views,
+    console: &Console,
+    path: &Path,
+    midpoint: &mut Midpoint,
+    contact: Option<&mut (dyn ContactSolver + '_)>,
+    forces: &dyn Forces,
+) -> Result<Checkpoint> {
+    let range = natural_range(d.mesh.n_nodes(), d.rank, d.size);
+    let (cp, [u, v, du]) = read_checkpoint(path, d.world, range, d.mesh.n_nodes(), d.part.dim)?;
+    let works = Energy {
+        external_work: cp.external_work,
+        contact_work: cp.contact_work,
+        dirichlet_work: cp.dirichlet_work,
+        ..Default::default()
+    };
+    midpoint.restore(
+        |uu, vv, dd| {
+            views.from_natural(&u, uu)?;
+            views.from_natural(&v, vv)?;
+            views.from_natural(&du, dd)
+        },
+        works,
+        cp.ksp_iterations,
+    )?;
+    midpoint.refresh(forces, cp.time)?;
+    if let Some(c) = contact {
+        if cp.active.len() != c.n_nodes() {
+            return Err(Error::Io(format!(
+                "{}: the checkpoint's contact set has {} nodes, this scene's {}",
+                path.display(),
+                cp.active.len(),
+                c.n_nodes()
+            )));
+        }
+        c.set_active(cp.active.clone());
+    }
+    console.say(format!(
+        "restarting from step {} (t = {:e}) of {}",
+        cp.step,
+        cp.time,
+        path.display()
+    ));
+    Ok(cp)
+}
+
+/// A scene whose body starts inside an obstacle (or a slave node behind its master side) is
+/// an error naming the obstacle and its first nodes.
+pub fn check_no_penetration(
+    d: &Domain,
+    contact: &dyn ContactSolver,
+    u: &crate::petsc::Vector,
+) -> Result<()> {
+    let Some(spec) = d.scene.contact.as_ref() else { return Ok(()) };
+    let hits = contact.penetrating(u, 0.0)?;
+    // The first obstacle that intersects the body, and its nodes.
+    let Some(first) = hits.iter().map(|&(_, o)| o).min() else { return Ok(()) };
+    let bad: Vec<usize> = hits.iter().filter(|&&(_, o)| o == first).map(|&(v, _)| v).collect();
+    let tags: Vec<String> = bad.iter().take(10).map(|&v| d.mesh.node_tags[v].to_string()).collect();
+    // Past the obstacles: a slave node's plane (the master body).
+    let what = if first < spec.obstacles.len() {
+        spec.obstacle_key(first)
+    } else {
+        "a master body (contact.master or contact.pairs)".to_string()
+    };
+    Err(Error::Scene(format!(
+        "{what} already intersects the body at t = 0: {} contact node(s) penetrate it (gmsh nodes {}{})",
+        bad.len(),
+        tags.join(", "),
+        if bad.len() > 10 { ", ..." } else { "" }
+    )))
+}
