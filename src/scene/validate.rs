@@ -3,7 +3,11 @@
 //! (without the file name, which [`super::parse`] puts in front).
 
 use super::expr::{Expr, VecExpr};
-use super::raw::{ExprSrc, RawObstacle, RawOutput, RawPair, RawScene};
+use super::raw::{
+    ExprSrc, RawBody, RawBodyForce, RawContact, RawDirichlet, RawExact, RawInitial, RawMass,
+    RawMaterial, RawMesh, RawNeumann, RawObstacle, RawOutput, RawPair, RawScene, RawSolver,
+    RawTime,
+};
 use super::{
     obstacle_key, steps_to_end, BodySpec, ContactPair, ContactSpec, DirichletSpec, ExactSpec,
     Field, MassKind, MassSpec, MaterialSpec, MeshSource, NeumannSpec, Obstacle, OutputSpec, Scene,
@@ -11,44 +15,67 @@ use super::{
 };
 use std::path::{Path, PathBuf};
 
-/// One entry of `exact.error_steps`: a step of the run.
-pub(super) fn error_step(s: i64, steps: usize) -> VResult<usize> {
-    if s < 0 || s as u64 > steps as u64 {
-        return Err(format!(
-            "exact.error_steps contains {s}, which is impossible: steps run from 0 to time.steps = {steps}"
-        ));
-    }
-    Ok(s as usize)
-}
+type VResult<T> = std::result::Result<T, String>;
 
-/// The steps nearest to the extra output times (`output.times`), sorted, each within the run.
-pub(super) fn steps_of_times(times: &[f64], tau: f64, steps: usize) -> VResult<Vec<usize>> {
-    let mut time_steps = Vec::new();
-    for (i, &time) in times.iter().enumerate() {
-        let n = (time / tau).round();
-        if !(time >= 0.0) || n > steps as f64 {
-            return Err(format!(
-                "output.times[{i}] = {time} is impossible: times must lie in [0, {}] (steps * tau)",
-                steps as f64 * tau
-            ));
-        }
-        time_steps.push(n as usize);
-    }
-    time_steps.sort_unstable();
-    time_steps.dedup();
-    Ok(time_steps)
-}
-
+/// The scene, section by section in the order of the checks: the first error found is the
+/// one reported, so this order is part of the messages a bad scene gets.
 pub(super) fn build(raw: RawScene, stem: &str, base_dir: &Path) -> VResult<Scene> {
-    let name = raw.name.unwrap_or_else(|| stem.to_string());
+    let name = name(raw.name, stem)?;
+    let mesh = mesh(raw.mesh, base_dir)?;
+    let (material, bodies) = materials(raw.material, raw.body)?;
+    let dirichlet = dirichlet(raw.dirichlet)?;
+    let neumann = neumann(raw.neumann)?;
+    let (body_force, body_acceleration) = body_force(raw.body_force)?;
+    let (initial_displacement, initial_velocity) = initial(raw.initial)?;
+    let (tau, steps) = time(raw.time)?;
+    let solver = solver(raw.solver)?;
+    let output = output(raw.output, &name, tau, steps)?;
+    let exact = exact(raw.exact, steps)?;
+    let contact = contact(raw.contact)?;
+    // The mass comes after the contact: the layer runs along the contact groups by default.
+    let mass = mass(raw.mass, &bodies, contact.as_ref())?;
+    check_contact_output(&output, contact.as_ref())?;
+
+    Ok(Scene {
+        name,
+        text: String::new(),
+        source: PathBuf::new(),
+        mesh,
+        material,
+        bodies,
+        dirichlet,
+        neumann,
+        body_force,
+        body_acceleration,
+        initial_displacement,
+        initial_velocity,
+        tau,
+        steps,
+        mass,
+        solver,
+        output,
+        exact,
+        contact,
+    })
+}
+
+// =============================================================================================
+// The sections, in the order `build` checks them
+
+/// `name`, default: the scene file's stem.
+fn name(name: Option<String>, stem: &str) -> VResult<String> {
+    let name = name.unwrap_or_else(|| stem.to_string());
     if name.trim().is_empty() || name.contains('/') || name.contains('\\') {
         return Err(format!(
             "name = {name:?} is impossible: it must be non-empty and contain no path separator"
         ));
     }
+    Ok(name)
+}
 
-    // --- mesh
-    let m = raw.mesh;
+/// `[mesh]`: exactly one of `geo` (with `params`, `binary`) and `msh`, found relative to
+/// `base_dir`.
+fn mesh(m: RawMesh, base_dir: &Path) -> VResult<MeshSource> {
     let resolve = |p: &str, key: &str| -> VResult<PathBuf> {
         if p.trim().is_empty() {
             return Err(format!("{key} is empty: give a file name"));
@@ -59,7 +86,7 @@ pub(super) fn build(raw: RawScene, stem: &str, base_dir: &Path) -> VResult<Scene
         }
         Ok(full)
     };
-    let mesh = match (m.geo, m.msh) {
+    Ok(match (m.geo, m.msh) {
         (Some(_), Some(_)) => {
             return Err("mesh: give exactly one of geo and msh, not both".into());
         }
@@ -102,13 +129,14 @@ pub(super) fn build(raw: RawScene, stem: &str, base_dir: &Path) -> VResult<Scene
             }
             MeshSource::Msh { path: resolve(&msh, "mesh.msh")? }
         }
-    };
+    })
+}
 
-    // --- material: [material], then each [[body]]'s own values over it
-    let mat = raw.material;
+/// `[material]`, then each `[[body]]`'s own values over it.
+fn materials(mat: RawMaterial, raw_bodies: Vec<RawBody>) -> VResult<(MaterialSpec, Vec<BodySpec>)> {
     let material = material_spec("material", mat.e, mat.nu, mat.rho)?;
     let mut bodies: Vec<BodySpec> = Vec::new();
-    for (i, b) in raw.body.into_iter().enumerate() {
+    for (i, b) in raw_bodies.into_iter().enumerate() {
         let key = format!("body[{i}]");
         let group = group_name(b.group, &format!("{key}.group"))?;
         if let Some(j) = bodies.iter().position(|o| o.group == group) {
@@ -125,10 +153,13 @@ pub(super) fn build(raw: RawScene, stem: &str, base_dir: &Path) -> VResult<Scene
         let sets = [b.e.is_some(), b.nu.is_some(), b.rho.is_some()];
         bodies.push(BodySpec { group, material: m, sets, mass: b.mass });
     }
+    Ok((material, bodies))
+}
 
-    // --- boundary conditions and loads
+/// `[[dirichlet]]`.
+fn dirichlet(raw: Vec<RawDirichlet>) -> VResult<Vec<DirichletSpec>> {
     let mut dirichlet = Vec::new();
-    for (i, d) in raw.dirichlet.into_iter().enumerate() {
+    for (i, d) in raw.into_iter().enumerate() {
         let key = format!("dirichlet[{i}]");
         let group = group_name(d.group, &format!("{key}.group"))?;
         let value = match d.value {
@@ -154,16 +185,26 @@ pub(super) fn build(raw: RawScene, stem: &str, base_dir: &Path) -> VResult<Scene
         };
         dirichlet.push(DirichletSpec { group, value, components, components_given });
     }
+    Ok(dirichlet)
+}
+
+/// `[[neumann]]`.
+fn neumann(raw: Vec<RawNeumann>) -> VResult<Vec<NeumannSpec>> {
     let mut neumann = Vec::new();
-    for (i, n) in raw.neumann.into_iter().enumerate() {
+    for (i, n) in raw.into_iter().enumerate() {
         let key = format!("neumann[{i}]");
         neumann.push(NeumannSpec {
             group: group_name(n.group, &format!("{key}.group"))?,
             traction: compile_vec(&n.traction, &format!("{key}.traction"))?,
         });
     }
+    Ok(neumann)
+}
+
+/// `[body_force]`: the force per volume (`value`) and per mass (`acceleration`).
+fn body_force(raw: Option<RawBodyForce>) -> VResult<(Option<VecExpr>, Option<VecExpr>)> {
     let (mut body_force, mut body_acceleration) = (None, None);
-    if let Some(b) = raw.body_force {
+    if let Some(b) = raw {
         if b.value.is_none() && b.acceleration.is_none() {
             return Err(
                 "body_force: give value (force per volume) or acceleration (per mass, e.g. gravity)"
@@ -177,8 +218,13 @@ pub(super) fn build(raw: RawScene, stem: &str, base_dir: &Path) -> VResult<Scene
             body_acceleration = Some(compile_vec(&a, "body_force.acceleration")?);
         }
     }
+    Ok((body_force, body_acceleration))
+}
+
+/// `[initial]`: the initial displacement and velocity.
+fn initial(raw: Option<RawInitial>) -> VResult<(Option<VecExpr>, Option<VecExpr>)> {
     let (mut initial_displacement, mut initial_velocity) = (None, None);
-    if let Some(init) = raw.initial {
+    if let Some(init) = raw {
         if let Some(d) = init.displacement {
             initial_displacement = Some(compile_vec(&d, "initial.displacement")?);
         }
@@ -186,9 +232,11 @@ pub(super) fn build(raw: RawScene, stem: &str, base_dir: &Path) -> VResult<Scene
             initial_velocity = Some(compile_vec(&v, "initial.velocity")?);
         }
     }
+    Ok((initial_displacement, initial_velocity))
+}
 
-    // --- time
-    let t = raw.time;
+/// `[time]`: the time step and the number of steps (given, or from `end`).
+fn time(t: RawTime) -> VResult<(f64, usize)> {
     check_tau(t.tau)?;
     let steps = match (t.steps, t.end) {
         (Some(_), Some(_)) => {
@@ -209,41 +257,43 @@ pub(super) fn build(raw: RawScene, stem: &str, base_dir: &Path) -> VResult<Scene
         }
         (None, Some(end)) => steps_to_end(end, t.tau).map_err(|e| e.message(end, t.tau))?,
     };
+    Ok((t.tau, steps))
+}
 
-    // --- solver
-    let solver = match raw.solver {
-        None => SolverSpec::default(),
-        Some(s) => {
-            if let Some(r) = s.rtol {
-                if !(r > 0.0 && r < 1.0) {
-                    return Err(format!(
-                        "solver.rtol = {r} is impossible: the relative tolerance must be in (0, 1)"
-                    ));
-                }
-            }
-            for (k, v) in [("ksp_type", &s.ksp_type), ("pc_type", &s.pc_type)] {
-                if let Some(v) = v {
-                    if v.trim().is_empty() || v.contains(char::is_whitespace) {
-                        return Err(format!(
-                            "solver.{k} = {v:?} is impossible: give one PETSc type name"
-                        ));
-                    }
-                }
-            }
-            SolverSpec {
-                ksp_type: s.ksp_type,
-                pc_type: s.pc_type,
-                rtol: s.rtol,
-                options: s
-                    .options
-                    .map(|o| o.split_whitespace().map(str::to_string).collect())
-                    .unwrap_or_default(),
+/// `[solver]`.
+fn solver(raw: Option<RawSolver>) -> VResult<SolverSpec> {
+    let Some(s) = raw else {
+        return Ok(SolverSpec::default());
+    };
+    if let Some(r) = s.rtol {
+        if !(r > 0.0 && r < 1.0) {
+            return Err(format!(
+                "solver.rtol = {r} is impossible: the relative tolerance must be in (0, 1)"
+            ));
+        }
+    }
+    for (k, v) in [("ksp_type", &s.ksp_type), ("pc_type", &s.pc_type)] {
+        if let Some(v) = v {
+            if v.trim().is_empty() || v.contains(char::is_whitespace) {
+                return Err(format!("solver.{k} = {v:?} is impossible: give one PETSc type name"));
             }
         }
-    };
+    }
+    Ok(SolverSpec {
+        ksp_type: s.ksp_type,
+        pc_type: s.pc_type,
+        rtol: s.rtol,
+        options: s
+            .options
+            .map(|o| o.split_whitespace().map(str::to_string).collect())
+            .unwrap_or_default(),
+    })
+}
 
-    // --- output
-    let o = raw.output.unwrap_or(RawOutput {
+/// `[output]`; the default file is named after the scene, `output.times` need the run's
+/// `tau` and `steps`.
+fn output(raw: Option<RawOutput>, name: &str, tau: f64, steps: usize) -> VResult<OutputSpec> {
+    let o = raw.unwrap_or(RawOutput {
         file: None,
         compression: None,
         every: None,
@@ -272,7 +322,7 @@ pub(super) fn build(raw: RawScene, stem: &str, base_dir: &Path) -> VResult<Scene
         }
     }
     let times = o.times.unwrap_or_default();
-    let time_steps = steps_of_times(&times, t.tau, steps)?;
+    let time_steps = steps_of_times(&times, tau, steps)?;
     let mut field_every = Vec::new();
     if let Some(fe) = &o.field_every {
         for f in Field::ALL {
@@ -296,7 +346,7 @@ pub(super) fn build(raw: RawScene, stem: &str, base_dir: &Path) -> VResult<Scene
             ))
         }
     };
-    let output = OutputSpec {
+    Ok(OutputSpec {
         file,
         compression,
         every: every as usize,
@@ -305,92 +355,111 @@ pub(super) fn build(raw: RawScene, stem: &str, base_dir: &Path) -> VResult<Scene
         time_steps,
         fields,
         progress: o.progress.unwrap_or(true),
-    };
+    })
+}
 
-    // --- exact solution
-    let exact = match raw.exact {
+/// `[exact]`: the exact solution; the error steps lie in the run's `0..=steps`.
+fn exact(raw: Option<RawExact>, steps: usize) -> VResult<Option<ExactSpec>> {
+    let Some(ex) = raw else {
+        return Ok(None);
+    };
+    let displacement = compile_vec(&ex.displacement, "exact.displacement")?;
+    let velocity = match ex.velocity {
+        Some(v) => Some(compile_vec(&v, "exact.velocity")?),
         None => None,
-        Some(ex) => {
-            let displacement = compile_vec(&ex.displacement, "exact.displacement")?;
-            let velocity = match ex.velocity {
-                Some(v) => Some(compile_vec(&v, "exact.velocity")?),
-                None => None,
-            };
-            let gradient = match ex.gradient {
-                None => None,
-                Some(rows) => {
-                    if rows.is_empty() {
-                        return Err("exact.gradient is empty: give one row per displacement component, or leave it out".into());
-                    }
-                    let mut g = Vec::new();
-                    for (i, r) in rows.iter().enumerate() {
-                        g.push(compile_vec(r, &format!("exact.gradient[{i}]"))?);
-                    }
-                    Some(g)
-                }
-            };
-            let error_steps_listed = ex.error_steps.is_some();
-            let mut error_steps = Vec::new();
-            for s in ex.error_steps.unwrap_or_else(|| vec![steps as i64]) {
-                error_steps.push(error_step(s, steps)?);
+    };
+    let gradient = match ex.gradient {
+        None => None,
+        Some(rows) => {
+            if rows.is_empty() {
+                return Err("exact.gradient is empty: give one row per displacement component, or leave it out".into());
             }
-            error_steps.sort_unstable();
-            error_steps.dedup();
-            Some(ExactSpec { displacement, velocity, gradient, error_steps, error_steps_listed })
+            let mut g = Vec::new();
+            for (i, r) in rows.iter().enumerate() {
+                g.push(compile_vec(r, &format!("exact.gradient[{i}]"))?);
+            }
+            Some(g)
         }
     };
+    let error_steps_listed = ex.error_steps.is_some();
+    let mut error_steps = Vec::new();
+    for s in ex.error_steps.unwrap_or_else(|| vec![steps as i64]) {
+        error_steps.push(error_step(s, steps)?);
+    }
+    error_steps.sort_unstable();
+    error_steps.dedup();
+    Ok(Some(ExactSpec { displacement, velocity, gradient, error_steps, error_steps_listed }))
+}
 
-    // --- contact
-    let contact = match raw.contact {
-        None => None,
-        Some(c) => {
-            let has_obstacles = c.obstacle.is_some() || c.obstacles.is_some();
-            let pairs_listed = c.pairs.is_some();
-            let pairs = contact_pairs(c.slave, c.master, c.pairs)?;
-            let boundary = c.boundary.map(|b| group_name(b, "contact.boundary")).transpose()?;
-            match (&boundary, pairs.is_empty(), has_obstacles) {
-                (None, true, _) => return Err("contact: give contact.boundary (with an obstacle) or contact.slave and contact.master (two bodies)".into()),
-                (None, false, true) => return Err("contact: obstacles beside a slave/master pair need contact.boundary, the group that meets them (another part of the boundary than contact.slave and contact.master)".into()),
-                (Some(b), false, false) => return Err(format!("contact.boundary = \"{b}\" beside a slave/master pair needs the obstacles it meets (contact.obstacle or contact.obstacles)")),
-                (Some(b), false, true) => {
-                    let key = |side: &str| if pairs_listed { format!("a contact.pairs[].{side}") } else { format!("contact.{side}") };
-                    if pairs.iter().any(|p| &p.slave == b) {
-                        return Err(format!("contact.boundary = \"{b}\" is also {}: the obstacles need another part of the boundary than the pair's", key("slave")));
-                    }
-                    if pairs.iter().any(|p| &p.master == b) {
-                        return Err(format!("contact.boundary = \"{b}\" is also {}: the obstacles need another part of the boundary than the pair's", key("master")));
-                    }
-                }
-                _ => {}
+/// `[contact]`: the slave/master pairs, then `boundary` and the obstacles it meets.
+fn contact(raw: Option<RawContact>) -> VResult<Option<ContactSpec>> {
+    let Some(c) = raw else {
+        return Ok(None);
+    };
+    let has_obstacles = c.obstacle.is_some() || c.obstacles.is_some();
+    let pairs_listed = c.pairs.is_some();
+    let pairs = contact_pairs(c.slave, c.master, c.pairs)?;
+    let boundary = c.boundary.map(|b| group_name(b, "contact.boundary")).transpose()?;
+    match (&boundary, pairs.is_empty(), has_obstacles) {
+        (None, true, _) => return Err("contact: give contact.boundary (with an obstacle) or contact.slave and contact.master (two bodies)".into()),
+        (None, false, true) => return Err("contact: obstacles beside a slave/master pair need contact.boundary, the group that meets them (another part of the boundary than contact.slave and contact.master)".into()),
+        (Some(b), false, false) => return Err(format!("contact.boundary = \"{b}\" beside a slave/master pair needs the obstacles it meets (contact.obstacle or contact.obstacles)")),
+        (Some(b), false, true) => {
+            let key = |side: &str| if pairs_listed { format!("a contact.pairs[].{side}") } else { format!("contact.{side}") };
+            if pairs.iter().any(|p| &p.slave == b) {
+                return Err(format!("contact.boundary = \"{b}\" is also {}: the obstacles need another part of the boundary than the pair's", key("slave")));
             }
-            if boundary.is_none() {
-                Some(ContactSpec { pairs, boundary, obstacles: Vec::new(), listed: false })
-            } else {
-                let (raws, listed) = match (c.obstacle, c.obstacles) {
-                    (Some(_), Some(_)) => {
-                        return Err("contact: give exactly one of contact.obstacle and contact.obstacles, not both".into());
-                    }
-                    (None, None) => {
-                        return Err("contact: give the obstacle (contact.obstacle = { type = ... }) or a list of them (contact.obstacles = [{ ... }, ...])".into());
-                    }
-                    (Some(o), None) => (vec![o], false),
-                    (None, Some(list)) if list.is_empty() => {
-                        return Err("contact.obstacles is empty: give at least one obstacle".into());
-                    }
-                    (None, Some(list)) => (list, true),
-                };
-                let obstacles = raws
-                    .into_iter()
-                    .enumerate()
-                    .map(|(i, o)| obstacle(o, &obstacle_key(listed, i)))
-                    .collect::<VResult<Vec<_>>>()?;
-                Some(ContactSpec { pairs, boundary, obstacles, listed })
+            if pairs.iter().any(|p| &p.master == b) {
+                return Err(format!("contact.boundary = \"{b}\" is also {}: the obstacles need another part of the boundary than the pair's", key("master")));
             }
         }
-    };
+        _ => {}
+    }
+    if boundary.is_none() {
+        return Ok(Some(ContactSpec { pairs, boundary, obstacles: Vec::new(), listed: false }));
+    }
+    let (obstacles, listed) = obstacles(c.obstacle, c.obstacles)?;
+    Ok(Some(ContactSpec { pairs, boundary, obstacles, listed }))
+}
 
-    // --- mass
-    let (kind, contact_boundary) = match raw.mass {
+/// `contact.obstacle` or the list `contact.obstacles` (exactly one), and whether it is the
+/// list.
+fn obstacles(
+    one: Option<RawObstacle>,
+    list: Option<Vec<RawObstacle>>,
+) -> VResult<(Vec<Obstacle>, bool)> {
+    let (raws, listed) = match (one, list) {
+        (Some(_), Some(_)) => {
+            return Err(
+                "contact: give exactly one of contact.obstacle and contact.obstacles, not both"
+                    .into(),
+            );
+        }
+        (None, None) => {
+            return Err("contact: give the obstacle (contact.obstacle = { type = ... }) or a list of them (contact.obstacles = [{ ... }, ...])".into());
+        }
+        (Some(o), None) => (vec![o], false),
+        (None, Some(list)) if list.is_empty() => {
+            return Err("contact.obstacles is empty: give at least one obstacle".into());
+        }
+        (None, Some(list)) => (list, true),
+    };
+    let obstacles = raws
+        .into_iter()
+        .enumerate()
+        .map(|(i, o)| obstacle(o, &obstacle_key(listed, i)))
+        .collect::<VResult<Vec<_>>>()?;
+    Ok((obstacles, listed))
+}
+
+/// `[mass]`: the kind, and the groups the mass-free layer runs along (`contact_boundary`, by
+/// default the contact groups); a modified mass, of the scene or of a body, needs one.
+fn mass(
+    raw: Option<RawMass>,
+    bodies: &[BodySpec],
+    contact: Option<&ContactSpec>,
+) -> VResult<MassSpec> {
+    let (kind, contact_boundary) = match raw {
         Some(m) => (m.kind.unwrap_or(MassKind::Consistent), m.contact_boundary),
         None => (MassKind::Consistent, None),
     };
@@ -400,7 +469,7 @@ pub(super) fn build(raw: RawScene, stem: &str, base_dir: &Path) -> VResult<Scene
         // The layer runs along every contact group: the first names it, the others follow.
         None => {
             let groups: Vec<String> =
-                contact.iter().flat_map(|c: &ContactSpec| c.groups()).map(String::from).collect();
+                contact.into_iter().flat_map(ContactSpec::groups).map(String::from).collect();
             (groups.first().cloned(), groups.iter().skip(1).cloned().collect())
         }
     };
@@ -421,37 +490,22 @@ pub(super) fn build(raw: RawScene, stem: &str, base_dir: &Path) -> VResult<Scene
             _ => {}
         }
     }
-    let mass = MassSpec { kind, contact_boundary, also_along };
+    Ok(MassSpec { kind, contact_boundary, also_along })
+}
+
+/// The contact traction is written at contact nodes: `output.fields` may list it only with a
+/// `[contact]` table.
+fn check_contact_output(output: &OutputSpec, contact: Option<&ContactSpec>) -> VResult<()> {
     if output.fields.contains(&Field::ContactTraction) && contact.is_none() {
         return Err(
             "output.fields: contact_traction needs a [contact] table (no contact nodes)".into()
         );
     }
-
-    Ok(Scene {
-        name,
-        text: String::new(),
-        source: PathBuf::new(),
-        mesh,
-        material,
-        bodies,
-        dirichlet,
-        neumann,
-        body_force,
-        body_acceleration,
-        initial_displacement,
-        initial_velocity,
-        tau: t.tau,
-        steps,
-        mass,
-        solver,
-        output,
-        exact,
-        contact,
-    })
+    Ok(())
 }
 
-type VResult<T> = std::result::Result<T, String>;
+// =============================================================================================
+// Helpers: expressions, values, group names, obstacles, steps
 
 fn compile(src: &ExprSrc, key: &str) -> VResult<Expr> {
     match src {
@@ -632,4 +686,32 @@ pub(super) fn check_tau(tau: f64) -> VResult<()> {
         return Err(format!("time.tau = {tau} is impossible: the time step must be > 0"));
     }
     Ok(())
+}
+
+/// One entry of `exact.error_steps`: a step of the run.
+pub(super) fn error_step(s: i64, steps: usize) -> VResult<usize> {
+    if s < 0 || s as u64 > steps as u64 {
+        return Err(format!(
+            "exact.error_steps contains {s}, which is impossible: steps run from 0 to time.steps = {steps}"
+        ));
+    }
+    Ok(s as usize)
+}
+
+/// The steps nearest to the extra output times (`output.times`), sorted, each within the run.
+pub(super) fn steps_of_times(times: &[f64], tau: f64, steps: usize) -> VResult<Vec<usize>> {
+    let mut time_steps = Vec::new();
+    for (i, &time) in times.iter().enumerate() {
+        let n = (time / tau).round();
+        if !(time >= 0.0) || n > steps as f64 {
+            return Err(format!(
+                "output.times[{i}] = {time} is impossible: times must lie in [0, {}] (steps * tau)",
+                steps as f64 * tau
+            ));
+        }
+        time_steps.push(n as usize);
+    }
+    time_steps.sort_unstable();
+    time_steps.dedup();
+    Ok(time_steps)
 }
