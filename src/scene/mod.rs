@@ -457,39 +457,43 @@ impl ContactSpec {
 
     /// Every contact group once: the slave groups, the master groups, then `boundary`.
     pub fn groups(&self) -> Vec<&str> {
-        let mut out: Vec<&str> = Vec::new();
-        let all = (self.pairs.iter().map(|p| p.slave.as_str()))
-            .chain(self.pairs.iter().map(|p| p.master.as_str()))
-            .chain(self.boundary.as_deref());
-        for g in all {
-            if !out.contains(&g) {
-                out.push(g);
-            }
-        }
-        out
+        once_each(
+            (self.pairs.iter().map(|p| p.slave.as_str()))
+                .chain(self.pairs.iter().map(|p| p.master.as_str()))
+                .chain(self.boundary.as_deref()),
+        )
     }
 
     /// The slave groups once each, in pair order.
     pub fn slave_groups(&self) -> Vec<&str> {
-        let mut out: Vec<&str> = Vec::new();
-        for p in &self.pairs {
-            if !out.contains(&p.slave.as_str()) {
-                out.push(&p.slave);
-            }
-        }
-        out
+        slave_groups(&self.pairs)
     }
 
     /// The master groups once each, in pair order.
     pub fn master_groups(&self) -> Vec<&str> {
-        let mut out: Vec<&str> = Vec::new();
-        for p in &self.pairs {
-            if !out.contains(&p.master.as_str()) {
-                out.push(&p.master);
-            }
-        }
-        out
+        master_groups(&self.pairs)
     }
+}
+
+/// The slave groups of `pairs` once each, in pair order (pairs may share a slave group).
+pub fn slave_groups(pairs: &[ContactPair]) -> Vec<&str> {
+    once_each(pairs.iter().map(|p| p.slave.as_str()))
+}
+
+/// The master groups of `pairs` once each, in pair order (pairs may share a master group).
+pub fn master_groups(pairs: &[ContactPair]) -> Vec<&str> {
+    once_each(pairs.iter().map(|p| p.master.as_str()))
+}
+
+/// Each group once, where it first appears: the one de-duplication of contact group names.
+fn once_each<'a>(groups: impl IntoIterator<Item = &'a str>) -> Vec<&'a str> {
+    let mut out: Vec<&str> = Vec::new();
+    for g in groups {
+        if !out.contains(&g) {
+            out.push(g);
+        }
+    }
+    out
 }
 
 fn obstacle_key(listed: bool, i: usize) -> String {
