@@ -703,7 +703,7 @@ pub(super) fn steps_of_times(times: &[f64], tau: f64, steps: usize) -> VResult<V
     let mut time_steps = Vec::new();
     for (i, &time) in times.iter().enumerate() {
         let n = (time / tau).round();
-        if !(time >= 0.0) || n > steps as f64 {
+        if time.is_nan() || time < 0.0 || n > steps as f64 {
             return Err(format!(
                 "output.times[{i}] = {time} is impossible: times must lie in [0, {}] (steps * tau)",
                 steps as f64 * tau
