@@ -89,6 +89,10 @@
 //! a contact group on it (a body that only inherits a modified `mass.kind` and has no contact
 //! group gets the consistent mass: `M_H` with an empty layer is `M`). These checks need the
 //! mesh: `crate::bodies::Bodies::resolve` makes them, with errors naming the key as here.
+//!
+//! This file owns the validated model ([`Scene`] and its parts) and the entry points; `raw`
+//! holds the serde form of the file, `validate` turns it into a [`Scene`] section by section,
+//! and `toml_error` reduces the TOML parser's errors to the same one-line form.
 
 pub mod effects;
 pub mod expr;
