@@ -526,7 +526,8 @@ fn check_keys(t: &Table, prefix: &str, allowed: &[&str]) -> std::result::Result<
     Ok(())
 }
 
-fn number(v: &Value) -> Option<f64> {
+/// A TOML number (float or integer) as f64; also read by `suite::spec`.
+pub(crate) fn number(v: &Value) -> Option<f64> {
     match v {
         Value::Float(x) => Some(*x),
         Value::Integer(i) => Some(*i as f64),

@@ -39,6 +39,7 @@ use toml::{Table, Value};
 
 use crate::error::{Error, Result};
 use crate::scene::{self, expr::Expr, MassKind, Scene};
+use crate::study::spec::number;
 
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -284,14 +285,6 @@ fn case(base: &Path, c: &RawCase) -> std::result::Result<Case, String> {
         rank_steps: c.rank_steps,
         single_episode: c.single_episode,
     })
-}
-
-fn number(v: &Value) -> Option<f64> {
-    match v {
-        Value::Float(x) => Some(*x),
-        Value::Integer(i) => Some(*i as f64),
-        _ => None,
-    }
 }
 
 /// Every point of the suite, case by case (sweep index, then mass kind).

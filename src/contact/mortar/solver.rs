@@ -592,15 +592,7 @@ pub fn pair_solver<'w>(
         .flat_map(|&v| (0..part.dim).map(move |c| (v, c)))
         .map(|(v, c)| (part.dof(v, c) as i32, part.owns(v)))
         .collect();
-    let slave_groups: Vec<&str> = {
-        let mut g: Vec<&str> = Vec::new();
-        for p in pairs {
-            if !g.contains(&p.slave.as_str()) {
-                g.push(&p.slave);
-            }
-        }
-        g
-    };
+    let slave_groups = crate::scene::slave_groups(pairs);
     let mut boundary = crate::contact::ContactBoundary::build_groups(&mesh, &slave_groups)?;
     let obstacles = match beside {
         Some((group, obstacles)) => {
