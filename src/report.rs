@@ -6,7 +6,7 @@ use std::path::PathBuf;
 
 use crate::contact::history::ContactSummary;
 use crate::io::layout::RunReader;
-use crate::stability::Stability;
+use crate::stability::{body_size, ContactColumns, RunSeries, Stability};
 use crate::time::Corrections;
 
 /// Wall time of the phases of a run, in seconds (max over ranks).
@@ -168,52 +168,40 @@ impl RunSummary {
 /// scanned for non-finite values too.
 pub fn stability_from_file(path: &std::path::Path) -> crate::Result<Stability> {
     use crate::io::layout;
-    use crate::stability::{body_size, measure, ContactSeries, EnergySeries};
     let run = RunReader::open(path)?;
     let summary = RunSummary::read(&run).ok_or_else(|| {
         crate::Error::Io(format!("{}: no run summary (the run did not finish)", path.display()))
     })?;
     let series = |name: &str| run.series(&layout::energy(name));
-    let total = series("total")?;
-    let ext = series("external_work")?;
-    let dir = series("dirichlet_work")?;
-    let con = series("contact_work")?;
-    let energy = EnergySeries {
-        total: &total,
-        external_work: &ext,
-        dirichlet_work: &dir,
-        contact_work: &con,
-    };
-    let coords = run.coordinates()?;
-    let steps = total.len().saturating_sub(1);
-    let ksp = (summary.ksp_iterations, summary.ksp_iterations_step_max, steps);
-    let mut s = if run.file.dataset(&layout::contact("force")).is_ok() {
+    let contact = if run.file.dataset(&layout::contact("force")).is_ok() {
         let nodes = run.series(&layout::contact("nodes"))?;
-        let nc = nodes.len();
-        let force = run.series(&layout::contact("force"))?;
-        let gap = run.series(&layout::contact("gap"))?;
-        let active: Vec<bool> =
-            run.series(&layout::contact("active"))?.iter().map(|&a| a != 0.0).collect();
-        let weights = run.series(&layout::contact("weights"))?;
-        let iterations = run.series(&layout::contact("iterations"))?;
-        let lowest = summary
-            .contact
-            .as_ref()
+        let lowest = (summary.contact.as_ref())
             .and_then(|c| nodes.iter().position(|&v| v as usize == c.lowest_node))
             .unwrap_or(0);
-        let c = ContactSeries {
-            nodes: nc,
-            force: &force,
-            gap: &gap,
-            active: &active,
-            weights: &weights,
-            iterations: &iterations,
+        let active = run.series(&layout::contact("active"))?.iter().map(|&a| a != 0.0).collect();
+        Some(ContactColumns {
+            nodes: nodes.len(),
+            force: run.series(&layout::contact("force"))?,
+            gap: run.series(&layout::contact("gap"))?,
+            active,
+            weights: run.series(&layout::contact("weights"))?,
+            iterations: run.series(&layout::contact("iterations"))?,
             lowest,
-        };
-        measure(&energy, Some(&c), body_size(&coords), ksp)
+        })
     } else {
-        measure(&energy, None, body_size(&coords), ksp)
+        None
     };
+    let mut s = RunSeries {
+        total: series("total")?,
+        external_work: series("external_work")?,
+        dirichlet_work: series("dirichlet_work")?,
+        contact_work: series("contact_work")?,
+        contact,
+        body_size: body_size(&run.coordinates()?),
+        ksp_iterations: summary.ksp_iterations,
+        ksp_iterations_step_max: summary.ksp_iterations_step_max,
+    }
+    .measure();
     for name in ["fields/displacement", "fields/velocity", "checkpoint/u", "checkpoint/v"] {
         if run.file.dataset(name).is_ok() {
             s.non_finite += run.series(name)?.iter().filter(|x| !x.is_finite()).count();

@@ -5,7 +5,7 @@
 //! One pure function, [`measure`], computes them from per-step series: the run calls it on
 //! its in-memory history and stores the result in its summary (`stability`, also in the HDF5
 //! file's `summary` attribute); `massfree suite` calls it on the series read back from the
-//! HDF5 file ([`from_file`]), so the two agree by construction and the file alone suffices.
+//! HDF5 file (`report::stability_from_file`), both through [`RunSeries`], so the two agree by construction and the file alone suffices.
 //!
 //! Definitions (METHOD.md sections 4, 5, 7), with `E^n` the discrete energy, `W^n` the work of
 //! the loads and of the Dirichlet reactions up to step n (not the contact work):
@@ -92,6 +92,58 @@ pub struct ContactSeries<'a> {
     pub iterations: &'a [f64],
     /// The lowest contact node (index among the contact nodes).
     pub lowest: usize,
+}
+
+/// A run's series as one value: what the run keeps in memory and what the HDF5 file stores
+/// (`/energy`, `/contact`), built by either and measured by one function.
+pub struct RunSeries {
+    /// Per step from the start: total energy, work of the loads, of the Dirichlet reactions,
+    /// of the contact.
+    pub total: Vec<f64>,
+    pub external_work: Vec<f64>,
+    pub dirichlet_work: Vec<f64>,
+    pub contact_work: Vec<f64>,
+    pub contact: Option<ContactColumns>,
+    /// The largest side of the mesh's bounding box.
+    pub body_size: f64,
+    /// KSP iterations in all and the largest of one step.
+    pub ksp_iterations: usize,
+    pub ksp_iterations_step_max: usize,
+}
+
+/// The owned contact series of [`RunSeries`] (see [`ContactSeries`]).
+pub struct ContactColumns {
+    pub nodes: usize,
+    pub force: Vec<f64>,
+    pub gap: Vec<f64>,
+    pub active: Vec<bool>,
+    pub weights: Vec<f64>,
+    pub iterations: Vec<f64>,
+    pub lowest: usize,
+}
+
+impl RunSeries {
+    /// The stability metrics of the series ([`measure`]).
+    pub fn measure(&self) -> Stability {
+        let energy = EnergySeries {
+            total: &self.total,
+            external_work: &self.external_work,
+            dirichlet_work: &self.dirichlet_work,
+            contact_work: &self.contact_work,
+        };
+        let steps = self.total.len().saturating_sub(1);
+        let ksp = (self.ksp_iterations, self.ksp_iterations_step_max, steps);
+        let contact = self.contact.as_ref().map(|c| ContactSeries {
+            nodes: c.nodes,
+            force: &c.force,
+            gap: &c.gap,
+            active: &c.active,
+            weights: &c.weights,
+            iterations: &c.iterations,
+            lowest: c.lowest,
+        });
+        measure(&energy, contact.as_ref(), self.body_size, ksp)
+    }
 }
 
 /// Gaps at or above this are "no master facet within reach" (the writer's 1.8e308).

@@ -16,7 +16,7 @@ use crate::post::RunCurves;
 use crate::report::{BodySummary, ErrorSample, MassCheck, RunSummary, Timings};
 use crate::rows::Energy;
 use crate::scene::effects::short_number;
-use crate::stability::{self, ContactSeries, EnergySeries, Stability};
+use crate::stability::{self, ContactColumns, RunSeries, Stability};
 use crate::time::{Midpoint, StepReport};
 
 /// What the run keeps while stepping, for the energy balance, the summary and the pictures.
@@ -163,36 +163,29 @@ impl Record {
         contact: Option<&dyn ContactSolver>,
     ) -> Stability {
         let col = |i: usize| self.energies.iter().map(|r| r[i]).collect::<Vec<f64>>();
-        let (total, ext, dir, con) = (col(0), col(1), col(2), col(3));
-        let energy = EnergySeries {
-            total: &total,
-            external_work: &ext,
-            dirichlet_work: &dir,
-            contact_work: &con,
-        };
-        let size = stability::body_size(&d.mesh.coords);
-        let ksp = (midpoint.ksp_iterations(), self.ksp_step_max, total.len().saturating_sub(1));
-        match contact {
-            Some(c) => {
-                let rows = self.history.rows();
-                let force: Vec<f64> = rows.iter().flat_map(|r| r.force.iter().copied()).collect();
-                let gap: Vec<f64> = rows.iter().flat_map(|r| r.gap.iter().copied()).collect();
-                let active: Vec<bool> =
-                    rows.iter().flat_map(|r| r.active.iter().copied()).collect();
-                let iterations: Vec<f64> = rows.iter().map(|r| r.iterations as f64).collect();
-                let series = ContactSeries {
-                    nodes: c.n_nodes(),
-                    force: &force,
-                    gap: &gap,
-                    active: &active,
-                    weights: self.history.nodes().1,
-                    iterations: &iterations,
-                    lowest: c.lowest(),
-                };
-                stability::measure(&energy, Some(&series), size, ksp)
+        let contact = contact.map(|c| {
+            let rows = self.history.rows();
+            ContactColumns {
+                nodes: c.n_nodes(),
+                force: rows.iter().flat_map(|r| r.force.iter().copied()).collect(),
+                gap: rows.iter().flat_map(|r| r.gap.iter().copied()).collect(),
+                active: rows.iter().flat_map(|r| r.active.iter().copied()).collect(),
+                weights: self.history.nodes().1.to_vec(),
+                iterations: rows.iter().map(|r| r.iterations as f64).collect(),
+                lowest: c.lowest(),
             }
-            None => stability::measure(&energy, None, size, ksp),
-        }
+        });
+        let series = RunSeries {
+            total: col(0),
+            external_work: col(1),
+            dirichlet_work: col(2),
+            contact_work: col(3),
+            contact,
+            body_size: stability::body_size(&d.mesh.coords),
+            ksp_iterations: midpoint.ksp_iterations(),
+            ksp_iterations_step_max: self.ksp_step_max,
+        };
+        series.measure()
     }
 }
 
