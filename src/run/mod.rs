@@ -33,17 +33,19 @@ use mpi::traits::*;
 use crate::bodies::Bodies;
 use crate::comm::max_over_ranks;
 use crate::console::{Console, Progress};
+use crate::contact::{ContactSolver, StepContact};
 use crate::error::{Error, Result};
 use crate::mesh::Mesh;
 use crate::partition::Partition;
 use crate::phase::{self, HangTimeout, Phase, Watchdog};
 use crate::post::{picture_paths, write_pictures};
-use crate::report::{RunSummary, Timings};
+use crate::report::{MassCheck, RunSummary, Timings};
+use crate::rows::Energy;
 use crate::scene::{MeshSource, Scene};
 use crate::time::Midpoint;
 pub use options::RunOptions;
 use output::{ContactStep, RunOutput};
-use physics::Physics;
+use physics::{LoadsAt, Physics};
 use record::{Record, SetupFacts};
 use stress::StressFields;
 use views::Views;
@@ -85,6 +87,32 @@ pub struct Simulation<'a> {
     stress: StressFields<'a>,
     /// Contact nodes and cells of the mass-free layer (once assembled).
     layer: Option<(usize, usize)>,
+}
+
+/// A run from its start to its end: the integrator, the contact solver, the loads, the
+/// record, and what the set-up learned for the summary.
+struct Stepping<'a> {
+    midpoint: Midpoint,
+    contact: Option<Box<dyn ContactSolver + 'a>>,
+    loads: LoadsAt,
+    record: Record,
+    facts: SetupFacts,
+    /// The first step of the loop (0, or a restart's checkpoint step).
+    first: usize,
+}
+
+/// The time loop's clock: its start and the output and stress work inside it, which the
+/// stepping time excludes.
+struct LoopClock {
+    start: Instant,
+    output: f64,
+    stress_before: f64,
+}
+
+impl LoopClock {
+    fn start(stress: &StressFields) -> LoopClock {
+        LoopClock { start: Instant::now(), output: 0.0, stress_before: stress.seconds() }
+    }
 }
 
 impl<'a> Simulation<'a> {
@@ -138,7 +166,50 @@ impl<'a> Simulation<'a> {
     /// The run after `setup`, top to bottom. On an error (or a signal) in any step the output
     /// file is marked, and the error comes back.
     pub fn run(&mut self) -> Result<RunSummary> {
-        let result = guard(|| self.phases());
+        let result = guard(|| {
+            // 1. The physics: A, M (or M_H), loads, Dirichlet data, contact.
+            let physics = self.assemble()?;
+            // 2. The start: K = 4/tau^2 M + A and its solver (set up once), the initial state,
+            //    the output file opened for the time series.
+            let mut run = self.start(physics)?;
+            // 3. The time loop: step, record, output, progress.
+            let n_steps = self.domain.n_steps;
+            let hang = self.opts.hang_timeout.unwrap_or(HangTimeout::Auto);
+            let mut watchdog = Watchdog::start(hang, self.domain.rank);
+            watchdog.arm();
+            phase::enter(Phase::Stepping);
+            phase::step_done(run.first);
+            let mut progress =
+                Progress::new(self.console, n_steps, self.domain.scene.output.progress);
+            let mut clock = LoopClock::start(&self.stress);
+            for n in run.first..n_steps {
+                let t_step = Instant::now();
+                let report = run.midpoint.step(n, &run.loads, run.contact.as_deref_mut())?;
+                let seconds = t_step.elapsed().as_secs_f64();
+                run.record.step(&report, run.midpoint.energy(), seconds, run.midpoint.tau());
+                self.say_energies(n + 1, report.time, run.midpoint.energy());
+                let stop = self.output_step(n + 1, &run, report.contact.as_ref(), &mut clock)?;
+                phase::step_done(n + 1);
+                watchdog.step_time(t_step.elapsed().as_secs_f64());
+                // A signal after the last step is the final phase's business: the run still
+                // writes its summary, then says it was interrupted.
+                if stop && n + 1 < n_steps {
+                    progress.finish();
+                    return Err(Error::Interrupted(format!(
+                        "a signal stopped the run after step {} (t = {:e}); continue it with --restart",
+                        n + 1,
+                        report.time
+                    )));
+                }
+                run.record.errors_at(&self.domain, &mut self.views, n + 1, &run.midpoint)?;
+                progress.update(n + 1, report.time, run.record.balance);
+            }
+            progress.finish();
+            // 4. The summary, the pictures and the file's final metadata.
+            let summary = self.finish(run, clock)?;
+            watchdog.disarm();
+            Ok(summary)
+        });
         if let Err(e) = &result {
             let output = std::mem::replace(&mut self.output, RunOutput::None);
             output.fail(self.domain.world, self.agree, e);
@@ -146,12 +217,10 @@ impl<'a> Simulation<'a> {
         result
     }
 
-    fn phases(&mut self) -> Result<RunSummary> {
+    /// Step 1: the physics, and the mass check on it.
+    fn assemble(&mut self) -> Result<(Physics<'a>, MassCheck)> {
         let d = &self.domain;
-        let (world, console) = (d.world, self.console);
-
-        // 1. The physics: A, M (or M_H), loads, Dirichlet data, contact.
-        console.say(format!(
+        self.console.say(format!(
             "{}: {} nodes, {} cells ({}D), {} DOFs on {} rank(s); assembling",
             d.scene.name,
             d.mesh.n_nodes(),
@@ -160,16 +229,23 @@ impl<'a> Simulation<'a> {
             d.part.n_global_dofs(),
             d.size
         ));
-        console.say(d.effects());
+        self.console.say(d.effects());
         phase::enter(Phase::Assembling);
         let t0 = Instant::now();
-        let physics = Physics::assemble(d, console)?;
-        self.timings.assembly = max_over_ranks(world, t0.elapsed().as_secs_f64());
-        let mass_check =
-            diagnostics::check_mass(d, &mut self.views, &physics.m, physics.layer.as_ref())?;
-        phase::check_signal(world)?;
+        let physics = Physics::assemble(d, self.console)?;
+        self.timings.assembly = max_over_ranks(d.world, t0.elapsed().as_secs_f64());
+        let layer = physics.layer.as_ref();
+        let mass_check = diagnostics::check_mass(d, &mut self.views, &physics.m, layer)?;
+        phase::check_signal(d.world)?;
+        Ok((physics, mass_check))
+    }
 
-        // 2. The start: K = 4/tau^2 M + A and its solver, set up once; the initial state.
+    /// Step 2: the step operator and its solver (set up once), the initial state (or the
+    /// checkpoint's), the output file opened for the time series, and the record of the run
+    /// with its first entry written.
+    fn start(&mut self, (physics, mass_check): (Physics<'a>, MassCheck)) -> Result<Stepping<'a>> {
+        let d = &self.domain;
+        let console = self.console;
         phase::enter(Phase::SolverSetup);
         let t1 = Instant::now();
         let Physics { a, m, dirichlet, layer, mut contact, loads } = physics;
@@ -177,7 +253,7 @@ impl<'a> Simulation<'a> {
         if let Some(c) = contact.as_mut() {
             c.prepare(&op.k)?;
         }
-        self.timings.setup = max_over_ranks(world, t1.elapsed().as_secs_f64());
+        self.timings.setup = max_over_ranks(d.world, t1.elapsed().as_secs_f64());
         let (u0, v0) = start::initial_state(d)?;
         let mut midpoint = Midpoint::new(op, m, a, dirichlet, d.scene.tau, u0, v0, 0.0, &loads)?;
         let massless_initialized = match self.opts.restart {
@@ -221,120 +297,110 @@ impl<'a> Simulation<'a> {
         if let (Some(c), None) = (contact.as_deref(), &restart) {
             start::check_no_penetration(d, c, midpoint.u())?;
         }
-        self.timings.output += self.output.open(
-            d,
-            &self.opts,
-            midpoint.operator(),
-            contact.as_deref(),
-            layer.as_ref(),
-            &mass_check,
-        )?;
-        phase::check_signal(world)?;
-        let mut record = Record::new(d, &midpoint, contact.as_deref(), restart.as_ref(), first)?;
+        let (op, solver) = (midpoint.operator(), contact.as_deref());
+        self.timings.output +=
+            self.output.open(d, &self.opts, op, solver, layer.as_ref(), &mass_check)?;
+        phase::check_signal(d.world)?;
+        let record = Record::new(d, &midpoint, contact.as_deref(), restart.as_ref(), first)?;
         self.layer = layer.as_ref().map(|l| (l.n_contact_nodes(), l.n_layer_cells()));
-        let body_layers = diagnostics::body_layers(d, layer.as_ref());
-        let at_start = contact.as_deref().map(|solver| ContactStep {
-            solver,
-            row: record.history.last_row().expect("the history's first row"),
-            normals: record.history.last_normals(),
-        });
-        self.output.write_step(d, &mut self.views, &mut self.stress, first, &midpoint, at_start)?;
-        if self.opts.verbose {
-            let e = midpoint.energy();
-            console.say(format!(
-                "step {first}  t = {:e}  kinetic {:.10e}  potential {:.10e}  total {:.10e}",
-                midpoint.time_at(first),
-                e.kinetic,
-                e.potential,
-                record.e0
-            ));
-        }
-        record.errors_at(d, &mut self.views, first, &midpoint)?;
-
-        // 3. The time loop: step, record, output, progress.
-        let mut watchdog =
-            Watchdog::start(self.opts.hang_timeout.unwrap_or(HangTimeout::Auto), d.rank);
-        watchdog.arm();
-        phase::enter(Phase::Stepping);
-        phase::step_done(first);
-        let mut progress = Progress::new(console, d.n_steps, d.scene.output.progress);
-        let t_loop = Instant::now();
-        let stress_before_loop = self.stress.seconds();
-        let mut output_seconds = 0.0;
-        for n in first..d.n_steps {
-            let t_step = Instant::now();
-            let report = midpoint.step(n, &loads, contact.as_deref_mut())?;
-            record.step(&report, midpoint.energy(), t_step.elapsed().as_secs_f64(), midpoint.tau());
-            if self.opts.verbose {
-                let e = midpoint.energy();
-                console.say(format!(
-                    "step {}  t = {:.6e}  kinetic {:.10e}  potential {:.10e}  total {:.10e}  external work {:.10e}  contact work {:.10e}",
-                    n + 1, report.time, e.kinetic, e.potential, e.total(), e.external_work, e.contact_work
-                ));
-            }
-            // Write step n + 1; a signal on any rank stops all ranks after it, with a
-            // checkpoint (every rank learns it here).
-            let t_out = Instant::now();
-            let stress_before = self.stress.seconds();
-            let now = contact
-                .as_deref()
-                .zip(report.contact.as_ref())
-                .map(|(solver, c)| ContactStep { solver, row: &c.row, normals: &c.normals });
-            self.output.write_step(d, &mut self.views, &mut self.stress, n + 1, &midpoint, now)?;
-            let stop = phase::stop_requested(world);
-            // Checkpoints: every 10 field outputs (they hold three fields), at the end, and
-            // when a signal stops the run.
-            let due = (n + 1) % (10 * d.scene.output.every) == 0;
-            if due || stop || n + 1 == d.n_steps {
-                let cp = record.checkpoint(n + 1, &midpoint, contact.as_deref());
-                self.output.write_checkpoint(&mut self.views, &cp, &midpoint)?;
-            }
-            // The stress-type fields' computation is timed on its own (`Timings::stress`).
-            output_seconds +=
-                t_out.elapsed().as_secs_f64() - (self.stress.seconds() - stress_before);
-            phase::step_done(n + 1);
-            watchdog.step_time(t_step.elapsed().as_secs_f64());
-            // A signal after the last step is the final phase's business: the run still
-            // writes its summary, then says it was interrupted.
-            if stop && n + 1 < d.n_steps {
-                progress.finish();
-                return Err(Error::Interrupted(format!(
-                    "a signal stopped the run after step {} (t = {:e}); continue it with --restart",
-                    n + 1,
-                    report.time
-                )));
-            }
-            record.errors_at(d, &mut self.views, n + 1, &midpoint)?;
-            progress.update(n + 1, report.time, record.balance);
-        }
-        progress.finish();
-
-        // 4. The summary, the pictures and the file's final metadata.
-        phase::enter(Phase::Final);
-        // Stepping is the loop without its output and stress work (each timed on its own).
-        let stepping = t_loop.elapsed().as_secs_f64()
-            - output_seconds
-            - (self.stress.seconds() - stress_before_loop);
-        self.timings.stepping = max_over_ranks(world, stepping);
-        self.timings.output = max_over_ranks(world, self.timings.output + output_seconds);
-        self.timings.stress = max_over_ranks(world, self.stress.seconds());
-        if let Some(c) = contact.as_deref() {
-            record.curves.lowest_pressure = record.history.pressure(c.lowest());
-        }
-        let pictures = self.pictures(std::mem::take(&mut record.curves), contact.is_some());
         let facts = SetupFacts {
-            timings: self.timings.clone(),
+            timings: Timings::default(),
             mass_check,
             layer: self.layer,
-            body_layers,
+            body_layers: diagnostics::body_layers(d, layer.as_ref()),
             massless_initialized,
             cfl,
         };
+        let run = Stepping { midpoint, contact, loads, record, facts, first };
+        let at_start = run.contact.as_deref().map(|solver| ContactStep {
+            solver,
+            row: run.record.history.last_row().expect("the history's first row"),
+            normals: run.record.history.last_normals(),
+        });
+        let views = &mut self.views;
+        self.output.write_step(d, views, &mut self.stress, first, &run.midpoint, at_start)?;
+        if self.opts.verbose {
+            let e = run.midpoint.energy();
+            console.say(format!(
+                "step {first}  t = {:e}  kinetic {:.10e}  potential {:.10e}  total {:.10e}",
+                run.midpoint.time_at(first),
+                e.kinetic,
+                e.potential,
+                run.record.e0
+            ));
+        }
+        let mut run = run;
+        run.record.errors_at(d, &mut self.views, first, &run.midpoint)?;
+        Ok(run)
+    }
+
+    /// The energies of a step on the console (with --verbose).
+    fn say_energies(&self, n: usize, t: f64, e: &Energy) {
+        if self.opts.verbose {
+            self.console.say(format!(
+                "step {n}  t = {t:.6e}  kinetic {:.10e}  potential {:.10e}  total {:.10e}  external work {:.10e}  contact work {:.10e}",
+                e.kinetic,
+                e.potential,
+                e.total(),
+                e.external_work,
+                e.contact_work
+            ));
+        }
+    }
+
+    /// Write step n (energies, fields when due, contact row) and the checkpoint when due; find
+    /// out whether a signal asks the run to stop (every rank learns it here). Returns that.
+    fn output_step(
+        &mut self,
+        n: usize,
+        run: &Stepping,
+        contact: Option<&StepContact>,
+        clock: &mut LoopClock,
+    ) -> Result<bool> {
+        let d = &self.domain;
+        let t0 = Instant::now();
+        let stress0 = self.stress.seconds();
+        let now = run.contact.as_deref().zip(contact).map(|(solver, c)| ContactStep {
+            solver,
+            row: &c.row,
+            normals: &c.normals,
+        });
+        self.output.write_step(d, &mut self.views, &mut self.stress, n, &run.midpoint, now)?;
+        // A signal on any rank stops all ranks after this step, with a checkpoint.
+        let stop = phase::stop_requested(d.world);
+        // Checkpoints: every 10 field outputs (they hold three fields), at the end, and
+        // when a signal stops the run.
+        if n.is_multiple_of(10 * d.scene.output.every) || stop || n == d.n_steps {
+            let cp = run.record.checkpoint(n, &run.midpoint, run.contact.as_deref());
+            self.output.write_checkpoint(&mut self.views, &cp, &run.midpoint)?;
+        }
+        // The stress-type fields' computation is timed on its own (`Timings::stress`).
+        clock.output += t0.elapsed().as_secs_f64() - (self.stress.seconds() - stress0);
+        Ok(stop)
+    }
+
+    /// Step 4: the timings, the pictures, the summary and the file's final metadata.
+    fn finish(&mut self, mut run: Stepping, clock: LoopClock) -> Result<RunSummary> {
+        phase::enter(Phase::Final);
+        let world = self.domain.world;
+        // Stepping is the loop without its output and stress work (each timed on its own).
+        let stepping = clock.start.elapsed().as_secs_f64()
+            - clock.output
+            - (self.stress.seconds() - clock.stress_before);
+        self.timings.stepping = max_over_ranks(world, stepping);
+        self.timings.output = max_over_ranks(world, self.timings.output + clock.output);
+        self.timings.stress = max_over_ranks(world, self.stress.seconds());
+        let contact = run.contact.as_deref();
+        if let Some(c) = contact {
+            run.record.curves.lowest_pressure = run.record.history.pressure(c.lowest());
+        }
+        let pictures = self.pictures(std::mem::take(&mut run.record.curves), contact.is_some());
+        run.facts.timings = self.timings.clone();
         let path = self.output.open_file().map(|o| o.path().to_path_buf());
+        let d = &self.domain;
         let summary =
-            record::summarize(d, &facts, record, &midpoint, contact.as_deref(), path, pictures)?;
+            record::summarize(d, &run.facts, run.record, &run.midpoint, contact, path, pictures)?;
         self.output.finish(world, &summary, d.n_steps)?;
-        watchdog.disarm();
         Ok(summary)
     }
 
