@@ -1,6 +1,7 @@
 //! PETSc initialization guard and the options database.
 
-use super::{cstring, ffi, from_cstr};
+use super::conv::{cstring, from_cstr};
+use super::ffi;
 use crate::error::{Error, Result};
 use std::ffi::CString;
 use std::os::raw::{c_char, c_int};
@@ -206,6 +207,21 @@ fn options_get<T: Default>(name: &str, get: OptionsGetter<T>, call: &str) -> Res
     let mut set = ffi::PetscBool_PETSC_FALSE;
     // SAFETY: valid C string and out-pointers of the getter's value type; global database.
     let code = unsafe { get(ptr::null_mut(), ptr::null(), n.as_ptr(), &mut val, &mut set) };
-    super::check(code, call, file!(), line!())?;
+    super::conv::check(code, call, file!(), line!())?;
     Ok((set == ffi::PetscBool_PETSC_TRUE).then_some(val))
+}
+
+/// Errors unless PETSc is initialized and not finalized: creating or destroying objects
+/// outside that window is undefined behaviour in C, so constructors check it first.
+pub(crate) fn ensure_live() -> Result<()> {
+    if is_live() {
+        Ok(())
+    } else {
+        Err(Error::Petsc {
+            call: "PetscInitialized (Petsc::init not called, or PETSc already finalized)".into(),
+            code: 73, // PETSC_ERR_ORDER: object in wrong state
+            location: format!("{}:{}", file!(), line!()),
+            message: String::new(),
+        })
+    }
 }

@@ -1,6 +1,8 @@
 //! Index sets (PETSc `IS`), for scatters and row selections.
 
-use super::{ensure_live, ffi, init, to_int, to_usize};
+use super::conv::{to_int, to_usize};
+use super::ffi;
+use super::init::{self, ensure_live};
 use crate::error::Result;
 use std::ptr;
 

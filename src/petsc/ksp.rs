@@ -1,8 +1,10 @@
 //! Linear solvers (PETSc `KSP` with its `PC`).
 
-use super::{
-    cstring, ensure_live, ffi, from_cstr, init, petsc_bool, to_int, to_usize, Matrix, Vector,
-};
+use super::conv::{cstring, from_cstr, petsc_bool, to_int, to_usize};
+use super::ffi;
+use super::init::{self, ensure_live};
+use super::mat::Matrix;
+use super::vec::Vector;
 use crate::error::{Error, Result};
 use std::ffi::CString;
 use std::ptr;

@@ -1,6 +1,8 @@
 //! Timing, memory and profiling-stage helpers.
 
-use super::{cstring, ensure_live, ffi};
+use super::conv::cstring;
+use super::ffi;
+use super::init::ensure_live;
 use crate::error::Result;
 
 /// Wall-clock seconds since an arbitrary origin (`MPI_Wtime`).

@@ -1,6 +1,9 @@
 //! Sparse distributed matrices (PETSc `Mat`, AIJ format) and near null spaces.
 
-use super::{check_len, ensure_live, ffi, init, petsc_bool, to_int, to_usize, Vector};
+use super::conv::{check_len, petsc_bool, to_int, to_usize};
+use super::ffi;
+use super::init::{self, ensure_live};
+use super::vec::Vector;
 use crate::error::{Error, Result};
 use std::ptr;
 

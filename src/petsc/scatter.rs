@@ -1,7 +1,10 @@
 //! Scatters between distributed vectors (PETSc `VecScatter`): to natural (gmsh) node order for
 //! output, and to the ghosted values an element loop needs.
 
-use super::{ensure_live, ffi, init, IndexSet, Vector};
+use super::ffi;
+use super::init::{self, ensure_live};
+use super::is::IndexSet;
+use super::vec::Vector;
 use crate::error::Result;
 use std::ptr;
 

@@ -1,6 +1,8 @@
 //! Distributed vectors (PETSc `Vec`).
 
-use super::{check_len, ensure_live, ffi, init, to_int, to_usize};
+use super::conv::{check_len, to_int, to_usize};
+use super::ffi;
+use super::init::{self, ensure_live};
 use crate::error::Result;
 use std::ptr;
 

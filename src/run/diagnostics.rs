@@ -10,7 +10,7 @@ use mpi::collective::SystemOperation;
 use mpi::traits::*;
 
 use super::views::Views;
-use super::Domain;
+use super::domain::Domain;
 use crate::assembly;
 use crate::comm::{max_over_ranks, sum_over_ranks};
 use crate::contact::history::History as ContactHistory;

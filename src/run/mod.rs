@@ -15,6 +15,7 @@
 //! - [`stress`]: the stress-type output fields.
 
 pub mod diagnostics;
+pub mod domain;
 pub mod options;
 pub mod output;
 pub mod physics;
@@ -43,36 +44,13 @@ use crate::report::{MassCheck, RunSummary, Timings};
 use crate::rows::Energy;
 use crate::scene::{MeshSource, Scene};
 use crate::time::Midpoint;
+pub use domain::Domain;
 pub use options::RunOptions;
 use output::{ContactStep, RunOutput};
 use physics::{LoadsAt, Physics};
 use record::{Record, SetupFacts};
 use stress::StressFields;
 use views::Views;
-
-/// What every phase of a run reads and none changes: the communicator, the scene, the mesh
-/// with its partition and bodies, and the number of steps.
-pub struct Domain<'a> {
-    pub world: &'a SimpleCommunicator,
-    pub scene: Scene,
-    /// The cells of each `[[body]]`: material and mass treatment per cell, the layer's groups.
-    pub bodies: Bodies,
-    /// Shared with the loads and the stress output.
-    pub mesh: Rc<Mesh>,
-    pub part: Rc<Partition>,
-    pub rank: usize,
-    pub size: usize,
-    /// The steps to run: the scene's, or the command line's `--steps`.
-    pub n_steps: usize,
-}
-
-impl Domain<'_> {
-    /// The effects line, with the mass treatment as the mesh resolved it.
-    pub fn effects(&self) -> String {
-        let layer = self.bodies.layer.as_ref().map(|(k, g)| (*k, g.as_slice()));
-        self.scene.effects().resolve(self.bodies.standard_masses(), layer).summary()
-    }
-}
 
 /// One run: the domain, the options, the output file and the run's views of its vectors.
 pub struct Simulation<'a> {

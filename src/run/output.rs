@@ -14,7 +14,7 @@ use mpi::traits::*;
 use super::options::RunOptions;
 use super::stress::StressFields;
 use super::views::Views;
-use super::Domain;
+use super::domain::Domain;
 use crate::contact::ContactSolver;
 use crate::error::{Error, Result};
 use crate::fem::stress::Quantity;

@@ -5,7 +5,7 @@
 
 use std::rc::Rc;
 
-use super::Domain;
+use super::domain::Domain;
 use crate::assembly::{self, Loads};
 use crate::console::Console;
 use crate::contact::{self, ContactBoundary, ContactSolver, Obstacles};

@@ -6,7 +6,8 @@
 use std::path::Path;
 
 use super::views::Views;
-use super::{diagnostics, physics, Domain};
+use super::domain::Domain;
+use super::{diagnostics, physics};
 use crate::assembly;
 use crate::console::Console;
 use crate::contact::ContactSolver;

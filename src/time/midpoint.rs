@@ -16,7 +16,8 @@ use mpi::collective::SystemOperation;
 use mpi::topology::SimpleCommunicator;
 use mpi::traits::*;
 
-use super::{Dirichlet, StepOperator};
+use super::dirichlet::Dirichlet;
+use super::operator::StepOperator;
 use crate::contact::{ContactSolver, StepContact, StepSystem};
 use crate::error::{Error, Result};
 use crate::petsc::{Matrix, Vector};
