@@ -9,8 +9,8 @@ use std::time::Instant;
 use mpi::collective::SystemOperation;
 use mpi::traits::*;
 
-use super::views::Views;
 use super::domain::Domain;
+use super::views::Views;
 use crate::assembly;
 use crate::comm::{max_over_ranks, sum_over_ranks};
 use crate::contact::history::History as ContactHistory;

@@ -11,10 +11,10 @@ use std::time::Instant;
 use mpi::topology::SimpleCommunicator;
 use mpi::traits::*;
 
+use super::domain::Domain;
 use super::options::RunOptions;
 use super::stress::StressFields;
 use super::views::Views;
-use super::domain::Domain;
 use crate::contact::ContactSolver;
 use crate::error::{Error, Result};
 use crate::fem::stress::Quantity;

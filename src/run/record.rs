@@ -4,9 +4,9 @@
 
 use std::path::PathBuf;
 
-use super::views::Views;
 use super::diagnostics;
 use super::domain::Domain;
+use super::views::Views;
 use crate::bodies::Bodies;
 use crate::comm::{max_over_ranks, sum_over_ranks};
 use crate::contact::history::{ContactSummary, History as ContactHistory};

@@ -5,8 +5,8 @@
 
 use std::path::Path;
 
-use super::views::Views;
 use super::domain::Domain;
+use super::views::Views;
 use super::{diagnostics, physics};
 use crate::assembly;
 use crate::console::Console;

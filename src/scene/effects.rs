@@ -8,7 +8,7 @@
 //! effects: elasticity, mass-free layer (modified1 along "contact"), Dirichlet (zero values), contact (plane obstacle); not built: initial displacement, initial velocity, body force, tractions, Dirichlet lifting, exact errors, stress output
 //! ```
 
-use super::{BodySpec, MassKind, Obstacle, Scene, Shape};
+use super::model::{BodySpec, MassKind, Obstacle, Scene, Shape};
 use crate::scene::expr::VecExpr;
 
 /// How a load or prescribed value varies in time.

@@ -3,8 +3,8 @@
 //! and [`Scene::variant_text`], the scene file of the overridden scene (e.g. for the runs of a
 //! study, which have no `--tau` flag).
 
+use super::model::{steps_to_end, MeshSource, Scene};
 use super::validate::{check_tau, error_step, steps_of_times};
-use super::{steps_to_end, MeshSource, Scene};
 use crate::error::{Error, Result};
 use std::path::Path;
 use toml::{Table, Value};

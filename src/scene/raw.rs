@@ -2,7 +2,7 @@
 //! scene allows leaving it out, unknown keys rejected. [`super::validate`] turns it into a
 //! [`super::Scene`]; nothing here checks a value.
 
-use super::{Field, MassKind};
+use super::model::{Field, MassKind};
 use serde::de::{self, Deserializer, Visitor};
 use serde::Deserialize;
 use std::collections::BTreeMap;

@@ -3,15 +3,15 @@
 //! (without the file name, which [`super::parse`] puts in front).
 
 use super::expr::{Expr, VecExpr};
+use super::model::{
+    obstacle_key, steps_to_end, BodySpec, ContactPair, ContactSpec, DirichletSpec, ExactSpec,
+    Field, MassKind, MassSpec, MaterialSpec, MeshSource, NeumannSpec, Obstacle, OutputSpec, Scene,
+    Shape, SolverSpec,
+};
 use super::raw::{
     ExprSrc, RawBody, RawBodyForce, RawContact, RawDirichlet, RawExact, RawInitial, RawMass,
     RawMaterial, RawMesh, RawNeumann, RawObstacle, RawOutput, RawPair, RawScene, RawSolver,
     RawTime,
-};
-use super::{
-    obstacle_key, steps_to_end, BodySpec, ContactPair, ContactSpec, DirichletSpec, ExactSpec,
-    Field, MassKind, MassSpec, MaterialSpec, MeshSource, NeumannSpec, Obstacle, OutputSpec, Scene,
-    Shape, SolverSpec,
 };
 use std::path::{Path, PathBuf};
 
