@@ -15,6 +15,7 @@ pub mod fem;
 pub mod io;
 pub mod mass;
 pub mod mesh;
+pub mod options;
 pub mod partition;
 pub mod petsc;
 pub mod phase;

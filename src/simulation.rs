@@ -27,6 +27,7 @@ use crate::io::{
 };
 use crate::mass::{build_layer, mass_matrix, MassFreeLayer};
 use crate::mesh::Mesh;
+use crate::options::AppOptions;
 use crate::partition::Partition;
 use crate::petsc::{Matrix, NullSpace, Scatter, Vector};
 use crate::phase::{self, HangTimeout, Phase, Watchdog};
@@ -514,6 +515,9 @@ impl<'a> Simulation<'a> {
             self.scene.neumann.iter().map(|n| (n.group.clone(), n.traction.clone())).collect();
         let loads = Loads::new(mesh, part, self.scene.body_force.as_ref(), &neumann)?;
         let dirichlet = Dirichlet::new(mesh, part, &self.scene.dirichlet)?;
+        // As the command line gives them: the scene's [solver] options enter the database
+        // later, for the step solver (`integrator` reads the options again then).
+        let app = AppOptions::read()?;
         let contact: Option<Box<dyn ContactSolver + 'a>> = match &self.scene.contact {
             Some(spec) if !spec.pairs.is_empty() => Some(contact::mortar::pair_solver(
                 self.world,
@@ -522,6 +526,7 @@ impl<'a> Simulation<'a> {
                 &spec.pairs,
                 spec.obstacle_boundary().map(|g| (g, Obstacles::from_scene(&spec.obstacles))),
                 Midpoint::CONTACT_FORCE_FACTOR,
+                &app.mortar,
             )?),
             Some(spec) => Some(contact::solver(
                 self.world,
@@ -530,10 +535,11 @@ impl<'a> Simulation<'a> {
                 ContactBoundary::build(&self.mesh, spec.boundary.as_deref().unwrap_or_default())?,
                 Obstacles::from_scene(&spec.obstacles),
                 Midpoint::CONTACT_FORCE_FACTOR,
+                &app.contact,
             )?),
             None => None,
         };
-        self.warn_finite_sliding_without_mass()?;
+        self.warn_finite_sliding_without_mass(app.mortar.update_in_contact);
         self.timings.assembly = max_over_ranks(self.world, t0.elapsed().as_secs_f64());
         let mass_check = self.check_mass(&m, layer.as_ref())?;
         phase::check_signal(self.world)?;
@@ -546,17 +552,16 @@ impl<'a> Simulation<'a> {
     /// with massless interface nodes nothing holds that back when the updates come often
     /// (measured on the two discs: stable with updates 0.003 or more apart, the energy grows
     /// at 0.002). Said once, on rank 0, as a warning: the run goes on.
-    fn warn_finite_sliding_without_mass(&self) -> Result<()> {
-        let Some(spec) = &self.scene.contact else { return Ok(()) };
-        let Some((_, groups)) = &self.bodies.layer else { return Ok(()) };
+    fn warn_finite_sliding_without_mass(&self, update_in_contact: bool) {
+        let Some(spec) = &self.scene.contact else { return };
+        let Some((_, groups)) = &self.bodies.layer else { return };
         let massless =
             spec.pairs.iter().any(|p| groups.iter().any(|g| *g == p.slave || *g == p.master));
-        if massless && crate::petsc::Petsc::options_has("-mortar_update_in_contact")? {
+        if massless && update_in_contact {
             self.console.warn(
                 "-mortar_update_in_contact with the mass-free layer on a pair: frequent in-contact updates can make the energy grow (no consistent linearization); keep -mortar_update_distance at its default or larger and watch the energy balance",
             );
         }
-        Ok(())
     }
 
     /// Step 2: the step operator and its solver (set up once), the initial state (or the
@@ -585,6 +590,10 @@ impl<'a> Simulation<'a> {
             defaults.rtol = r;
         }
         apply_scene_options(&self.scene.solver.options)?;
+        // Again, with the scene's options in the database: they count for the step solver
+        // (the contact solver's options were read before they were entered).
+        let app = AppOptions::read()?;
+        defaults.user_reuse_preconditioner = app.user_reuse_preconditioner;
         let op = StepOperator::new(
             &m,
             &a,
@@ -646,17 +655,7 @@ impl<'a> Simulation<'a> {
         }
         // The energy correction of contact steps with massless DOFs (on unless
         // `-massless_energy_correction false`).
-        let correct = match crate::petsc::Petsc::options_get_string("-massless_energy_correction")?
-            .as_deref()
-        {
-            None | Some("1" | "true" | "yes") => true,
-            Some("0" | "false" | "no") => false,
-            Some(other) => {
-                return Err(Error::Usage(format!(
-                    "-massless_energy_correction {other}: give true or false"
-                )))
-            }
-        };
+        let correct = app.massless_energy_correction.clone()?;
         midpoint.configure_massless(correct, self.part.dim, self.node_bodies())?;
         let restart = match self.opts.restart.clone() {
             Some(path) => {

@@ -36,7 +36,7 @@ pub mod pdas;
 
 use mpi::topology::SimpleCommunicator;
 
-use crate::error::{Error, Result};
+use crate::error::Result;
 use crate::mesh::Mesh;
 use crate::partition::Partition;
 use crate::petsc::{Ksp, Matrix, Vector};
@@ -122,7 +122,44 @@ pub struct StepSystem<'a> {
     pub time: f64,
 }
 
-/// The contact solver the options ask for (`-contact_solver pdas|columns`, default pdas).
+/// Which active-set solver meets the rigid obstacles (`-contact_solver`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum ContactSolverKind {
+    /// [`pdas::ActiveSet`]: one solve of the constrained step operator per iteration.
+    #[default]
+    Pdas,
+    /// [`columns::ColumnActiveSet`]: a Schur complement from stored columns (for comparison).
+    Columns,
+}
+
+/// The contact solver's options, as [`crate::options::AppOptions::read`] found them. A bad
+/// value is kept as its error and raised by [`solver`] where the value is used: it fails only
+/// the runs with obstacle contact, at contact set-up, as when the option was read there.
+#[derive(Debug, Clone)]
+pub struct ContactOptions {
+    /// `-contact_solver pdas|columns` (default `pdas`): the active-set solver against rigid
+    /// obstacles; `columns` is the first wave's, kept for comparison.
+    pub solver: Result<ContactSolverKind>,
+    /// `-contact_loose_rtol R` (default: the square root of the step solver's rtol): the
+    /// relative tolerance of the `pdas` solves until the active set repeats (then one solve to
+    /// full accuracy confirms it); at or below the step solver's rtol every solve is exact.
+    pub loose_rtol: Result<Option<f64>>,
+    /// `-contact_reference_solve` (default off; benchmark): each `pdas` step is also solved
+    /// without contact, for the cost ratio in the summary.
+    pub reference_solve: bool,
+}
+
+impl Default for ContactOptions {
+    fn default() -> Self {
+        ContactOptions {
+            solver: Ok(ContactSolverKind::Pdas),
+            loose_rtol: Ok(None),
+            reference_solve: false,
+        }
+    }
+}
+
+/// The contact solver `options` ask for (default pdas).
 pub fn solver<'w>(
     world: &'w SimpleCommunicator,
     mesh: &Mesh,
@@ -130,22 +167,18 @@ pub fn solver<'w>(
     boundary: ContactBoundary,
     obstacles: Obstacles,
     factor: f64,
+    options: &ContactOptions,
 ) -> Result<Box<dyn ContactSolver + 'w>> {
     let nodes = ContactNodes::new(world, mesh, part, boundary, obstacles);
-    match crate::petsc::Petsc::options_get_string("-contact_solver")?.as_deref() {
-        None | Some("pdas") => {
+    match options.solver.clone()? {
+        ContactSolverKind::Pdas => {
             let mut s = pdas::ActiveSet::new(nodes, factor);
             // Until the active set repeats, half the digits of the step solver's tolerance
             // (inexact semismooth Newton); then one solve to full accuracy confirms the set.
-            let loose = crate::petsc::Petsc::options_get_real("-contact_loose_rtol")?;
-            s = s.with_loose_rtol(loose);
-            let measure = crate::petsc::Petsc::options_has("-contact_reference_solve")?;
-            Ok(Box::new(if measure { s.with_reference_solve() } else { s }))
+            s = s.with_loose_rtol(options.loose_rtol.clone()?);
+            Ok(Box::new(if options.reference_solve { s.with_reference_solve() } else { s }))
         }
-        Some("columns") => Ok(Box::new(columns::ColumnActiveSet::new(nodes, factor))),
-        Some(other) => Err(Error::Usage(format!(
-            "-contact_solver {other}: unknown contact solver (pdas or columns)"
-        ))),
+        ContactSolverKind::Columns => Ok(Box::new(columns::ColumnActiveSet::new(nodes, factor))),
     }
 }
 

@@ -13,6 +13,10 @@ pub struct StepSolverDefaults {
     pub pc_type: String,
     pub rtol: f64,
     pub factor_solver: Option<String>,
+    /// The command line or the scene set `-ksp_reuse_preconditioner` or
+    /// `-step_ksp_reuse_preconditioner`: PETSc's value holds (else a multigrid preconditioner
+    /// is kept, see [`StepOperator::new`]).
+    pub user_reuse_preconditioner: bool,
 }
 
 /// How stiff a step is: the CFL number `c_p tau / h_min` of the pressure wave,
@@ -69,6 +73,7 @@ impl Default for StepSolverDefaults {
             pc_type: "jacobi".into(),
             rtol: 1e-10,
             factor_solver: None,
+            user_reuse_preconditioner: false,
         }
     }
 }
@@ -138,10 +143,7 @@ impl StepOperator {
         // operators at every active-set change cost more than the few extra iterations
         // (README "Step solver by regime"). `-step_ksp_reuse_preconditioner false` rebuilds.
         let multigrid = matches!(ksp.pc_type()?.as_str(), "gamg" | "hypre" | "ml" | "mg");
-        if multigrid
-            && !Petsc::options_has("-ksp_reuse_preconditioner")?
-            && !Petsc::options_has("-step_ksp_reuse_preconditioner")?
-        {
+        if multigrid && !defaults.user_reuse_preconditioner {
             ksp.set_reuse_preconditioner(true)?;
         }
         // The previous step's increment is a good first guess for an iterative solver (du
