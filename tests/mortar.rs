@@ -6,7 +6,7 @@
 
 use std::path::{Path, PathBuf};
 
-use massfree::contact::mortar::{oriented_facets, MortarInterface};
+use massfree::contact::mortar::{oriented_facets, MortarInterface, NormalKind, SurfaceFacet};
 use massfree::mesh::gmsh::mesh_geo;
 use massfree::mesh::msh::read_msh;
 use massfree::mesh::Mesh;
@@ -19,14 +19,27 @@ fn load(name: &str, params: &[(&str, f64)], dim: usize) -> Mesh {
     read_msh(&mesh_geo(&geo, &params, dim, false, &cache).unwrap()).unwrap()
 }
 
+/// The interface with the slave side's normals (the default), without the search's time.
+fn build(
+    world: &mpi::topology::SimpleCommunicator,
+    mesh: &Mesh,
+    part: &Partition,
+    slave: &[SurfaceFacet],
+    master: &[SurfaceFacet],
+    x: &dyn Fn(usize) -> [f64; 3],
+    reach: f64,
+) -> massfree::Result<MortarInterface> {
+    MortarInterface::build_timed(world, mesh, part, slave, master, x, reach, NormalKind::Slave)
+        .map(|r| r.0)
+}
+
 fn check(world: &mpi::topology::SimpleCommunicator, name: &str, dim: usize, kind: f64, gap: f64) {
     let label = format!("{name} kind {kind} gap {gap}");
     let mesh = load(name, &[("kind", kind), ("gap", gap)], dim);
     let part = Partition::new(&mesh, 0, 1).unwrap();
     let slave = oriented_facets(&mesh, "upper_contact").unwrap();
     let master = oriented_facets(&mesh, "lower_contact").unwrap();
-    let i = MortarInterface::build(world, &mesh, &part, &slave, &master, &|v| mesh.coords[v], 0.1)
-        .unwrap();
+    let i = build(world, &mesh, &part, &slave, &master, &|v| mesh.coords[v], 0.1).unwrap();
     assert!(!i.slave.is_empty() && !i.master.is_empty(), "{label}: empty interface");
     assert!(i.slave.iter().all(|v| !i.master.contains(v)), "{label}: bodies share nodes");
     // The interface is the unit segment / unit square.
@@ -84,8 +97,7 @@ fn two_discs(world: &mpi::topology::SimpleCommunicator) {
     let slave = oriented_facets(&mesh, "upper_contact").unwrap();
     let master = oriented_facets(&mesh, "lower_contact").unwrap();
     // The search must reach every master facet a slave normal can hit: 0.3 > gap + tilt.
-    let i = MortarInterface::build(world, &mesh, &part, &slave, &master, &|v| mesh.coords[v], 0.3)
-        .unwrap();
+    let i = build(world, &mesh, &part, &slave, &master, &|v| mesh.coords[v], 0.3).unwrap();
     assert!(i.normals.iter().all(|n| n[1] < -0.5), "slave normals must point down");
     let low = (0..i.slave.len())
         .min_by(|&a, &b| mesh.coords[i.slave[a]][1].total_cmp(&mesh.coords[i.slave[b]][1]))

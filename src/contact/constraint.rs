@@ -72,8 +72,6 @@ pub struct NormalConstraints {
     applied: (Vec<bool>, Vec<[f64; 3]>),
     /// Rows currently differing from the original.
     dirty: Vec<u32>,
-    /// Operator rewrites so far (the active set or an active normal changed).
-    pub updates: usize,
 }
 
 impl NormalConstraints {
@@ -161,7 +159,6 @@ impl NormalConstraints {
             k_c_du,
             applied: (vec![false; nc], vec![[0.0; 3]; nc]),
             dirty: Vec::new(),
-            updates: 0,
         })
     }
 
@@ -197,7 +194,6 @@ impl NormalConstraints {
         k.assemble()?;
         self.dirty = now;
         self.applied = (active.to_vec(), normals.to_vec());
-        self.updates += 1;
         Ok(true)
     }
 

@@ -18,98 +18,33 @@
 //!   complement on the active DOFs from one stored column `K^{-1} e_{q,c}` per node and
 //!   component; exact and fast for a few dozen nodes, O(active^2) memory and one extra solve
 //!   per column, which does not scale to 3D.
+//!
+//! Files: this one holds the interface between the integrator and a contact solver
+//! ([`ContactSolver`], [`StepSystem`], [`StepContact`]) and the factory [`solver`];
+//! `nodes.rs` the contact boundary and nodes ([`ContactBoundary`], [`ContactNodes`], [`trace`]);
+//! `active_set.rs` the active-set loop's bookkeeping ([`ActiveSetLoop`]).
 
+mod active_set;
 pub mod columns;
 pub mod constraint;
 pub mod history;
 pub mod metrics;
 pub mod mortar;
+mod nodes;
 pub mod obstacle;
 pub mod pdas;
 
-use mpi::collective::SystemOperation;
 use mpi::topology::SimpleCommunicator;
-use mpi::traits::*;
 
-use crate::error::{Error, Result};
-use crate::fem::kernels;
+use crate::error::Result;
 use crate::mesh::Mesh;
 use crate::partition::Partition;
 use crate::petsc::{Ksp, Matrix, Vector};
 
 pub use crate::rows::ContactRow;
+pub use active_set::ActiveSetLoop;
+pub use nodes::{trace, ContactBoundary, ContactNodes};
 pub use obstacle::{Obstacle, Obstacles, Shape};
-
-/// The contact boundary as every rank sees it: nodes (original indices, sorted), their
-/// boundary weights `D_qq = int_{Gamma_C} phi_q ds`, and coordinates.
-#[derive(Debug, Clone)]
-pub struct ContactBoundary {
-    pub group: String,
-    pub nodes: Vec<usize>,
-    pub weights: Vec<f64>,
-}
-
-impl ContactBoundary {
-    pub fn build(mesh: &Mesh, group: &str) -> Result<ContactBoundary> {
-        Self::build_groups(mesh, &[group])
-    }
-
-    /// The boundary of several groups (several pairs' slave groups), named by them joined
-    /// with ", "; a facet in two groups counts once, a node on facets of two groups sums them.
-    pub fn build_groups(mesh: &Mesh, groups: &[&str]) -> Result<ContactBoundary> {
-        let mut elems = Vec::new();
-        let mut seen = std::collections::HashSet::new();
-        for g in groups {
-            for e in crate::mesh::topology::boundary_group(mesh, g)? {
-                let mut key = e.nodes().to_vec();
-                key.sort_unstable();
-                if seen.insert(key) {
-                    elems.push(e);
-                }
-            }
-        }
-        let group = groups.join(", ");
-        let mut nodes: Vec<usize> = elems.iter().flat_map(|e| e.nodes().iter().copied()).collect();
-        nodes.sort_unstable();
-        nodes.dedup();
-        let mut slot = std::collections::HashMap::new();
-        for (k, &v) in nodes.iter().enumerate() {
-            slot.insert(v, k);
-        }
-        let mut weights = vec![0.0; nodes.len()];
-        let mut w = [0.0; 4];
-        for e in &elems {
-            let xy = mesh.element_coords(e);
-            let n = e.kind.n_nodes();
-            kernels::boundary_weights(e.kind, &xy, &mut w[..n]);
-            for (i, &v) in e.nodes().iter().enumerate() {
-                weights[slot[&v]] += w[i];
-            }
-        }
-        Ok(ContactBoundary { group, nodes, weights })
-    }
-
-    /// The union of two boundaries that share no node (a pair's slave group and the group
-    /// meeting obstacles beside it), each node with its own group's weight; named after
-    /// `self`. An error names both groups when they share a node.
-    pub fn union(self, other: ContactBoundary, mesh: &Mesh) -> Result<ContactBoundary> {
-        let mut all: Vec<(usize, f64)> =
-            self.nodes.iter().copied().zip(self.weights.iter().copied()).collect();
-        all.extend(other.nodes.iter().copied().zip(other.weights.iter().copied()));
-        all.sort_unstable_by_key(|&(v, _)| v);
-        if let Some(w) = all.windows(2).find(|w| w[0].0 == w[1].0) {
-            return Err(Error::Scene(format!(
-                "contact.boundary = \"{}\" and contact.slave = \"{}\" share gmsh node {}: the group that meets the obstacles must be another part of the boundary than the slave side",
-                other.group, self.group, mesh.node_tags[w[0].0]
-            )));
-        }
-        Ok(ContactBoundary {
-            group: self.group,
-            nodes: all.iter().map(|&(v, _)| v).collect(),
-            weights: all.iter().map(|&(_, w)| w).collect(),
-        })
-    }
-}
 
 /// A contact solver inside the time step: it gets the step's right-hand side and the state at
 /// `t_n`, solves `K du = rhs - factor B^T lambda` with the contact conditions at `t_{n+1}`
@@ -187,7 +122,39 @@ pub struct StepSystem<'a> {
     pub time: f64,
 }
 
-/// The contact solver the options ask for (`-contact_solver pdas|columns`, default pdas).
+/// Which active-set solver meets the rigid obstacles (`-contact_solver`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum ContactSolverKind {
+    /// [`pdas::ActiveSet`]: one solve of the constrained step operator per iteration.
+    #[default]
+    Pdas,
+    /// [`columns::ColumnActiveSet`]: a Schur complement from stored columns (for comparison).
+    Columns,
+}
+
+/// The contact solver's options, as the run read them at set-up
+/// (`run::options::AppOptions::read`).
+#[derive(Debug, Clone)]
+pub struct ContactOptions {
+    /// `-contact_solver pdas|columns` (default `pdas`): the active-set solver against rigid
+    /// obstacles; `columns` is the first wave's, kept for comparison.
+    pub solver: ContactSolverKind,
+    /// `-contact_loose_rtol R` (default: the square root of the step solver's rtol): the
+    /// relative tolerance of the `pdas` solves until the active set repeats (then one solve to
+    /// full accuracy confirms it); at or below the step solver's rtol every solve is exact.
+    pub loose_rtol: Option<f64>,
+    /// `-contact_reference_solve` (default off; benchmark): each `pdas` step is also solved
+    /// without contact, for the cost ratio in the summary.
+    pub reference_solve: bool,
+}
+
+impl Default for ContactOptions {
+    fn default() -> Self {
+        ContactOptions { solver: ContactSolverKind::Pdas, loose_rtol: None, reference_solve: false }
+    }
+}
+
+/// The contact solver `options` ask for (default pdas).
 pub fn solver<'w>(
     world: &'w SimpleCommunicator,
     mesh: &Mesh,
@@ -195,45 +162,19 @@ pub fn solver<'w>(
     boundary: ContactBoundary,
     obstacles: Obstacles,
     factor: f64,
+    options: &ContactOptions,
 ) -> Result<Box<dyn ContactSolver + 'w>> {
     let nodes = ContactNodes::new(world, mesh, part, boundary, obstacles);
-    match crate::petsc::Petsc::options_get_string("-contact_solver")?.as_deref() {
-        None | Some("pdas") => {
+    match options.solver {
+        ContactSolverKind::Pdas => {
             let mut s = pdas::ActiveSet::new(nodes, factor);
             // Until the active set repeats, half the digits of the step solver's tolerance
             // (inexact semismooth Newton); then one solve to full accuracy confirms the set.
-            let loose = crate::petsc::Petsc::options_get_real("-contact_loose_rtol")?;
-            s = s.with_loose_rtol(loose);
-            let measure = crate::petsc::Petsc::options_has("-contact_reference_solve")?;
-            Ok(Box::new(if measure { s.with_reference_solve() } else { s }))
+            s = s.with_loose_rtol(options.loose_rtol);
+            Ok(Box::new(if options.reference_solve { s.with_reference_solve() } else { s }))
         }
-        Some("columns") => Ok(Box::new(columns::ColumnActiveSet::new(nodes, factor))),
-        Some(other) => Err(Error::Usage(format!(
-            "-contact_solver {other}: unknown contact solver (pdas or columns)"
-        ))),
+        ContactSolverKind::Columns => Ok(Box::new(columns::ColumnActiveSet::new(nodes, factor))),
     }
-}
-
-/// Values of a distributed vector at a list of global DOFs `(dof, owned here)`, on every rank:
-/// owners contribute, a sum over ranks assembles them (each DOF has exactly one owner, so the
-/// sum is exact). Collective; `first_dof` is this rank's first owned DOF.
-pub fn trace(
-    world: &SimpleCommunicator,
-    dofs: &[(i32, bool)],
-    first_dof: usize,
-    x: &Vector,
-) -> Result<Vec<f64>> {
-    let mut local = vec![0.0; dofs.len()];
-    x.with_local_slice(|s| {
-        for (i, &(dof, owned)) in dofs.iter().enumerate() {
-            if owned {
-                local[i] = s[dof as usize - first_dof];
-            }
-        }
-    })?;
-    let mut global = vec![0.0; local.len()];
-    world.all_reduce_into(&local[..], &mut global[..], SystemOperation::sum());
-    Ok(global)
 }
 
 /// What the contact solver found in one step (all per contact node, same on every rank).
@@ -259,263 +200,3 @@ pub struct StepContact {
 
 /// A slave node's plane in the mortar basis, `(c_q, n_q)`: `n_q . y_q <= c_q`.
 pub type NodePlane = (f64, [f64; 3]);
-
-/// The contact nodes as every rank sees them: boundary, obstacles, reference positions, gmsh
-/// tags and global DOFs. O(contact nodes) on every rank; no loop over the mesh after `new`.
-pub struct ContactNodes<'w> {
-    pub world: &'w SimpleCommunicator,
-    pub boundary: ContactBoundary,
-    pub obstacles: Obstacles,
-    coords: Vec<[f64; 3]>,
-    pub tags: Vec<u64>,
-    pub dim: usize,
-    /// Global DOF of (contact node k, component c), and whether this rank owns it.
-    pub dofs: Vec<(i32, bool)>,
-    pub first_dof: usize,
-    /// Gap tolerance: penetration below this counts as contact (1e-12 of the size of the
-    /// contact boundary).
-    pub gap_tol: f64,
-    /// The active set of the last step (the next step's first guess).
-    pub active: Vec<bool>,
-    /// Instead of the obstacles, one plane per slave node, `(c_q, n_q)`: node q must keep
-    /// `n_q . y_q <= c_q` (two-body contact in the mortar basis, [`mortar::MortarActiveSet`]).
-    /// `None` for the nodes that meet the obstacles beside a pair (`u~ = u` there).
-    pub node_planes: Option<Vec<Option<NodePlane>>>,
-}
-
-impl<'w> ContactNodes<'w> {
-    pub fn new(
-        world: &'w SimpleCommunicator,
-        mesh: &Mesh,
-        part: &Partition,
-        boundary: ContactBoundary,
-        obstacles: Obstacles,
-    ) -> ContactNodes<'w> {
-        let dim = part.dim;
-        let n = boundary.nodes.len();
-        let mut dofs = Vec::with_capacity(boundary.nodes.len() * dim);
-        for &v in &boundary.nodes {
-            for c in 0..dim {
-                dofs.push((part.dof(v, c) as i32, part.owns(v)));
-            }
-        }
-        let coords: Vec<[f64; 3]> = boundary.nodes.iter().map(|&v| mesh.coords[v]).collect();
-        let (mut lo, mut hi) = ([f64::MAX; 3], [f64::MIN; 3]);
-        for x in &coords {
-            for i in 0..3 {
-                lo[i] = lo[i].min(x[i]);
-                hi[i] = hi[i].max(x[i]);
-            }
-        }
-        let diag = (0..3).map(|i| (hi[i] - lo[i]).max(0.0).powi(2)).sum::<f64>().sqrt();
-        ContactNodes {
-            world,
-            tags: boundary.nodes.iter().map(|&v| mesh.node_tags[v]).collect(),
-            coords,
-            boundary,
-            obstacles,
-            dim,
-            dofs,
-            first_dof: part.first_dof(),
-            gap_tol: 1e-12 * diag.max(f64::MIN_POSITIVE),
-            active: vec![false; n],
-            node_planes: None,
-        }
-    }
-
-    pub fn len(&self) -> usize {
-        self.coords.len()
-    }
-
-    pub fn is_empty(&self) -> bool {
-        self.coords.is_empty()
-    }
-
-    /// Values of a distributed vector at all contact DOFs, on every rank (owners contribute,
-    /// a sum over ranks assembles them: each entry has exactly one owner, so the sum is exact).
-    pub fn trace(&self, x: &Vector) -> Result<Vec<f64>> {
-        trace(self.world, &self.dofs, self.first_dof, x)
-    }
-
-    /// For every contact node at displacement `u` (trace given), with the obstacles placed at
-    /// `time`: the obstacle with the smallest gap (its index), that gap and its normal.
-    fn closest(&self, u_trace: &[f64], time: f64) -> Vec<(usize, f64, [f64; 3])> {
-        let d = self.dim;
-        let placed = self.obstacles.at(time);
-        self.coords
-            .iter()
-            .enumerate()
-            .map(|(k, &x)| {
-                let mut y = x;
-                for c in 0..d {
-                    y[c] += u_trace[k * d + c];
-                }
-                match self.node_planes.as_ref().and_then(|p| p[k]) {
-                    // Index past the obstacles (0 for a pair alone): the pair's plane.
-                    Some((c, n)) => {
-                        (self.obstacles.0.len(), c - (0..d).map(|i| n[i] * y[i]).sum::<f64>(), n)
-                    }
-                    None => obstacle::closest(&placed, y),
-                }
-            })
-            .collect()
-    }
-
-    /// Gaps and normals of all contact nodes at displacement `u` (trace given) against the
-    /// obstacles at `time` (the end of the step: `t_{n+1}`): each node's closest obstacle.
-    pub fn frames(&self, u_trace: &[f64], time: f64) -> Vec<(f64, [f64; 3])> {
-        self.closest(u_trace, time).into_iter().map(|(_, g, n)| (g, n)).collect()
-    }
-
-    /// `n_q . x_q` for every contact node, from a trace.
-    pub fn normal_parts(&self, frames: &[(f64, [f64; 3])], trace: &[f64]) -> Vec<f64> {
-        let d = self.dim;
-        frames
-            .iter()
-            .enumerate()
-            .map(|(p, f)| (0..d).map(|c| f.1[c] * trace[p * d + c]).sum())
-            .collect()
-    }
-
-    /// Contact nodes that penetrate an obstacle at displacement `u` and `time` (beyond the
-    /// tolerance): (mesh node index, obstacle index).
-    pub fn penetrating(&self, u: &Vector, time: f64) -> Result<Vec<(usize, usize)>> {
-        let tr = self.trace(u)?;
-        Ok(self
-            .closest(&tr, time)
-            .iter()
-            .enumerate()
-            .filter(|(_, (_, g, _))| *g < -self.gap_tol)
-            .map(|(k, &(o, _, _))| (self.boundary.nodes[k], o))
-            .collect())
-    }
-
-    /// The contact node closest to an obstacle in the reference configuration at t = 0.
-    /// Of a pair with obstacles beside it: the slave node closest to the master (the node whose
-    /// pressure the paper plots).
-    pub fn lowest(&self) -> usize {
-        let gaps = self.closest(&vec![0.0; self.len() * self.dim], 0.0);
-        let slave = |k: &usize| self.node_planes.as_ref().is_none_or(|p| p[*k].is_some());
-        (0..gaps.len())
-            .filter(slave)
-            .min_by(|&a, &b| {
-                gaps[a]
-                    .1
-                    .partial_cmp(&gaps[b].1)
-                    .unwrap_or(std::cmp::Ordering::Equal)
-                    .then(a.cmp(&b))
-            })
-            .unwrap_or(0)
-    }
-
-    /// The step's contact data from the converged iteration: forces `lambda` (of the
-    /// midpoint equation; zero off the active set), the increment's trace, the frames at `t_n`.
-    pub fn step_contact(
-        &self,
-        frames: &[(f64, [f64; 3])],
-        active: Vec<bool>,
-        lambda: &[f64],
-        du_trace: &[f64],
-        iterations: usize,
-    ) -> StepContact {
-        let nc = self.len();
-        let ndu = self.normal_parts(frames, du_trace);
-        let mut out = StepContact {
-            row: ContactRow {
-                force: vec![0.0; nc],
-                gap: (0..nc).map(|p| frames[p].0 - ndu[p]).collect(),
-                active,
-                iterations,
-            },
-            normals: frames.iter().map(|f| f.1).collect(),
-            work: 0.0,
-            resultant: [0.0; 3],
-            obstacle_force: [0.0; 3],
-            master_force: [0.0; 3],
-            master_nodal: Vec::new(),
-        };
-        for p in 0..nc {
-            if out.row.active[p] {
-                let lam = lambda[p];
-                out.row.force[p] = lam;
-                out.work -= lam * ndu[p];
-                // Beside a pair, the nodes without a plane meet the obstacles.
-                let on_obstacle = self.node_planes.as_ref().is_some_and(|pl| pl[p].is_none());
-                let sum = if on_obstacle { &mut out.obstacle_force } else { &mut out.resultant };
-                for (c, s) in sum.iter_mut().enumerate().take(self.dim) {
-                    *s += lam * frames[p].1[c];
-                }
-            }
-        }
-        out
-    }
-}
-
-/// The active-set loop's bookkeeping, shared by the solvers: the next set from the
-/// complementarity function, convergence, cycle detection and the iteration cap.
-pub struct ActiveSetLoop {
-    history: Vec<Vec<bool>>,
-    pub iterations: usize,
-    max_iterations: usize,
-    step: usize,
-    time: f64,
-}
-
-impl ActiveSetLoop {
-    pub fn new(first: &[bool], max_iterations: usize, step: usize, time: f64) -> ActiveSetLoop {
-        ActiveSetLoop { history: vec![first.to_vec()], iterations: 0, max_iterations, step, time }
-    }
-
-    /// The next active set: an active node stays while its force is not negative (relative
-    /// to the largest force), an inactive node enters when its gap is negative beyond `gap_tol`.
-    pub fn next_set(active: &[bool], force: &[f64], gap: &[f64], gap_tol: f64) -> Vec<bool> {
-        let scale = force.iter().fold(0.0f64, |a, &x| a.max(x.abs()));
-        (0..active.len())
-            .map(|p| if active[p] { force[p] > -1e-12 * scale } else { gap[p] < -gap_tol })
-            .collect()
-    }
-
-    /// Whether the loop has already been at `set`.
-    pub fn seen(&self, set: &[bool]) -> bool {
-        self.history.iter().any(|h| h == set)
-    }
-
-    /// Starts the cycle history anew from `set` (the iterations before were inexact: a
-    /// repeat among them says nothing about the exact ones).
-    pub fn restart(&mut self, set: &[bool]) {
-        self.history = vec![set.to_vec()];
-    }
-
-    /// Counts an iteration that gave `next` from `active`: `Ok(None)` when the set settled,
-    /// `Ok(Some(next))` to iterate again, an error when it cycles or hits the cap.
-    pub fn advance(
-        &mut self,
-        active: &[bool],
-        next: Vec<bool>,
-        tags: &[u64],
-    ) -> Result<Option<Vec<bool>>> {
-        self.iterations += 1;
-        if next == active {
-            return Ok(None);
-        }
-        let (step, time) = (self.step, self.time);
-        if self.history.contains(&next) {
-            let flips: Vec<String> = (0..next.len())
-                .filter(|&k| next[k] != active[k])
-                .map(|k| tags[k].to_string())
-                .collect();
-            return Err(Error::Solver(format!(
-                "contact at step {step} (t = {time:e}): the active set cycles; gmsh nodes {} flip",
-                flips.join(", ")
-            )));
-        }
-        if self.iterations >= self.max_iterations {
-            return Err(Error::Solver(format!(
-                "contact at step {step} (t = {time:e}): the active set did not settle in {} iterations",
-                self.max_iterations
-            )));
-        }
-        self.history.push(next.clone());
-        Ok(Some(next))
-    }
-}

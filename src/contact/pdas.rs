@@ -84,11 +84,6 @@ impl<'w> ActiveSet<'w> {
     pub fn nodes_mut(&mut self) -> &mut ContactNodes<'w> {
         &mut self.nodes
     }
-
-    /// Operator rewrites so far.
-    pub fn operator_updates(&self) -> usize {
-        self.constraints.as_ref().map_or(0, |c| c.updates)
-    }
 }
 
 impl ContactSolver for ActiveSet<'_> {

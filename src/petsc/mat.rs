@@ -204,9 +204,8 @@ impl Matrix {
         x: Option<&Vector>,
         b: Option<&mut Vector>,
     ) -> Result<()> {
-        let (n, xr, br) = zero_rows_args(rows, x, b, "Matrix::zero_rows_columns rows")?;
-        // SAFETY: valid handles or null (allowed by PETSc); `rows` holds n entries.
-        chk!(ffi::MatZeroRowsColumns(self.m, n, rows.as_ptr(), diag, xr, br))
+        let what = "Matrix::zero_rows_columns rows";
+        self.zero(ffi::MatZeroRowsColumns, "MatZeroRowsColumns", what, rows, diag, x, b)
     }
 
     /// Like [`zero_rows_columns`](Matrix::zero_rows_columns) but keeps the columns (breaks
@@ -218,9 +217,28 @@ impl Matrix {
         x: Option<&Vector>,
         b: Option<&mut Vector>,
     ) -> Result<()> {
-        let (n, xr, br) = zero_rows_args(rows, x, b, "Matrix::zero_rows rows")?;
+        self.zero(ffi::MatZeroRows, "MatZeroRows", "Matrix::zero_rows rows", rows, diag, x, b)
+    }
+
+    /// The body of both: `zero` is `MatZeroRows` or `MatZeroRowsColumns` (named `call` in
+    /// errors); `what` names the row count if it does not fit a `PetscInt`.
+    #[allow(clippy::too_many_arguments)]
+    fn zero(
+        &mut self,
+        zero: ZeroRows,
+        call: &str,
+        what: &str,
+        rows: &[i32],
+        diag: f64,
+        x: Option<&Vector>,
+        b: Option<&mut Vector>,
+    ) -> Result<()> {
+        let n = to_int(rows.len(), what)?;
+        let xr = x.map_or(ptr::null_mut(), Vector::raw);
+        let br = b.map_or(ptr::null_mut(), |b| b.raw());
         // SAFETY: valid handles or null (allowed by PETSc); `rows` holds n entries.
-        chk!(ffi::MatZeroRows(self.m, n, rows.as_ptr(), diag, xr, br))
+        let code = unsafe { zero(self.m, n, rows.as_ptr(), diag, xr, br) };
+        super::conv::check(code, call, file!(), line!())
     }
 
     /// `d = diag(A)`.
@@ -400,13 +418,12 @@ impl Drop for NullSpace {
     }
 }
 
-/// The row count and the optional vectors of `MatZeroRows*` as PETSc takes them (null = absent).
-fn zero_rows_args(
-    rows: &[i32],
-    x: Option<&Vector>,
-    b: Option<&mut Vector>,
-    what: &str,
-) -> Result<(ffi::PetscInt, ffi::Vec, ffi::Vec)> {
-    let n = to_int(rows.len(), what)?;
-    Ok((n, x.map_or(ptr::null_mut(), Vector::raw), b.map_or(ptr::null_mut(), |b| b.raw())))
-}
+/// The signature shared by `MatZeroRows` and `MatZeroRowsColumns`.
+type ZeroRows = unsafe extern "C" fn(
+    ffi::Mat,
+    ffi::PetscInt,
+    *const ffi::PetscInt,
+    ffi::PetscScalar,
+    ffi::Vec,
+    ffi::Vec,
+) -> ffi::PetscErrorCode;

@@ -45,7 +45,7 @@ use crate::rows::Energy;
 use crate::scene::{MeshSource, Scene};
 use crate::time::Midpoint;
 pub use domain::Domain;
-pub use options::RunOptions;
+pub use options::{AppOptions, RunOptions};
 use output::{ContactStep, RunOutput};
 use physics::{LoadsAt, Physics};
 use record::{Record, SetupFacts};
@@ -59,6 +59,8 @@ pub struct Simulation<'a> {
     console: &'a Console,
     pub domain: Domain<'a>,
     opts: RunOptions,
+    /// The application's options (`-contact_*`, `-mortar_*`, `-massless_*`), read at set-up.
+    app: AppOptions,
     timings: Timings,
     output: RunOutput,
     views: Views<'a>,
@@ -108,6 +110,11 @@ impl<'a> Simulation<'a> {
         let size = world.size() as usize;
         let output = RunOutput::create(world, &scene, &opts)?;
         let parts = guard(|| {
+            // The options, read once: the scene's PETSc options entered where the command line
+            // did not set them, the program's solver defaults, then every application option.
+            options::apply_scene_options(&scene.solver.options)?;
+            options::enter_solver_defaults()?;
+            let app = AppOptions::read()?;
             phase::enter(Phase::Meshing);
             let t0 = Instant::now();
             let mesh = load_mesh(world, &scene)?;
@@ -125,10 +132,12 @@ impl<'a> Simulation<'a> {
                 partition: max_over_ranks(world, t_part),
                 ..Default::default()
             };
-            Ok((mesh, part, timings, bodies))
+            Ok((mesh, part, timings, bodies, app))
         });
-        let (mesh, part, timings, bodies) = match parts {
-            Ok((mesh, part, timings, bodies)) => (Rc::new(mesh), Rc::new(part), timings, bodies),
+        let (mesh, part, timings, bodies, app) = match parts {
+            Ok((mesh, part, timings, bodies, app)) => {
+                (Rc::new(mesh), Rc::new(part), timings, bodies, app)
+            }
             Err(e) => {
                 output.fail(world, agree, &e);
                 return Err(e);
@@ -138,7 +147,18 @@ impl<'a> Simulation<'a> {
         let views = Views::new(world, Rc::clone(&mesh), Rc::clone(&part));
         let stress = StressFields::new(world, Rc::clone(&mesh), Rc::clone(&part));
         let domain = Domain { world, scene, bodies, mesh, part, rank, size, n_steps };
-        Ok(Simulation { agree, console, domain, opts, timings, output, views, stress, layer: None })
+        Ok(Simulation {
+            agree,
+            console,
+            domain,
+            opts,
+            app,
+            timings,
+            output,
+            views,
+            stress,
+            layer: None,
+        })
     }
 
     /// The run after `setup`, top to bottom. On an error (or a signal) in any step the output
@@ -210,7 +230,7 @@ impl<'a> Simulation<'a> {
         self.console.say(d.effects());
         phase::enter(Phase::Assembling);
         let t0 = Instant::now();
-        let physics = Physics::assemble(d, self.console)?;
+        let physics = Physics::assemble(d, &self.app, self.console)?;
         self.timings.assembly = max_over_ranks(d.world, t0.elapsed().as_secs_f64());
         let layer = physics.layer.as_ref();
         let mass_check = diagnostics::check_mass(d, &mut self.views, &physics.m, layer)?;
@@ -227,7 +247,9 @@ impl<'a> Simulation<'a> {
         phase::enter(Phase::SolverSetup);
         let t1 = Instant::now();
         let Physics { a, m, dirichlet, layer, mut contact, loads } = physics;
-        let (op, cfl) = start::step_operator(d, console, &m, &a, &dirichlet, contact.is_some())?;
+        let with_contact = contact.is_some();
+        let (op, cfl) =
+            start::step_operator(d, &self.app, console, &m, &a, &dirichlet, with_contact)?;
         if let Some(c) = contact.as_mut() {
             c.prepare(&op.k)?;
         }
@@ -241,17 +263,7 @@ impl<'a> Simulation<'a> {
         };
         // The energy correction of contact steps with massless DOFs (on unless
         // `-massless_energy_correction false`).
-        let correct = match crate::petsc::Petsc::options_get_string("-massless_energy_correction")?
-            .as_deref()
-        {
-            None | Some("1" | "true" | "yes") => true,
-            Some("0" | "false" | "no") => false,
-            Some(other) => {
-                return Err(Error::Usage(format!(
-                    "-massless_energy_correction {other}: give true or false"
-                )))
-            }
-        };
+        let correct = self.app.massless_energy_correction;
         midpoint.configure_massless(correct, d.part.dim, diagnostics::node_bodies(d))?;
         let restart = match &self.opts.restart {
             Some(path) => Some(start::restore(

@@ -1,8 +1,16 @@
-//! The options of a run, read once at set-up: what the command line adds to a scene
-//! ([`RunOptions`]).
+//! The options of a run, read once at set-up (like PETSc tutorials' `ProcessOptions`): what
+//! the command line's flags add to a scene ([`RunOptions`]), and the application's own
+//! options after `--` (`massfree run SCENE -- -name value`, [`AppOptions`]), which live in
+//! PETSc's options database beside PETSc's. [`AppOptions::read`] is the one place that reads
+//! them; the run passes the parts down (the contact solver, the mortar pair, the step solver,
+//! the integrator), so that nothing below the run looks an option up.
 
 use std::path::PathBuf;
 
+use crate::contact::mortar::{MortarOptions, NormalKind};
+use crate::contact::{ContactOptions, ContactSolverKind};
+use crate::error::{Error, Result};
+use crate::petsc::Petsc;
 use crate::phase::HangTimeout;
 
 /// What the command line adds to a scene.
@@ -24,4 +32,139 @@ pub struct RunOptions {
     pub petsc_args: Vec<String>,
     /// When the watchdog ends a rank that waits for the others (a collective that hangs).
     pub hang_timeout: Option<HangTimeout>,
+}
+
+/// The scene's extra PETSc options (`solver.options`), entered only where the command line did
+/// not set the same option: the command line wins.
+pub fn apply_scene_options(tokens: &[String]) -> Result<()> {
+    let mut i = 0;
+    while i < tokens.len() {
+        let name = &tokens[i];
+        if !name.starts_with('-') || name.parse::<f64>().is_ok() {
+            return Err(Error::Scene(format!(
+                "solver.options: expected an option name starting with '-', found \"{name}\""
+            )));
+        }
+        let value = tokens
+            .get(i + 1)
+            .filter(|v| !v.starts_with('-') || v.parse::<f64>().is_ok())
+            .map(|v| v.as_str());
+        i += if value.is_some() { 2 } else { 1 };
+        if !Petsc::options_has(name)? {
+            Petsc::options_set(name, value)?;
+        }
+    }
+    Ok(())
+}
+
+/// Defaults the program enters in PETSc's options database for the step solver, where neither
+/// the command line nor the scene set them (so that they also hold for a solver chosen there,
+/// and can still be turned off): `-step_pc_gamg_reuse_interpolation true`. A contact solver
+/// rewrites the operator near the contact when the active set changes; GAMG then keeps its
+/// hierarchy's interpolation and recomputes only the coarse operators.
+pub fn enter_solver_defaults() -> Result<()> {
+    let reuse = "pc_gamg_reuse_interpolation";
+    if !Petsc::options_has(&format!("-{reuse}"))? && !Petsc::options_has(&format!("-step_{reuse}"))?
+    {
+        Petsc::options_set(&format!("-step_{reuse}"), Some("true"))?;
+    }
+    Ok(())
+}
+
+/// Every application option of a run, with the defaults of options not given.
+#[derive(Debug, Clone)]
+pub struct AppOptions {
+    /// The contact solver against rigid obstacles: `-contact_solver`, `-contact_loose_rtol`,
+    /// `-contact_reference_solve`.
+    pub contact: ContactOptions,
+    /// The two-body (mortar) pairs: `-mortar_update_distance`, `-mortar_update_in_contact`,
+    /// `-mortar_normal`.
+    pub mortar: MortarOptions,
+    /// `-massless_energy_correction true|false` (also `1|0`, `yes|no`; default true): with
+    /// massless DOFs, a contact step whose active set changed gets the force that takes out
+    /// the work the contact did (`time::Midpoint::correct_energy`).
+    pub massless_energy_correction: bool,
+    /// `-ksp_reuse_preconditioner` or `-step_ksp_reuse_preconditioner` given (PETSc's own
+    /// options; default not given): PETSc's value holds. Without them a multigrid step
+    /// preconditioner is built once and kept when the contact rewrites the operator.
+    pub user_reuse_preconditioner: bool,
+}
+
+impl AppOptions {
+    /// The options as the database holds them: the command line's, then the scene's
+    /// `[solver] options` where the command line did not set the same name
+    /// ([`apply_scene_options`], called first). A bad value is an error naming the option.
+    pub fn read() -> Result<AppOptions> {
+        Ok(AppOptions {
+            contact: ContactOptions {
+                solver: contact_solver(Petsc::options_get_string("-contact_solver")?.as_deref())?,
+                loose_rtol: Petsc::options_get_real("-contact_loose_rtol")?,
+                reference_solve: Petsc::options_has("-contact_reference_solve")?,
+            },
+            mortar: MortarOptions {
+                update_distance: Petsc::options_get_real("-mortar_update_distance")?,
+                update_in_contact: Petsc::options_has("-mortar_update_in_contact")?,
+                normal: mortar_normal(Petsc::options_get_string("-mortar_normal")?)?,
+            },
+            massless_energy_correction: massless_energy_correction(
+                Petsc::options_get_string("-massless_energy_correction")?.as_deref(),
+            )?,
+            user_reuse_preconditioner: Petsc::options_has("-ksp_reuse_preconditioner")?
+                || Petsc::options_has("-step_ksp_reuse_preconditioner")?,
+        })
+    }
+}
+
+fn contact_solver(value: Option<&str>) -> Result<ContactSolverKind> {
+    match value {
+        None | Some("pdas") => Ok(ContactSolverKind::Pdas),
+        Some("columns") => Ok(ContactSolverKind::Columns),
+        Some(other) => Err(Error::Usage(format!(
+            "-contact_solver {other}: unknown contact solver (pdas or columns)"
+        ))),
+    }
+}
+
+fn mortar_normal(value: Option<String>) -> Result<NormalKind> {
+    match value {
+        None => Ok(NormalKind::Slave),
+        Some(s) => NormalKind::parse(&s).ok_or_else(|| {
+            Error::Scene(format!("-mortar_normal {s}: give slave (the default) or average"))
+        }),
+    }
+}
+
+fn massless_energy_correction(value: Option<&str>) -> Result<bool> {
+    match value {
+        None | Some("1" | "true" | "yes") => Ok(true),
+        Some("0" | "false" | "no") => Ok(false),
+        Some(other) => {
+            Err(Error::Usage(format!("-massless_energy_correction {other}: give true or false")))
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn values_parse_with_their_defaults() {
+        assert_eq!(contact_solver(None), Ok(ContactSolverKind::Pdas));
+        assert_eq!(contact_solver(Some("columns")), Ok(ContactSolverKind::Columns));
+        assert_eq!(mortar_normal(None), Ok(NormalKind::Slave));
+        assert_eq!(mortar_normal(Some("average".into())), Ok(NormalKind::Average));
+        assert_eq!(massless_energy_correction(None), Ok(true));
+        assert_eq!(massless_energy_correction(Some("no")), Ok(false));
+    }
+
+    #[test]
+    fn bad_values_name_the_option() {
+        let e = contact_solver(Some("x")).unwrap_err().to_string();
+        assert_eq!(e, "usage error: -contact_solver x: unknown contact solver (pdas or columns)");
+        let e = mortar_normal(Some("x".into())).unwrap_err().to_string();
+        assert_eq!(e, "scene error: -mortar_normal x: give slave (the default) or average");
+        let e = massless_energy_correction(Some("")).unwrap_err().to_string();
+        assert_eq!(e, "usage error: -massless_energy_correction : give true or false");
+    }
 }

@@ -6,6 +6,7 @@
 use std::rc::Rc;
 
 use super::domain::Domain;
+use super::options::AppOptions;
 use crate::assembly::{self, Loads};
 use crate::console::Console;
 use crate::contact::{self, ContactBoundary, ContactSolver, Obstacles};
@@ -31,7 +32,7 @@ pub struct Physics<'a> {
 impl<'a> Physics<'a> {
     /// Stiffness, mass, the mass-free layer, loads, Dirichlet data and the contact solver.
     /// Collective.
-    pub fn assemble(d: &Domain<'a>, console: &Console) -> Result<Physics<'a>> {
+    pub fn assemble(d: &Domain<'a>, app: &AppOptions, console: &Console) -> Result<Physics<'a>> {
         let (mesh, part, bodies) = (&d.mesh, &d.part, &d.bodies);
         let a = assembly::assemble_matrix(mesh, part, |c, xy, out| {
             kernels::stiffness(mesh.cells[c].kind, xy, bodies.material(c), out)
@@ -49,8 +50,8 @@ impl<'a> Physics<'a> {
             d.scene.neumann.iter().map(|n| (n.group.clone(), n.traction.clone())).collect();
         let loads = Loads::new(mesh, part, d.scene.body_force.as_ref(), &neumann)?;
         let dirichlet = Dirichlet::new(mesh, part, &d.scene.dirichlet)?;
-        let contact = contact_solver(d)?;
-        warn_finite_sliding_without_mass(d, console)?;
+        let contact = contact_solver(d, app)?;
+        warn_finite_sliding_without_mass(d, app.mortar.update_in_contact, console);
         let loads = LoadsAt::new(
             loads,
             Rc::clone(&d.mesh),
@@ -64,7 +65,10 @@ impl<'a> Physics<'a> {
 
 /// The contact solver of the scene: dual mortar for slave/master pairs (with the obstacles
 /// beside them), the active set against rigid obstacles, none without `[contact]`.
-fn contact_solver<'a>(d: &Domain<'a>) -> Result<Option<Box<dyn ContactSolver + 'a>>> {
+fn contact_solver<'a>(
+    d: &Domain<'a>,
+    app: &AppOptions,
+) -> Result<Option<Box<dyn ContactSolver + 'a>>> {
     Ok(match &d.scene.contact {
         Some(spec) if !spec.pairs.is_empty() => Some(contact::mortar::pair_solver(
             d.world,
@@ -73,6 +77,7 @@ fn contact_solver<'a>(d: &Domain<'a>) -> Result<Option<Box<dyn ContactSolver + '
             &spec.pairs,
             spec.obstacle_boundary().map(|g| (g, Obstacles::from_scene(&spec.obstacles))),
             Midpoint::CONTACT_FORCE_FACTOR,
+            &app.mortar,
         )?),
         Some(spec) => Some(contact::solver(
             d.world,
@@ -81,6 +86,7 @@ fn contact_solver<'a>(d: &Domain<'a>) -> Result<Option<Box<dyn ContactSolver + '
             ContactBoundary::build(&d.mesh, spec.boundary.as_deref().unwrap_or_default())?,
             Obstacles::from_scene(&spec.obstacles),
             Midpoint::CONTACT_FORCE_FACTOR,
+            &app.contact,
         )?),
         None => None,
     })
@@ -92,17 +98,16 @@ fn contact_solver<'a>(d: &Domain<'a>) -> Result<Option<Box<dyn ContactSolver + '
 /// interface nodes nothing holds that back when the updates come often (measured on the two
 /// discs: stable with updates 0.003 or more apart, the energy grows at 0.002). Said once, on
 /// rank 0, as a warning: the run goes on.
-fn warn_finite_sliding_without_mass(d: &Domain, console: &Console) -> Result<()> {
-    let Some(spec) = &d.scene.contact else { return Ok(()) };
-    let Some((_, groups)) = &d.bodies.layer else { return Ok(()) };
+fn warn_finite_sliding_without_mass(d: &Domain, update_in_contact: bool, console: &Console) {
+    let Some(spec) = &d.scene.contact else { return };
+    let Some((_, groups)) = &d.bodies.layer else { return };
     let massless =
         spec.pairs.iter().any(|p| groups.iter().any(|g| *g == p.slave || *g == p.master));
-    if massless && crate::petsc::Petsc::options_has("-mortar_update_in_contact")? {
+    if massless && update_in_contact {
         console.warn(
             "-mortar_update_in_contact with the mass-free layer on a pair: frequent in-contact updates can make the energy grow (no consistent linearization); keep -mortar_update_distance at its default or larger and watch the energy balance",
         );
     }
-    Ok(())
 }
 
 /// Rigid-body modes from the owned nodes' coordinates (the near null space of `A`, for

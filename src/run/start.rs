@@ -6,6 +6,7 @@
 use std::path::Path;
 
 use super::domain::Domain;
+use super::options::AppOptions;
 use super::views::Views;
 use super::{diagnostics, physics};
 use crate::assembly;
@@ -13,7 +14,7 @@ use crate::console::Console;
 use crate::contact::ContactSolver;
 use crate::error::{Error, Result};
 use crate::io::{natural_range, read_checkpoint, Checkpoint};
-use crate::petsc::{Matrix, Petsc};
+use crate::petsc::Matrix;
 use crate::time::{Dirichlet, Energy, Forces, Midpoint, StepOperator, StepSolverDefaults};
 
 /// The step operator `K = 4/tau^2 M + A` and its solver, set up once. The solver's defaults
@@ -21,6 +22,7 @@ use crate::time::{Dirichlet, Energy, Forces, Midpoint, StepOperator, StepSolverD
 /// line still win.
 pub fn step_operator(
     d: &Domain,
+    app: &AppOptions,
     console: &Console,
     m: &Matrix,
     a: &Matrix,
@@ -40,7 +42,7 @@ pub fn step_operator(
     if let Some(r) = solver.rtol {
         defaults.rtol = r;
     }
-    apply_scene_options(&solver.options)?;
+    defaults.user_reuse_preconditioner = app.user_reuse_preconditioner;
     let op = StepOperator::new(
         m,
         a,
@@ -58,29 +60,6 @@ pub fn step_operator(
     };
     console.say(format!("step solver: {ksp_type} + {pc_type} ({chosen})"));
     Ok((op, regime.cfl))
-}
-
-/// The scene's extra PETSc options (`solver.options`), entered only where the command line did
-/// not set the same option: the command line wins.
-fn apply_scene_options(tokens: &[String]) -> Result<()> {
-    let mut i = 0;
-    while i < tokens.len() {
-        let name = &tokens[i];
-        if !name.starts_with('-') || name.parse::<f64>().is_ok() {
-            return Err(Error::Scene(format!(
-                "solver.options: expected an option name starting with '-', found \"{name}\""
-            )));
-        }
-        let value = tokens
-            .get(i + 1)
-            .filter(|v| !v.starts_with('-') || v.parse::<f64>().is_ok())
-            .map(|v| v.as_str());
-        i += if value.is_some() { 2 } else { 1 };
-        if !Petsc::options_has(name)? {
-            Petsc::options_set(name, value)?;
-        }
-    }
-    Ok(())
 }
 
 /// The initial state: the nodal interpolants of the scene's initial displacement and

@@ -3,7 +3,7 @@
 //! `KSPSetFromOptions`, then the `step_` prefix).
 
 use crate::error::Result;
-use crate::petsc::{Ksp, Matrix, NullSpace, Pattern, Petsc};
+use crate::petsc::{Ksp, Matrix, NullSpace, Pattern};
 
 /// Solver defaults for the step operator, applied before `KSPSetFromOptions` so that the
 /// command line wins: plain `-ksp_*`/`-pc_*` options, and `-step_ksp_*`/`-step_pc_*` over them.
@@ -13,6 +13,10 @@ pub struct StepSolverDefaults {
     pub pc_type: String,
     pub rtol: f64,
     pub factor_solver: Option<String>,
+    /// The command line or the scene set `-ksp_reuse_preconditioner` or
+    /// `-step_ksp_reuse_preconditioner`: PETSc's value holds (else a multigrid preconditioner
+    /// is kept, see [`StepOperator::new`]).
+    pub user_reuse_preconditioner: bool,
 }
 
 /// How stiff a step is: the CFL number `c_p tau / h_min` of the pressure wave,
@@ -69,6 +73,7 @@ impl Default for StepSolverDefaults {
             pc_type: "jacobi".into(),
             rtol: 1e-10,
             factor_solver: None,
+            user_reuse_preconditioner: false,
         }
     }
 }
@@ -119,16 +124,6 @@ impl StepOperator {
         if let Some(s) = &defaults.factor_solver {
             ksp.set_pc_factor_solver_type(s)?;
         }
-        // A contact solver rewrites the operator near the contact when the active set changes:
-        // GAMG then keeps its hierarchy's interpolation and recomputes only the coarse
-        // operators. A default in the options database, so that it also holds for a GAMG
-        // chosen on the command line, and the command line can still turn it off.
-        let reuse = "pc_gamg_reuse_interpolation";
-        if !Petsc::options_has(&format!("-{reuse}"))?
-            && !Petsc::options_has(&format!("-step_{reuse}"))?
-        {
-            Petsc::options_set(&format!("-step_{reuse}"), Some("true"))?;
-        }
         ksp.set_tolerances(Some(defaults.rtol), Some(1e-50), None, Some(10_000))?;
         ksp.set_from_options()?;
         ksp.set_options_prefix("step_")?;
@@ -138,10 +133,7 @@ impl StepOperator {
         // operators at every active-set change cost more than the few extra iterations
         // (README "Step solver by regime"). `-step_ksp_reuse_preconditioner false` rebuilds.
         let multigrid = matches!(ksp.pc_type()?.as_str(), "gamg" | "hypre" | "ml" | "mg");
-        if multigrid
-            && !Petsc::options_has("-ksp_reuse_preconditioner")?
-            && !Petsc::options_has("-step_ksp_reuse_preconditioner")?
-        {
+        if multigrid && !defaults.user_reuse_preconditioner {
             ksp.set_reuse_preconditioner(true)?;
         }
         // The previous step's increment is a good first guess for an iterative solver (du

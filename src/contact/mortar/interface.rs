@@ -101,33 +101,10 @@ pub struct MortarInterface {
 
 impl MortarInterface {
     /// Evaluates the pair on the configuration `x` (the position of a mesh node, e.g.
-    /// reference + `u`; asked only for the pair's nodes).
+    /// reference + `u`; asked only for the pair's nodes) with the normal field `normal`.
     /// `reach`: master facets farther than this from a slave facet are not considered (the
-    /// search inflates the facets' boxes by it). Collective.
-    pub fn build(
-        world: &SimpleCommunicator,
-        mesh: &Mesh,
-        part: &Partition,
-        slave_facets: &[SurfaceFacet],
-        master_facets: &[SurfaceFacet],
-        x: &dyn Fn(usize) -> [f64; 3],
-        reach: f64,
-    ) -> Result<MortarInterface> {
-        Self::build_timed(
-            world,
-            mesh,
-            part,
-            slave_facets,
-            master_facets,
-            x,
-            reach,
-            NormalKind::Slave,
-        )
-        .map(|r| r.0)
-    }
-
-    /// [`MortarInterface::build`] with the normal field `normal`, and this rank's wall time of
-    /// the bucket search (seconds).
+    /// search inflates the facets' boxes by it). Collective. Also returns this rank's wall
+    /// time of the bucket search (seconds).
     #[allow(clippy::too_many_arguments)]
     pub fn build_timed(
         world: &SimpleCommunicator,

@@ -500,6 +500,33 @@ impl ContactSolver for MortarActiveSet<'_> {
     }
 }
 
+/// The mortar pair's options, as the run read them at set-up
+/// (`run::options::AppOptions::read`).
+#[derive(Debug, Clone)]
+pub struct MortarOptions {
+    /// `-mortar_update_distance D` (default: a tenth of the smallest slave facet): while no node
+    /// is in contact, the interface is evaluated again once an interface node has moved
+    /// farther than `D` since the last evaluation; `inf`: the reference configuration only.
+    pub update_distance: Option<f64>,
+    /// `-mortar_update_in_contact` (default off: small sliding, the interface is kept through
+    /// the contact): evaluate it again in contact too (finite sliding).
+    pub update_in_contact: bool,
+    /// `-mortar_normal slave|average` (default `slave`): the normal field of the gaps and
+    /// projections, the slave side's averaged nodal normals or, in 2D, halfway between them
+    /// and the master's across.
+    pub normal: super::NormalKind,
+}
+
+impl Default for MortarOptions {
+    fn default() -> Self {
+        MortarOptions {
+            update_distance: None,
+            update_in_contact: false,
+            normal: super::NormalKind::Slave,
+        }
+    }
+}
+
 /// The contact solver of slave/master pairs of deformable bodies: the interface evaluated
 /// on the reference configuration and again, while no node is in contact, whenever an
 /// interface node has moved farther than the update distance since the last evaluation; the
@@ -516,6 +543,7 @@ pub fn pair_solver<'w>(
     pairs: &[crate::scene::ContactPair],
     beside: Option<(&str, crate::contact::Obstacles)>,
     factor: f64,
+    options: &MortarOptions,
 ) -> Result<Box<dyn ContactSolver + 'w>> {
     if pairs.len() > 64 {
         return Err(Error::Scene(format!("contact.pairs has {} pairs: at most 64", pairs.len())));
@@ -550,15 +578,9 @@ pub fn pair_solver<'w>(
     };
     let reach = sf.iter().map(size).fold(0.0, f64::max);
     let smallest = sf.iter().map(size).fold(f64::MAX, f64::min);
-    let update_distance =
-        crate::petsc::Petsc::options_get_real("-mortar_update_distance")?.unwrap_or(0.1 * smallest);
-    let update_in_contact = crate::petsc::Petsc::options_has("-mortar_update_in_contact")?;
-    let normal = match crate::petsc::Petsc::options_get_string("-mortar_normal")? {
-        None => super::NormalKind::Slave,
-        Some(s) => super::NormalKind::parse(&s).ok_or_else(|| {
-            Error::Scene(format!("-mortar_normal {s}: give slave (the default) or average"))
-        })?,
-    };
+    let update_distance = options.update_distance.unwrap_or(0.1 * smallest);
+    let update_in_contact = options.update_in_contact;
+    let normal = options.normal;
     if normal == super::NormalKind::Average && part.dim != 2 {
         return Err(Error::Scene("-mortar_normal average is built for 2D meshes only".into()));
     }
