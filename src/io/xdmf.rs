@@ -27,7 +27,8 @@
 use std::fmt::Write as _;
 use std::path::Path;
 
-use super::{layout, FieldSpec, Location};
+use super::layout;
+use crate::rows::{FieldSpec, Location};
 use crate::error::{Error, Result};
 use crate::mesh::ElementKind;
 
