@@ -9,7 +9,10 @@
 //! vectors per node ever active and the dense systems O(active^2), which is why
 //! [`super::pdas`] is the default.
 
-use super::{ActiveSetLoop, ContactNodes, ContactSolver, StepContact, StepSystem};
+use super::active_set::ActiveSetLoop;
+use super::interface::ContactSolver;
+use super::nodes::ContactNodes;
+use super::step::{StepContact, StepSystem};
 use crate::error::{Error, Result};
 use crate::petsc::{Ksp, Vector};
 

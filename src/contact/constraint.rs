@@ -25,7 +25,7 @@ use std::collections::HashMap;
 use mpi::collective::SystemOperation;
 use mpi::traits::*;
 
-use super::ContactNodes;
+use super::nodes::ContactNodes;
 use crate::error::{Error, Result};
 use crate::petsc::{Matrix, Vector};
 

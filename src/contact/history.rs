@@ -2,9 +2,11 @@
 //! and its summary: contact period, active-set iterations, peak pressure, chatter metrics,
 //! energy and momentum balance across the impact.
 
+use super::interface::ContactSolver;
 use super::metrics::{contact_period, episodes, osc2, tv_index};
-use super::{ContactRow, ContactSolver, StepContact};
+use super::step::StepContact;
 use crate::mesh::Mesh;
+use crate::rows::ContactRow;
 
 #[derive(Debug, Default)]
 pub struct History {
@@ -72,10 +74,10 @@ pub struct ContactSummary {
     /// Schur-complement column solves are not counted).
     pub ksp_iterations_contact_steps: usize,
     /// The contact steps against one plain solve each (`-contact_reference_solve` only).
-    pub reference: Option<super::pdas::ReferenceCost>,
+    pub reference: Option<super::cost::ReferenceCost>,
     /// The mortar interface's cost (two-body pairs; wall times the largest over the ranks).
     #[serde(default)]
-    pub mortar: Option<super::mortar::MortarCost>,
+    pub mortar: Option<super::cost::MortarCost>,
 }
 
 impl History {

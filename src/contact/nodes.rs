@@ -7,12 +7,14 @@ use mpi::collective::SystemOperation;
 use mpi::topology::SimpleCommunicator;
 use mpi::traits::*;
 
-use super::{obstacle, ContactRow, NodePlane, Obstacles, StepContact};
+use super::obstacle::{self, Obstacles};
+use super::step::{NodePlane, StepContact};
 use crate::error::{Error, Result};
 use crate::fem::kernels;
 use crate::mesh::Mesh;
 use crate::partition::Partition;
 use crate::petsc::Vector;
+use crate::rows::ContactRow;
 
 /// The contact boundary as every rank sees it: nodes (original indices, sorted), their
 /// boundary weights `D_qq = int_{Gamma_C} phi_q ds`, and coordinates.

@@ -10,8 +10,12 @@
 //! operator is rewritten, and the preconditioner rebuilt by PETSc, only when the set or an
 //! active node's normal changes.
 
+use super::active_set::ActiveSetLoop;
 use super::constraint::NormalConstraints;
-use super::{ActiveSetLoop, ContactNodes, ContactSolver, StepContact, StepSystem};
+pub use super::cost::ReferenceCost;
+use super::interface::ContactSolver;
+use super::nodes::ContactNodes;
+use super::step::{StepContact, StepSystem};
 use std::time::Instant;
 
 use crate::error::Result;
@@ -34,22 +38,6 @@ pub struct ActiveSet<'w> {
     extra_solves: usize,
     /// With `-contact_reference_solve` (benchmark): each step's plain solve, for the cost ratio.
     reference: Option<ReferenceCost>,
-}
-
-/// The cost of the contact steps against one plain solve of the same step (the unconstrained
-/// operator, the same right-hand side and first guess), summed over the steps that end with
-/// an active node. Measured only with `-contact_reference_solve`; the plain solve's result is
-/// discarded.
-#[derive(Debug, Clone, Copy, Default, serde::Serialize, serde::Deserialize)]
-pub struct ReferenceCost {
-    pub steps: usize,
-    pub plain_ksp_iterations: usize,
-    pub plain_seconds: f64,
-    /// Every solve of the active-set loop, and the operator rewrites between them.
-    pub contact_ksp_iterations: usize,
-    pub contact_seconds: f64,
-    /// The plain solves of every step (to take them out of the run's time).
-    pub plain_seconds_all_steps: f64,
 }
 
 impl<'w> ActiveSet<'w> {

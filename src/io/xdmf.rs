@@ -28,9 +28,9 @@ use std::fmt::Write as _;
 use std::path::Path;
 
 use super::layout;
-use crate::rows::{FieldSpec, Location};
 use crate::error::{Error, Result};
 use crate::mesh::ElementKind;
+use crate::rows::{FieldSpec, Location};
 
 /// What the XDMF file describes.
 pub struct XdmfLayout<'a> {

@@ -1,6 +1,7 @@
 //! Dual (biorthogonal) shape functions on slave facets and averaged nodal normals.
 
-use super::*;
+use super::facet::{shape_line2, Facet2, Facet3};
+use super::geom::*;
 use crate::fem::quadrature::gauss_legendre;
 
 // ------------------------------------------------------------------------------------------

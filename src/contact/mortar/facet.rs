@@ -1,6 +1,6 @@
 //! Facet quadrature, shape functions and geometry (line2 in 2D, tri3 and quad4 in 3D).
 
-use super::*;
+use super::geom::*;
 use crate::fem::quadrature::gauss_legendre;
 
 // ------------------------------------------------------------------------------------------

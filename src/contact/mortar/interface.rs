@@ -19,7 +19,12 @@ use mpi::datatype::PartitionMut;
 use mpi::topology::SimpleCommunicator;
 use mpi::traits::*;
 
-use super::*;
+use super::dual::{dual_basis_2d, dual_basis_3d};
+use super::facet::{Facet2, Facet3};
+use super::geom::*;
+use super::normals::{averaged_normals_2d, NormalKind};
+use super::search::{candidate_pairs, facet_aabb_2d, facet_aabb_3d, Aabb};
+use super::segment::{mortar_pair_2d, mortar_pair_3d};
 use crate::error::{Error, Result};
 use crate::mesh::topology::{boundary_group, cells_near, facet_key, facet_map};
 use crate::mesh::Mesh;

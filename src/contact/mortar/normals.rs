@@ -20,7 +20,9 @@
 //! 2D only: in 3D the projection runs along the auxiliary plane's normal (the slave facet's),
 //! whose measure a tilted normal would change.
 
-use super::*;
+use super::facet::Facet2;
+use super::geom::*;
+use super::segment::project_onto_master_2d;
 
 /// `-mortar_normal slave|average`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]

@@ -1,6 +1,7 @@
 //! Bounding boxes of facets and the bucket search for candidate slave/master pairs.
 
-use super::*;
+use super::facet::{Facet2, Facet3};
+use super::geom::*;
 
 // ------------------------------------------------------------------------------------------
 // Bounding boxes and bucket search

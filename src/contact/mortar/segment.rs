@@ -1,7 +1,9 @@
 //! Segment-based mortar integrals of one slave facet against one master facet: projection
 //! in 2D, auxiliary-plane clipping in 3D.
 
-use super::*;
+use super::dual::DualBasis;
+use super::facet::{shape_line2, triangle_rule_deg5, Facet2, Facet3};
+use super::geom::*;
 use crate::fem::quadrature::gauss_legendre;
 
 // ------------------------------------------------------------------------------------------

@@ -24,9 +24,13 @@
 
 use std::collections::HashMap;
 
-use super::MortarInterface;
+use super::interface::{oriented_facets, MortarInterface, SurfaceFacet};
+use super::normals::NormalKind;
+pub use crate::contact::cost::MortarCost;
+use crate::contact::interface::ContactSolver;
+use crate::contact::nodes::ContactNodes;
 use crate::contact::pdas::ActiveSet;
-use crate::contact::{ContactNodes, ContactSolver, StepContact, StepSystem};
+use crate::contact::step::{StepContact, StepSystem};
 use crate::error::{Error, Result};
 use crate::partition::Partition;
 use crate::petsc::{Ksp, Matrix, Vector};
@@ -58,53 +62,15 @@ pub struct MortarActiveSet<'w> {
     cost: MortarCost,
 }
 
-/// What the mortar interface cost this rank (the run reports the largest over the ranks).
-#[derive(Debug, Clone, Copy, Default, PartialEq, serde::Serialize, serde::Deserialize)]
-pub struct MortarCost {
-    /// Evaluations of the interface (the reference configuration's included).
-    pub evaluations: usize,
-    /// Wall time of the evaluations: `D`, `M`, normals, weighted gaps, with the search.
-    pub evaluation_seconds: f64,
-    /// Of that, the bucket search for candidate facet pairs.
-    pub search_seconds: f64,
-    /// Wall time of rebuilding `T` and `T^T K T` with its constraint rows after an evaluation.
-    pub operator_seconds: f64,
-    /// Wall time of the per-step check whether the interface moved (one reduction of the
-    /// interface nodes' displacements), and of the basis changes `T^T rhs`, `T u~`.
-    pub step_seconds: f64,
-}
-
-impl MortarCost {
-    /// The largest of every entry over the ranks (collective).
-    pub fn max_over_ranks(&self, world: &mpi::topology::SimpleCommunicator) -> MortarCost {
-        use mpi::traits::*;
-        let local = [
-            self.evaluation_seconds,
-            self.search_seconds,
-            self.operator_seconds,
-            self.step_seconds,
-        ];
-        let mut all = [0.0; 4];
-        world.all_reduce_into(&local[..], &mut all[..], mpi::collective::SystemOperation::max());
-        MortarCost {
-            evaluations: self.evaluations,
-            evaluation_seconds: all[0],
-            search_seconds: all[1],
-            operator_seconds: all[2],
-            step_seconds: all[3],
-        }
-    }
-}
-
 /// What the interface is evaluated from: the pair's facets and nodes, the mesh and partition.
 struct Pair {
     mesh: std::rc::Rc<crate::mesh::Mesh>,
     part: std::rc::Rc<Partition>,
-    slave: Vec<super::SurfaceFacet>,
-    master: Vec<super::SurfaceFacet>,
+    slave: Vec<SurfaceFacet>,
+    master: Vec<SurfaceFacet>,
     reach: f64,
     /// The normal field of the gaps (`-mortar_normal`).
-    normal: super::NormalKind,
+    normal: NormalKind,
     /// Slave and master nodes (mesh indices, ascending) and their DOFs (global, owned here).
     nodes: Vec<usize>,
     dofs: Vec<(i32, bool)>,
@@ -113,7 +79,7 @@ struct Pair {
 impl Pair {
     /// The pair's nodes' displacements, on every rank.
     fn trace(&self, world: &mpi::topology::SimpleCommunicator, u: &Vector) -> Result<Vec<f64>> {
-        crate::contact::trace(world, &self.dofs, self.part.first_dof(), u)
+        crate::contact::nodes::trace(world, &self.dofs, self.part.first_dof(), u)
     }
 
     fn slots(&self) -> HashMap<usize, usize> {
@@ -217,7 +183,7 @@ fn planes(
     ut_slave: &[f64],
     slots: &[usize],
     n_nodes: usize,
-) -> Vec<Option<crate::contact::NodePlane>> {
+) -> Vec<Option<crate::contact::step::NodePlane>> {
     let dim = pair.part.dim;
     let covered = iface.m_row_sums();
     let mut out = vec![None; n_nodes];
@@ -514,16 +480,12 @@ pub struct MortarOptions {
     /// `-mortar_normal slave|average` (default `slave`): the normal field of the gaps and
     /// projections, the slave side's averaged nodal normals or, in 2D, halfway between them
     /// and the master's across.
-    pub normal: super::NormalKind,
+    pub normal: NormalKind,
 }
 
 impl Default for MortarOptions {
     fn default() -> Self {
-        MortarOptions {
-            update_distance: None,
-            update_in_contact: false,
-            normal: super::NormalKind::Slave,
-        }
+        MortarOptions { update_distance: None, update_in_contact: false, normal: NormalKind::Slave }
     }
 }
 
@@ -541,18 +503,18 @@ pub fn pair_solver<'w>(
     mesh: std::rc::Rc<crate::mesh::Mesh>,
     part: std::rc::Rc<Partition>,
     pairs: &[crate::scene::ContactPair],
-    beside: Option<(&str, crate::contact::Obstacles)>,
+    beside: Option<(&str, crate::contact::obstacle::Obstacles)>,
     factor: f64,
     options: &MortarOptions,
 ) -> Result<Box<dyn ContactSolver + 'w>> {
     if pairs.len() > 64 {
         return Err(Error::Scene(format!("contact.pairs has {} pairs: at most 64", pairs.len())));
     }
-    let sides = |side: fn(&crate::scene::ContactPair) -> &str| -> Result<Vec<super::SurfaceFacet>> {
-        let mut out: Vec<super::SurfaceFacet> = Vec::new();
+    let sides = |side: fn(&crate::scene::ContactPair) -> &str| -> Result<Vec<SurfaceFacet>> {
+        let mut out: Vec<SurfaceFacet> = Vec::new();
         let mut seen: HashMap<Vec<usize>, usize> = HashMap::new();
         for (i, p) in pairs.iter().enumerate() {
-            for mut f in super::oriented_facets(&mesh, side(p))? {
+            for mut f in oriented_facets(&mesh, side(p))? {
                 let mut key = f.nodes.clone();
                 key.sort_unstable();
                 match seen.get(&key) {
@@ -569,7 +531,7 @@ pub fn pair_solver<'w>(
     };
     let sf = sides(|p| &p.slave)?;
     let mf = sides(|p| &p.master)?;
-    let size = |f: &super::SurfaceFacet| {
+    let size = |f: &SurfaceFacet| {
         let x0 = mesh.coords[f.nodes[0]];
         f.nodes
             .iter()
@@ -581,10 +543,10 @@ pub fn pair_solver<'w>(
     let update_distance = options.update_distance.unwrap_or(0.1 * smallest);
     let update_in_contact = options.update_in_contact;
     let normal = options.normal;
-    if normal == super::NormalKind::Average && part.dim != 2 {
+    if normal == NormalKind::Average && part.dim != 2 {
         return Err(Error::Scene("-mortar_normal average is built for 2D meshes only".into()));
     }
-    let node_set = |fs: &[super::SurfaceFacet]| {
+    let node_set = |fs: &[SurfaceFacet]| {
         let mut v: Vec<usize> = fs.iter().flat_map(|f| f.nodes.iter().copied()).collect();
         v.sort_unstable();
         v.dedup();
@@ -615,14 +577,14 @@ pub fn pair_solver<'w>(
         .map(|(v, c)| (part.dof(v, c) as i32, part.owns(v)))
         .collect();
     let slave_groups = crate::scene::slave_groups(pairs);
-    let mut boundary = crate::contact::ContactBoundary::build_groups(&mesh, &slave_groups)?;
+    let mut boundary = crate::contact::nodes::ContactBoundary::build_groups(&mesh, &slave_groups)?;
     let obstacles = match beside {
         Some((group, obstacles)) => {
-            let other = crate::contact::ContactBoundary::build(&mesh, group)?;
+            let other = crate::contact::nodes::ContactBoundary::build(&mesh, group)?;
             boundary = boundary.union(other, &mesh)?;
             obstacles
         }
-        None => crate::contact::Obstacles(Vec::new()),
+        None => crate::contact::obstacle::Obstacles(Vec::new()),
     };
     let contact_nodes = ContactNodes::new(world, &mesh, &part, boundary, obstacles);
     let pair = Pair { mesh, part, slave: sf, master: mf, reach, normal, nodes, dofs };

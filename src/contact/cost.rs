@@ -1,0 +1,56 @@
+//! What contact costs, as the run's summary reports it: the active set's steps against plain
+//! solves ([`ReferenceCost`]) and the mortar interface's evaluations ([`MortarCost`]).
+
+/// The cost of the contact steps against one plain solve of the same step (the unconstrained
+/// operator, the same right-hand side and first guess), summed over the steps that end with
+/// an active node. Measured only with `-contact_reference_solve`; the plain solve's result is
+/// discarded.
+#[derive(Debug, Clone, Copy, Default, serde::Serialize, serde::Deserialize)]
+pub struct ReferenceCost {
+    pub steps: usize,
+    pub plain_ksp_iterations: usize,
+    pub plain_seconds: f64,
+    /// Every solve of the active-set loop, and the operator rewrites between them.
+    pub contact_ksp_iterations: usize,
+    pub contact_seconds: f64,
+    /// The plain solves of every step (to take them out of the run's time).
+    pub plain_seconds_all_steps: f64,
+}
+
+/// What the mortar interface cost this rank (the run reports the largest over the ranks).
+#[derive(Debug, Clone, Copy, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct MortarCost {
+    /// Evaluations of the interface (the reference configuration's included).
+    pub evaluations: usize,
+    /// Wall time of the evaluations: `D`, `M`, normals, weighted gaps, with the search.
+    pub evaluation_seconds: f64,
+    /// Of that, the bucket search for candidate facet pairs.
+    pub search_seconds: f64,
+    /// Wall time of rebuilding `T` and `T^T K T` with its constraint rows after an evaluation.
+    pub operator_seconds: f64,
+    /// Wall time of the per-step check whether the interface moved (one reduction of the
+    /// interface nodes' displacements), and of the basis changes `T^T rhs`, `T u~`.
+    pub step_seconds: f64,
+}
+
+impl MortarCost {
+    /// The largest of every entry over the ranks (collective).
+    pub fn max_over_ranks(&self, world: &mpi::topology::SimpleCommunicator) -> MortarCost {
+        use mpi::traits::*;
+        let local = [
+            self.evaluation_seconds,
+            self.search_seconds,
+            self.operator_seconds,
+            self.step_seconds,
+        ];
+        let mut all = [0.0; 4];
+        world.all_reduce_into(&local[..], &mut all[..], mpi::collective::SystemOperation::max());
+        MortarCost {
+            evaluations: self.evaluations,
+            evaluation_seconds: all[0],
+            search_seconds: all[1],
+            operator_seconds: all[2],
+            step_seconds: all[3],
+        }
+    }
+}

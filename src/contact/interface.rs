@@ -1,0 +1,67 @@
+//! The interface between the integrator and a contact solver: the [`ContactSolver`] trait
+//! (a step's system in, the contact forces and per-node rows out).
+
+use super::cost::{MortarCost, ReferenceCost};
+use super::nodes::{ContactBoundary, ContactNodes};
+use super::step::{StepContact, StepSystem};
+use crate::error::Result;
+use crate::petsc::{Matrix, Vector};
+
+/// A contact solver inside the time step: it gets the step's right-hand side and the state at
+/// `t_n`, solves `K du = rhs - factor B^T lambda` with the contact conditions at `t_{n+1}`
+/// (`factor` comes from the integrator), and reports the contact forces and per-node data.
+pub trait ContactSolver {
+    /// Called once with the step operator before the first step (collective).
+    fn prepare(&mut self, _k: &Matrix) -> Result<()> {
+        Ok(())
+    }
+    /// Solves one step (see [`StepSystem`]). Returns the step's contact data and the KSP
+    /// iterations of its solves.
+    fn solve(&mut self, sys: StepSystem<'_>) -> Result<(StepContact, usize)>;
+    /// The contact nodes (boundary, obstacles, per-node geometry, active set).
+    fn nodes(&self) -> &ContactNodes<'_>;
+    /// The active set, to continue from a checkpoint's.
+    fn active_mut(&mut self) -> &mut Vec<bool>;
+    /// The active set after the last step.
+    fn active(&self) -> &[bool] {
+        &self.nodes().active
+    }
+    /// Continue from a checkpoint's active set.
+    fn set_active(&mut self, active: Vec<bool>) {
+        *self.active_mut() = active;
+    }
+    /// Solves with the step operator beyond one per step, so far.
+    fn extra_solves(&self) -> usize;
+    /// The contact steps' cost against plain solves, when measured.
+    fn reference_cost(&self) -> Option<ReferenceCost> {
+        None
+    }
+    /// The contact boundary (nodes, weights, group).
+    fn boundary(&self) -> &ContactBoundary {
+        &self.nodes().boundary
+    }
+    /// Contact nodes that penetrate an obstacle at displacement `u` and time `time`: (mesh
+    /// node index, index of the obstacle).
+    fn penetrating(&self, u: &Vector, time: f64) -> Result<Vec<(usize, usize)>> {
+        self.nodes().penetrating(u, time)
+    }
+    /// Index (among the contact nodes) of the node closest to an obstacle at t = 0.
+    fn lowest(&self) -> usize {
+        self.nodes().lowest()
+    }
+    fn n_nodes(&self) -> usize {
+        self.boundary().nodes.len()
+    }
+    /// A slave/master pair of deformable bodies (not rigid obstacles).
+    fn is_pair(&self) -> bool {
+        false
+    }
+    /// The master nodes of the pairs (mesh indices, ascending; empty against obstacles).
+    fn master_nodes(&self) -> &[usize] {
+        &[]
+    }
+    /// What the mortar interface cost so far on this rank (two-body pairs).
+    fn mortar_cost(&self) -> Option<MortarCost> {
+        None
+    }
+}

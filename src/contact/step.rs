@@ -1,0 +1,47 @@
+//! What crosses the interface of a contact solver in one step: the step's linear system
+//! ([`StepSystem`]) and what the solver found ([`StepContact`]); a slave node's plane
+//! ([`NodePlane`]).
+
+use crate::petsc::{Ksp, Matrix, Vector};
+use crate::rows::ContactRow;
+
+/// One step's linear system as the integrator hands it to the contact solver.
+pub struct StepSystem<'a> {
+    /// The operator `ksp` solves with: the solver may change it near the contact nodes (and
+    /// restores it when the contact ends).
+    pub k: &'a mut Matrix,
+    pub ksp: &'a mut Ksp,
+    /// The right-hand side of `K du = rhs - factor B^T lambda`.
+    pub rhs: &'a Vector,
+    /// `u^n`.
+    pub u: &'a Vector,
+    /// Holds the previous increment (the first guess) and gets the result.
+    pub du: &'a mut Vector,
+    /// The step being solved (`n + 1`) and its end time `t_{n+1}`.
+    pub step: usize,
+    pub time: f64,
+}
+
+/// What the contact solver found in one step (all per contact node, same on every rank).
+#[derive(Debug, Clone, Default)]
+pub struct StepContact {
+    pub row: ContactRow,
+    pub normals: Vec<[f64; 3]>,
+    /// Work of the contact forces in this step, `-sum_q lambda_q n_q . du_q` (<= 0).
+    pub work: f64,
+    /// `sum_q lambda_q n_q` (the force the obstacle takes; the body gets its negative); of a
+    /// pair with obstacles beside it, over the slave nodes only.
+    pub resultant: [f64; 3],
+    /// Of a pair with obstacles beside it: `sum_q lambda_q n_q` over the nodes that meet the
+    /// obstacles (the obstacles' force; that body gets its negative). Zero otherwise.
+    pub obstacle_force: [f64; 3],
+    /// The force on the master body of a two-body pair, `sum_l (M^T lambda)_l n`, i.e.
+    /// `sum_q (sum_l M_ql / D_qq) lambda_q n_q` (zero against rigid obstacles).
+    pub master_force: [f64; 3],
+    /// Per master node `l` (of [`ContactSolver::master_nodes`]): its share
+    /// `sum_q (M_ql / D_qq) lambda_q n_q` of `master_force` (empty against rigid obstacles).
+    pub master_nodal: Vec<[f64; 3]>,
+}
+
+/// A slave node's plane in the mortar basis, `(c_q, n_q)`: `n_q . y_q <= c_q`.
+pub type NodePlane = (f64, [f64; 3]);
