@@ -286,6 +286,17 @@ struct Table {
 /// `q(x)`: the grouped solver values at a configuration; `an`: the grouped analytic
 /// derivatives at `x0`.
 fn fd_table(x0: &[Vec2], q: &Values, an: &[(&'static str, f64, Lin)]) -> Table {
+    fd_table_with(x0, q, an, false)
+}
+
+/// `fd_table`; with `richardson`, the central difference's first-order error term (a kink in
+/// the second derivative) eliminated: `2 fd(h/2) - fd(h)`.
+fn fd_table_with(
+    x0: &[Vec2],
+    q: &Values,
+    an: &[(&'static str, f64, Lin)],
+    richardson: bool,
+) -> Table {
     let dirs = directions(x0.len());
     let mut names: Vec<&'static str> = Vec::new();
     for (g, _, _) in an {
@@ -303,9 +314,17 @@ fn fd_table(x0: &[Vec2], q: &Values, an: &[(&'static str, f64, Lin)]) -> Table {
             STEPS
                 .iter()
                 .map(|&h| {
-                    let (p, m) = (q(&moved(v, h)), q(&moved(v, -h)));
-                    assert_eq!(p.len(), an.len(), "quantity list changed under perturbation");
-                    p.iter().zip(&m).map(|(a, b)| (a.1 - b.1) / (2.0 * h)).collect()
+                    let central = |h: f64| -> Vec<f64> {
+                        let (p, m) = (q(&moved(v, h)), q(&moved(v, -h)));
+                        assert_eq!(p.len(), an.len(), "quantity list changed under perturbation");
+                        p.iter().zip(&m).map(|(a, b)| (a.1 - b.1) / (2.0 * h)).collect()
+                    };
+                    if richardson {
+                        let (a, b) = (central(0.5 * h), central(h));
+                        a.iter().zip(&b).map(|(a, b)| 2.0 * a - b).collect()
+                    } else {
+                        central(h)
+                    }
                 })
                 .collect()
         })
@@ -486,5 +505,166 @@ fn pair_derivatives_match_central_differences() {
                 assert!(t.groups.iter().any(|(n, s, _)| n == g && *s == 0.0), "{g} not zero");
             }
         }
+    }
+}
+
+// ---------------- assembled patches ----------------
+
+/// A slave chain (right to left, nodes `0..ns`) and a master chain (left to right, nodes
+/// `ns..`), every slave facet tried against every master facet, as the interface sums them.
+struct Patch {
+    x: Vec<Vec2>,
+    ns: usize,
+    slave_facets: Vec<[usize; 2]>,
+    master_facets: Vec<[usize; 2]>,
+}
+
+fn patch(slave: &[Vec2], master: &[Vec2]) -> Patch {
+    let ns = slave.len();
+    let x: Vec<Vec2> = slave.iter().chain(master).map(|&p| rigid(p)).collect();
+    Patch {
+        ns,
+        slave_facets: (0..ns - 1).map(|i| [i, i + 1]).collect(),
+        master_facets: (0..master.len() - 1).map(|i| [ns + i, ns + i + 1]).collect(),
+        x,
+    }
+}
+
+const PATCH_GROUPS: [&str; 4] = ["D_q", "N_q", "M_ql", "g_q"];
+
+/// `D_q`, `N_q`, `M_ql` (all slave q, all master l), `g_q`, summed over the pairs; with
+/// derivatives when `lin` (else zero derivatives).
+fn assembled(p: &Patch, x: &[Vec2], lin: bool) -> Vec<(&'static str, f64, Lin)> {
+    let ns = p.ns;
+    let nm = x.len() - ns;
+    let mut d = vec![(0.0, Lin::zero()); ns];
+    let mut n = vec![(0.0, Lin::zero()); ns];
+    let mut g = vec![(0.0, Lin::zero()); ns];
+    let mut m = vec![vec![(0.0, Lin::zero()); nm]; ns];
+    let add = |a: &mut (f64, Lin), v: f64, dv: Option<&Lin>| {
+        a.0 += v;
+        if let Some(dv) = dv {
+            a.1.add_scaled(1.0, dv);
+        }
+    };
+    let normals = nodal_normals_2d(x, &p.slave_facets, false).unwrap();
+    let nl = nodal_normals_lin_2d(x, &p.slave_facets, false).unwrap();
+    for sf in &p.slave_facets {
+        let s = Facet2::from_nodes(x, *sf).unwrap();
+        let (dual, dd) = dual_basis_lin_2d(&s, *sf).unwrap();
+        for k in 0..2 {
+            add(&mut d[sf[k]], dual.d[k], lin.then_some(&dd[k]));
+        }
+        let nrm = [normals[sf[0]], normals[sf[1]]];
+        let lins = [nl[sf[0]].lin.clone(), nl[sf[1]].lin.clone()];
+        for mf in &p.master_facets {
+            let mfac = Facet2::from_nodes(x, *mf).unwrap();
+            let ids = PairIds2 { slave: *sf, master: *mf };
+            if lin {
+                let Some(q) = mortar_pair_lin_2d(&s, &nrm, &dual, &mfac, ids, &lins).unwrap()
+                else {
+                    continue;
+                };
+                for j in 0..2 {
+                    add(&mut n[sf[j]], q.value.psi_integral[j], Some(&q.psi_integral[j]));
+                    add(&mut g[sf[j]], q.value.weighted_gap[j], Some(&q.weighted_gap[j]));
+                    for l in 0..2 {
+                        add(&mut m[sf[j]][mf[l] - ns], q.value.m[j][l], Some(&q.m[j][l]));
+                    }
+                }
+            } else {
+                let Some(q) = mortar_pair_2d(&s, &nrm, &dual, &mfac).unwrap() else { continue };
+                for j in 0..2 {
+                    add(&mut n[sf[j]], q.psi_integral[j], None);
+                    add(&mut g[sf[j]], q.weighted_gap[j], None);
+                    for l in 0..2 {
+                        add(&mut m[sf[j]][mf[l] - ns], q.m[j][l], None);
+                    }
+                }
+            }
+        }
+    }
+    let mut out = Vec::new();
+    out.extend(d.into_iter().map(|(v, l)| (PATCH_GROUPS[0], v, l)));
+    out.extend(n.into_iter().map(|(v, l)| (PATCH_GROUPS[1], v, l)));
+    out.extend(m.into_iter().flatten().map(|(v, l)| (PATCH_GROUPS[2], v, l)));
+    out.extend(g.into_iter().map(|(v, l)| (PATCH_GROUPS[3], v, l)));
+    out
+}
+
+fn patch_table(p: &Patch) -> (Table, Vec<(&'static str, f64, Lin)>) {
+    let an = assembled(p, &p.x, true);
+    let sv = assembled(p, &p.x, false);
+    for (a, s) in an.iter().zip(&sv) {
+        assert!((a.1 - s.1).abs() <= 1e-14, "{}: {} vs {}", a.0, a.1, s.1);
+    }
+    let q = |x: &[Vec2]| assembled(p, x, false).into_iter().map(|(g, v, _)| (g, v)).collect();
+    (fd_table(&p.x, &q, &an), an)
+}
+
+/// Matching meshes: every interior master node sits on a slave node's normal, a switching
+/// point of every pair around it. A pair's own integrals have a kink there (its segment end
+/// jumps from the slave node to the master node's projection), but summed over the master
+/// facets around the node the first derivative is the same from both sides (the integrand
+/// is continuous across the master node) and the rule's choice (the slave end) gives it. The
+/// second derivatives differ from side to side, so central differences of `M` converge only
+/// like h (first order) here, with a clean `c h` error term: eliminating it by Richardson
+/// extrapolation restores h^2, i.e. the derivative is exact. (`N`, `D`, and `g` on this
+/// straight master are smooth to second order: `sum_l phi_l = 1` and the master line has no
+/// kink.)
+#[test]
+fn matching_meshes_assembled() {
+    let d = 0.02;
+    let xs = [1.0, 0.62, 0.3, 0.0];
+    let slave: Vec<Vec2> = xs.iter().map(|&a| [a, 0.0]).collect();
+    let master: Vec<Vec2> = [-0.4, 0.0, 0.3, 0.62, 1.0, 1.4].iter().map(|&a| [a, d]).collect();
+    let p = patch(&slave, &master);
+    let (t, an) = patch_table(&p);
+    t.print("matching meshes, assembled over all pairs; relative error of central differences");
+    let q = |x: &[Vec2]| assembled(&p, x, false).into_iter().map(|(g, v, _)| (g, v)).collect();
+    let r = fd_table_with(&p.x, &q, &an, true);
+    r.print("the same, Richardson-extrapolated differences 2 fd(h/2) - fd(h)");
+    r.assert_second_order("matching, extrapolated", 1e-6, 1e-8);
+    for (g, scale, errs) in &t.groups {
+        let best = errs.iter().copied().fold(f64::INFINITY, f64::min);
+        assert!(*scale > 0.0 && best < 1e-6, "matching: {g}: {errs:?}");
+        // At least first order: a factor >= 5 per decade while above round-off.
+        for w in errs.windows(2) {
+            if w[1] > 1e-8 {
+                assert!(w[0] / w[1] > 5.0, "matching: {g}: {errs:?}");
+            }
+        }
+    }
+    // Full overlap: sum_l M_ql = D_qq, with the same derivative.
+    let ns = p.ns;
+    let nm = p.x.len() - ns;
+    for q in 0..ns {
+        let row = Lin::sum(&(0..nm).map(|l| (1.0, &an[2 * ns + q * nm + l].2)).collect::<Vec<_>>());
+        let diff = Lin::combine(1.0, &row, -1.0, &an[q].2);
+        assert!(diff.max_abs() < 1e-13, "delta sum_l M_ql != delta D_qq: {diff:?}");
+    }
+}
+
+/// Non-matching meshes with a slave node off the master: the last slave node's support lies
+/// beside the master, so its row of M, its N and its gap are zero, and so are their
+/// derivatives (no entries at all); the rest converges like h^2.
+#[test]
+fn slave_node_off_the_master_assembled() {
+    let xs = [1.0, 0.6, 0.3, 0.0];
+    let slave: Vec<Vec2> = xs.iter().zip([0.0, 0.01, -0.005, 0.0]).map(|(&a, b)| [a, b]).collect();
+    let master: Vec<Vec2> = [[0.45, 0.03], [0.8, 0.02], [1.4, 0.04]].to_vec();
+    let p = patch(&slave, &master);
+    let (t, an) = patch_table(&p);
+    t.print("non-matching, last slave node off the master, assembled; relative errors");
+    t.assert_second_order("off the master", 1e-6, 1e-8);
+    let (ns, nm) = (p.ns, p.x.len() - p.ns);
+    let q = ns - 1;
+    let zero: Vec<&(&str, f64, Lin)> = [ns + q, 2 * ns + ns * nm + q]
+        .into_iter()
+        .chain((0..nm).map(|l| 2 * ns + q * nm + l))
+        .map(|i| &an[i])
+        .collect();
+    for (g, v, l) in zero {
+        assert!(*v == 0.0 && l.entries().is_empty(), "node {q}: {g} = {v}, delta {l:?}");
     }
 }
