@@ -1,5 +1,5 @@
 //! Directional derivatives ("linearizations") of the 2D mortar geometry, for finite sliding
-//! (issue 24; Popp, Gee, Wall, IJNME 2009, section 4; METHOD.md 5c).
+//! (issue 24; Popp, Gee, Wall, IJNME 2009; METHOD.md 5c).
 //!
 //! Everything here is a pure function of the same inputs as its counterpart in
 //! `dual.rs`/`segment.rs` plus node ids, and returns the counterpart's value (computed by the
@@ -31,7 +31,9 @@
 //! tolerance outside `[-1, 1]` that is clamped has derivative zero, and a pair without overlap
 //! (`Ok(None)`, also at the touching point) has derivative zero. Summed over the master facets
 //! around the switching node the first derivatives agree from both sides (the integrand is
-//! continuous across a master node), the second derivatives do not.
+//! continuous across a master node), the second derivatives do not: at matching meshes the
+//! central differences of an assembled `M` converge only to first order (the test
+//! `matching_meshes_assembled` shows it, and that Richardson extrapolation restores h^2).
 
 // Deliberate: `!(a > b)` treats NaN as failing the test, which `a <= b` would not.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
@@ -447,7 +449,8 @@ pub struct PairIntegralsLin {
 /// with its derivative). Same value (bit for bit), same `Ok(None)` and errors, plus an Err if a
 /// master node projects at a double root (no derivative).
 ///
-/// The formulas, following the steps of `mortar_pair_2d` (Popp, Gee, Wall 2009, 4.2-4.4):
+/// The formulas, following the steps of `mortar_pair_2d` (derived here by implicit
+/// differentiation of its defining equations; Popp, Gee, Wall 2009 linearize the same steps):
 ///
 /// 1. Segment ends. A slave end `xi = -1, +1` (kept while its node's projection
 ///    `eta_k` lies on the master) has `delta xi = 0`; a master node's projection `xi_l` has the

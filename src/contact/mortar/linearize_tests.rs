@@ -668,3 +668,100 @@ fn slave_node_off_the_master_assembled() {
         assert!(*v == 0.0 && l.entries().is_empty(), "node {q}: {g} = {v}, delta {l:?}");
     }
 }
+
+// ---------------- at a switching point ----------------
+
+/// The pair's integrals (`M`, `N`, `g`, overlap): the solver's values, and the analytic
+/// values with derivatives.
+fn integrals(c: &Case, x: &[Vec2]) -> Vec<f64> {
+    let keep = &GROUPS[8..];
+    solver_values(c, x, false).into_iter().filter(|e| keep.contains(&e.0)).map(|e| e.1).collect()
+}
+
+fn integrals_lin(c: &Case, x: &[Vec2]) -> (Vec<f64>, Vec<Lin>, Option<[SegmentEnd; 2]>) {
+    let keep = &GROUPS[8..];
+    let (an, p) = analytic(c, x);
+    let (v, l) = an.into_iter().filter(|e| keep.contains(&e.0)).map(|e| (e.1, e.2)).unzip();
+    (v, l, p.map(|p| p.ends))
+}
+
+/// At a switching point the derivative is one-sided. Two switching points of one pair, with
+/// master node 0 placed exactly on a slave node's normal ray:
+///
+/// * "end switch": the ray of the segment's slave end. The rule keeps the slave end
+///   (`delta xi = 0`): the derivative of the side where the master covers the slave node.
+///   Forward differences towards that side converge to it (first order, as forward
+///   differences do); towards the other side they converge to the derivative there (the
+///   analytic one at a point 1e-9 away), which differs: the segment end then follows the
+///   master node's projection.
+/// * "touching": the master facet ends where the slave facet ends. The pair has no overlap
+///   (`None`, zero derivative): the derivative of the side where they are apart. Moving the
+///   master node towards the slave opens an overlap whose integrals grow linearly: the
+///   one-sided derivative there is the integrand at the end times the opening rate.
+#[test]
+fn switching_points_have_one_sided_derivatives() {
+    let flat = chain(&[1.9, 1.0, 0.0, -0.8], &[0.05, 0.0, 0.0, -0.03]);
+    for (name, node, far) in
+        [("end switch", 2usize, [1.4, 0.05]), ("touching", 1usize, [1.6, 0.04])]
+    {
+        let mut c = case(name, &flat, [[0.0, 0.03], far], 1);
+        let n = nodal_normals_2d(&c.x, &c.slave_facets, false).unwrap();
+        c.x[4] = add2(c.x[node], scale2(0.03, n[node]));
+        let (v0, l0, ends) = integrals_lin(&c, &c.x);
+        let tm = sub2(c.x[5], c.x[4]);
+        let tm = scale2(1.0 / norm2(tm), tm);
+        let dir = |s: f64| -> Vec<Vec2> {
+            let mut v = vec![[0.0; 2]; c.x.len()];
+            v[4] = scale2(s, tm);
+            v
+        };
+        // Master node 0 moved along the master line: away from master node 1 (over the slave
+        // node in "end switch", onto the slave facet in "touching"), or towards it.
+        let sides = [("-t_m (node 0 outwards)", dir(-1.0)), ("+t_m (node 0 inwards)", dir(1.0))];
+        println!("\n{name}: ends at the switch {ends:?}; forward differences, |fd - Lin|/|Lin|");
+        for (label, v) in sides {
+            let moved = |h: f64| -> Vec<Vec2> {
+                c.x.iter().zip(&v).map(|(p, d)| [p[0] + h * d[0], p[1] + h * d[1]]).collect()
+            };
+            let at = |l: &[Lin]| -> Vec<f64> { l.iter().map(|l| l.apply(&v)).collect() };
+            let an_switch = at(&l0);
+            let (_, l_near, ends_near) = integrals_lin(&c, &moved(1e-9));
+            let an_side = at(&l_near);
+            let norm = |a: &[f64]| a.iter().map(|x| x * x).sum::<f64>().sqrt();
+            let diff = |a: &[f64], b: &[f64]| -> Vec<f64> {
+                a.iter().zip(b).map(|(x, y)| x - y).collect()
+            };
+            // Relative to the derivatives' size (absolute where both are zero: no overlap).
+            let scale = norm(&an_side).max(norm(&an_switch)).max(1e-300);
+            let jump = norm(&diff(&an_switch, &an_side)) / scale;
+            print!("  {label:<24} ends there {ends_near:?}, |Lin| {:.2e} at the switch, {:.2e} there, jump {jump:.1e}:", norm(&an_switch), norm(&an_side));
+            let mut errs = Vec::new();
+            for h in STEPS {
+                let fd: Vec<f64> =
+                    integrals(&c, &moved(h)).iter().zip(&v0).map(|(a, b)| (a - b) / h).collect();
+                let e = norm(&diff(&fd, &an_side)) / scale;
+                print!(" h={h:.0e}: {e:.1e}");
+                errs.push(e);
+            }
+            println!();
+            // Converges to the derivative of the side it moves to (first order).
+            let zero = norm(&an_side) == 0.0;
+            assert!(
+                (zero && errs.iter().all(|&e| e == 0.0))
+                    || (errs[4] < 1e-5 && errs[0] / errs[3] > 300.0),
+                "{name}, {label}: {errs:?}"
+            );
+            let rule_side = jump < 1e-6;
+            match (name, label.contains("outwards")) {
+                ("end switch", true) | ("touching", false) => {
+                    assert!(rule_side, "{name}, {label}: the rule's side, jump {jump:e}")
+                }
+                _ => assert!(jump > 1e-2, "{name}, {label}: a real switch, jump {jump:e}"),
+            }
+        }
+        match name {
+            "end switch" => assert_eq!(ends, Some([SegmentEnd::Slave(0), SegmentEnd::Slave(1)])),
+            _ => assert_eq!(ends, None),
+        }
+    }
+}
