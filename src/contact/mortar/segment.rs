@@ -55,7 +55,7 @@ impl PairIntegrals {
 }
 
 /// Parametric tolerance for "a projection lands inside the other facet".
-const PARAM_TOL: f64 = 1e-12;
+pub(crate) const PARAM_TOL: f64 = 1e-12;
 
 /// Projects a master point `y` onto the slave line along the slave normal field
 /// `n(xi) = sum_k phi_k(xi) n_k` (Popp et al. 2009): find `xi` with `x(xi) + alpha n(xi) = y`,
