@@ -220,7 +220,7 @@ pub struct Output {
     cell_range: (usize, usize),
 }
 
-const CHECKPOINT_SCALARS: usize = 10;
+const CHECKPOINT_SCALARS: usize = 11;
 
 /// The scalars of a checkpoint: the step reached and the running totals of the energy balance.
 #[derive(Debug, Clone, Default)]
@@ -233,6 +233,9 @@ pub struct Checkpoint {
     pub dirichlet_work: f64,
     pub momentum_initial: [f64; 3],
     pub ksp_iterations: usize,
+    /// The contact work the massless DOFs' energy correction still has to put back
+    /// (`time::Corrections::pending`; 0 in a checkpoint written before it was kept).
+    pub pending_correction: f64,
     /// The active set after the step (contact scenes).
     pub active: Vec<bool>,
 }
@@ -250,6 +253,7 @@ impl Checkpoint {
             self.momentum_initial[1],
             self.momentum_initial[2],
             self.ksp_iterations as f64,
+            self.pending_correction,
         ]
     }
 }
@@ -311,6 +315,8 @@ pub fn read_checkpoint(
         dirichlet_work: sc[5],
         momentum_initial: [sc[6], sc[7], sc[8]],
         ksp_iterations: sc[9] as usize,
+        // Files written before the pending correction was kept have 10 scalars.
+        pending_correction: sc.get(10).copied().unwrap_or(0.0),
         active,
     };
     Ok((cp, fields))

@@ -151,6 +151,7 @@ impl Record {
             dirichlet_work: e.dirichlet_work,
             momentum_initial: self.p0,
             ksp_iterations: midpoint.ksp_iterations(),
+            pending_correction: midpoint.corrections().pending,
             active: contact.map(|c| c.active().to_vec()).unwrap_or_default(),
         }
     }

@@ -137,6 +137,7 @@ pub fn restore(
         },
         works,
         cp.ksp_iterations,
+        cp.pending_correction,
     )?;
     midpoint.refresh(forces, cp.time)?;
     if let Some(c) = contact {

@@ -778,10 +778,14 @@ impl Midpoint {
         set: impl FnOnce(&mut Vector, &mut Vector, &mut Vector) -> Result<()>,
         works: Energy,
         ksp_iterations: usize,
+        pending_correction: f64,
     ) -> Result<()> {
         set(&mut self.u, &mut self.v, &mut self.du)?;
         self.energy = works;
         self.ksp_iterations = ksp_iterations;
+        // The contact work the energy correction had still to put back: the next steps put it
+        // back as the uninterrupted run's would.
+        self.corrections.pending = pending_correction;
         Ok(())
     }
 }
