@@ -45,6 +45,7 @@
 // Deliberate: `!(a > b)` treats NaN as failing the test, which `a <= b` would not.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
+use super::dual::{dual_basis_3d, invert_small, DualBasis};
 use super::facet::Facet3;
 use super::geom::*;
 use super::linearize::Lin;
@@ -204,6 +205,81 @@ pub fn nodal_normals_lin_3d<F: AsRef<[usize]>>(
         out.push(Vec3Lin { value: n, lin: normalize_lin3(n, len, dm) });
     }
     Ok(out)
+}
+
+// ------------------------------------------------------------------------------------------
+// 2. Jacobian, D and the dual basis
+// ------------------------------------------------------------------------------------------
+
+/// Surface Jacobian `J = |n|` of a facet at `xi` and `delta J = n . delta n / J`.
+pub fn jacobian_lin_3d(facet: &Facet3, ids: &[usize], xi: Vec2) -> (f64, Lin) {
+    let n = facet.normal(xi);
+    let j = facet.jacobian(xi);
+    (j, lin3_dot(scale3(1.0 / j, n), &normal_raw_lin(facet, ids, xi)))
+}
+
+/// [`dual_basis_3d`] with derivatives.
+#[derive(Clone, Debug, PartialEq)]
+pub struct DualBasisLin {
+    /// `dual_basis_3d(facet)`, bit for bit.
+    pub value: DualBasis,
+    /// `delta d_j`, `d_j = D_jj = int_e phi_j`.
+    pub d: [Lin; 4],
+    /// `delta A_ik`.
+    pub a: [[Lin; 4]; 4],
+}
+
+/// [`dual_basis_3d`] of a tri3/quad4 slave facet (nodes `ids`) with derivatives. With the
+/// facet quadrature `(xi_g, w_g)` and `W_g = w_g J(xi_g)`:
+///
+/// ```text
+/// d_j  = sum_g W_g phi_j(xi_g),           delta d_j  = sum_g phi_j delta W_g
+/// M_ij = sum_g W_g phi_i phi_j,           delta M_ij = sum_g phi_i phi_j delta W_g
+/// A    = D M^{-1},                        delta A    = delta D M^{-1} - D M^{-1} delta M M^{-1}
+/// ```
+///
+/// with `delta W_g = w_g delta J(xi_g)` ([`jacobian_lin_3d`]). On an affine triangle `J` is
+/// constant, `d_j = J/6` and `M_ij = J (1 + delta_ij)/24`, so
+/// `A = D M^{-1} = [[3,-1,-1],[-1,3,-1],[-1,-1,3]]` whatever the nodes: the `J`s cancel and the
+/// formula above gives `delta A = (delta J / J)(A - A) = 0` (to round-off; the tests check it
+/// by differences). On a general (non-parallelogram or warped) quad `J` varies over the facet
+/// and `A` moves with the nodes. Err as `dual_basis_3d`.
+pub fn dual_basis_lin_3d(facet: &Facet3, ids: &[usize]) -> Result<DualBasisLin, GeomError> {
+    check_ids(facet, ids)?;
+    let value = dual_basis_3d(facet)?;
+    let n = facet.n_nodes();
+    let mut m = [[0.0; 4]; 4];
+    let mut dd: [Lin; 4] = Default::default();
+    let mut dm: [[Lin; 4]; 4] = Default::default();
+    for (xi, w) in facet.quadrature() {
+        let phi = facet.shape(xi);
+        let wj = w * facet.jacobian(xi);
+        let (_, dj) = jacobian_lin_3d(facet, ids, xi);
+        let dwj = dj.scale(w);
+        for i in 0..n {
+            dd[i].add_scaled(phi[i], &dwj);
+            for j in 0..n {
+                m[i][j] += wj * phi[i] * phi[j];
+                dm[i][j].add_scaled(phi[i] * phi[j], &dwj);
+            }
+        }
+    }
+    let minv = invert_small(&m, n)?;
+    let d = value.d;
+    let mut da: [[Lin; 4]; 4] = Default::default();
+    for i in 0..n {
+        for k in 0..n {
+            // delta A_ik = delta d_i Minv_ik - d_i sum_(a,b) Minv_ia delta M_ab Minv_bk
+            let mut terms: Vec<(f64, &Lin)> = vec![(minv[i][k], &dd[i])];
+            for (a, row) in dm.iter().enumerate().take(n) {
+                for (b, dmab) in row.iter().enumerate().take(n) {
+                    terms.push((-d[i] * minv[i][a] * minv[b][k], dmab));
+                }
+            }
+            da[i][k] = Lin::sum(&terms);
+        }
+    }
+    Ok(DualBasisLin { value, d: dd, a: da })
 }
 
 #[cfg(test)]

@@ -10,7 +10,7 @@
 //! `err(h) = max_V |fd_V - an_V|_2 / max_V |an_V|_2`. Run with `--nocapture` for the tables.
 
 use super::*;
-use crate::contact::mortar::dual::nodal_normals_3d;
+use crate::contact::mortar::dual::{dual_basis_3d, nodal_normals_3d};
 
 // ---------------- configurations ----------------
 
@@ -127,7 +127,13 @@ fn cases() -> Vec<(Case, Option<Vec<()>>)> {
 
 // ---------------- the quantities, twice ----------------
 
-const GROUPS: [&str; 2] = ["n_q (nodal normals)", "e (facet unit normal at a point)"];
+const GROUPS: [&str; 5] = [
+    "n_q (nodal normals)",
+    "e (facet unit normal at a point)",
+    "J (slave Jacobian at a point)",
+    "d_j (D of the facet)",
+    "A (dual coefficients)",
+];
 
 fn point(f: &Facet3) -> Vec2 {
     match f {
@@ -150,6 +156,12 @@ fn solver_values(c: &Case, x: &[Vec3]) -> Vec<(&'static str, f64)> {
     let (s, _m) = facets(c, x);
     let e = s.normal(point(&s));
     out.extend(e.iter().map(|&v| (GROUPS[1], v / norm3(e))));
+    out.push((GROUPS[2], s.jacobian(point(&s))));
+    let dual = dual_basis_3d(&s).unwrap();
+    out.extend(dual.d[..dual.n].iter().map(|&v| (GROUPS[3], v)));
+    for i in 0..dual.n {
+        out.extend(dual.a[i][..dual.n].iter().map(|&v| (GROUPS[4], v)));
+    }
     out
 }
 
@@ -167,6 +179,18 @@ fn analytic(c: &Case, x: &[Vec3]) -> Vec<(&'static str, f64, Lin)> {
     let e = facet_normal_lin_3d(&s, sid, point(&s)).unwrap();
     for k in 0..3 {
         out.push((GROUPS[1], e.value[k], e.lin[k].clone()));
+    }
+    let (j, dj) = jacobian_lin_3d(&s, sid, point(&s));
+    out.push((GROUPS[2], j, dj));
+    let dual = dual_basis_lin_3d(&s, sid).unwrap();
+    let n = dual.value.n;
+    for jj in 0..n {
+        out.push((GROUPS[3], dual.value.d[jj], dual.d[jj].clone()));
+    }
+    for i in 0..n {
+        for k in 0..n {
+            out.push((GROUPS[4], dual.value.a[i][k], dual.a[i][k].clone()));
+        }
     }
     out
 }
@@ -318,4 +342,26 @@ fn derivatives_match_central_differences() {
         print_table(c.name, &t);
         check_table(c.name, &t);
     }
+}
+
+/// On an affine triangle the dual coefficients are `[[3,-1,-1],[-1,3,-1],[-1,-1,3]]` whatever
+/// the nodes; on a general quad they move.
+#[test]
+fn dual_coefficients_of_triangles_do_not_move() {
+    let (tx, _) = tri_patch();
+    let x: Vec<Vec3> = tx.into_iter().map(rigid).collect();
+    let f = Facet3::from_nodes(&x, &[0, 1, 2]).unwrap();
+    let d = dual_basis_lin_3d(&f, &[0, 1, 2]).unwrap();
+    for i in 0..3 {
+        for k in 0..3 {
+            let want = if i == k { 3.0 } else { -1.0 };
+            assert!((d.value.a[i][k] - want).abs() < 1e-12);
+            assert!(d.a[i][k].max_abs() < 1e-12, "{:?}", d.a[i][k]);
+        }
+    }
+    let (qx, _) = quad_patch();
+    let x: Vec<Vec3> = qx.into_iter().map(rigid).collect();
+    let f = Facet3::from_nodes(&x, &[0, 1, 2, 3]).unwrap();
+    let d = dual_basis_lin_3d(&f, &[0, 1, 2, 3]).unwrap();
+    assert!(d.a[0][0].max_abs() > 1e-2, "a general quad's A moves: {:?}", d.a[0][0]);
 }
