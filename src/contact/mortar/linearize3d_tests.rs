@@ -11,6 +11,10 @@
 
 use super::*;
 use crate::contact::mortar::dual::{dual_basis_3d, nodal_normals_3d};
+use crate::contact::mortar::segment::{
+    clip_polygon, dedupe_polygon, invert_on_plane, mortar_pair_3d, polygon_area, AuxPlane,
+    PairIntegrals,
+};
 
 // ---------------- configurations ----------------
 
@@ -78,7 +82,8 @@ fn master_quad(s: f64) -> Vec<Vec3> {
     vec![[s, 0.3, 0.05], [s + 0.01, 1.35, 0.07], [1.4, 1.3, 0.04], [1.45, 0.25, 0.06]]
 }
 
-fn cases() -> Vec<(Case, Option<Vec<()>>)> {
+fn cases() -> Vec<(Case, Option<Vec<PolyVertex>>)> {
+    use PolyVertex::*;
     let (qx, qf) = quad_patch();
     let (tx, tf) = tri_patch();
     let mut out = vec![
@@ -102,7 +107,7 @@ fn cases() -> Vec<(Case, Option<Vec<()>>)> {
                 &tf,
                 &[[-0.5, -0.5, 0.1], [-0.5, 1.6, 0.2], [1.6, 1.6, 0.15], [1.6, -0.5, 0.05]],
             ),
-            None,
+            Some(vec![Slave(0), Slave(1), Slave(2)]),
         ),
         // A master triangle inside the warped slave quad: the polygon is the master's.
         (
@@ -127,12 +132,20 @@ fn cases() -> Vec<(Case, Option<Vec<()>>)> {
 
 // ---------------- the quantities, twice ----------------
 
-const GROUPS: [&str; 5] = [
+const GROUPS: [&str; 13] = [
     "n_q (nodal normals)",
     "e (facet unit normal at a point)",
     "J (slave Jacobian at a point)",
     "d_j (D of the facet)",
     "A (dual coefficients)",
+    "aux plane (x0, n0, e1, e2)",
+    "projected master nodes",
+    "xi_s, xi_m (inverse maps)",
+    "polygon vertices",
+    "M_jl",
+    "N_j",
+    "g_j (weighted gaps)",
+    "overlap area",
 ];
 
 fn point(f: &Facet3) -> Vec2 {
@@ -146,6 +159,11 @@ fn facets(c: &Case, x: &[Vec3]) -> (Facet3, Facet3) {
     (Facet3::from_nodes(x, &c.patch[0]).unwrap(), Facet3::from_nodes(x, &c.master).unwrap())
 }
 
+/// The plane point where both inverse maps are checked: halfway between the facet centres.
+fn probe(plane: &AuxPlane, m: &Facet3) -> Vec2 {
+    scale2(0.5, plane.coords(m.position(m.centre_param())))
+}
+
 fn solver_values(c: &Case, x: &[Vec3]) -> Vec<(&'static str, f64)> {
     let mut out = Vec::new();
     let normals = nodal_normals_3d(&x[..c.np], &c.patch, false).unwrap();
@@ -153,7 +171,7 @@ fn solver_values(c: &Case, x: &[Vec3]) -> Vec<(&'static str, f64)> {
     for n in &nrm {
         out.extend(n.iter().map(|&v| (GROUPS[0], v)));
     }
-    let (s, _m) = facets(c, x);
+    let (s, m) = facets(c, x);
     let e = s.normal(point(&s));
     out.extend(e.iter().map(|&v| (GROUPS[1], v / norm3(e))));
     out.push((GROUPS[2], s.jacobian(point(&s))));
@@ -162,10 +180,46 @@ fn solver_values(c: &Case, x: &[Vec3]) -> Vec<(&'static str, f64)> {
     for i in 0..dual.n {
         out.extend(dual.a[i][..dual.n].iter().map(|&v| (GROUPS[4], v)));
     }
+    let plane = AuxPlane::of_slave(&s).unwrap();
+    for v in [plane.centre, plane.normal, plane.e1, plane.e2] {
+        out.extend(v.iter().map(|&v| (GROUPS[5], v)));
+    }
+    for &y in m.nodes() {
+        out.extend(plane.coords(y).iter().map(|&v| (GROUPS[6], v)));
+    }
+    let q = probe(&plane, &m);
+    for f in [&s, &m] {
+        out.extend(invert_on_plane(f, &plane, q).unwrap().iter().map(|&v| (GROUPS[7], v)));
+    }
+    // The polygon as mortar_pair_3d builds it.
+    let sp: Vec<Vec2> = s.nodes().iter().map(|&y| plane.coords(y)).collect();
+    let mut mp: Vec<Vec2> = m.nodes().iter().map(|&y| plane.coords(y)).collect();
+    mp.reverse();
+    let h2 = s.size().powi(2);
+    let h = polygon_area(&sp).sqrt();
+    let poly = dedupe_polygon(clip_polygon(&mp, &sp, 1e-13 * h2), 1e-12 * h);
+    for p in &poly {
+        out.extend(p.iter().map(|&v| (GROUPS[8], v)));
+    }
+    let p = mortar_pair_3d(&s, &nrm, &dual, &m)
+        .unwrap()
+        .unwrap_or(PairIntegrals::zero(s.n_nodes(), m.n_nodes()));
+    for j in 0..p.n_slave {
+        out.extend(p.m[j][..p.n_master].iter().map(|&v| (GROUPS[9], v)));
+    }
+    out.extend(p.psi_integral[..p.n_slave].iter().map(|&v| (GROUPS[10], v)));
+    out.extend(p.weighted_gap[..p.n_slave].iter().map(|&v| (GROUPS[11], v)));
+    out.push((GROUPS[12], p.overlap_measure));
     out
 }
 
-fn analytic(c: &Case, x: &[Vec3]) -> Vec<(&'static str, f64, Lin)> {
+fn ids4(v: &[usize]) -> [usize; 4] {
+    let mut a = [0; 4];
+    a[..v.len()].copy_from_slice(v);
+    a
+}
+
+fn analytic(c: &Case, x: &[Vec3]) -> (Vec<(&'static str, f64, Lin)>, Option<PairIntegralsLin3>) {
     let mut out = Vec::new();
     let normals = nodal_normals_lin_3d(&x[..c.np], &c.patch, false).unwrap();
     let nrm: Vec<Vec3Lin> = c.patch[0].iter().map(|&k| normals[k].clone()).collect();
@@ -174,7 +228,7 @@ fn analytic(c: &Case, x: &[Vec3]) -> Vec<(&'static str, f64, Lin)> {
             out.push((GROUPS[0], n.value[k], n.lin[k].clone()));
         }
     }
-    let (s, _m) = facets(c, x);
+    let (s, m) = facets(c, x);
     let sid = &c.patch[0][..];
     let e = facet_normal_lin_3d(&s, sid, point(&s)).unwrap();
     for k in 0..3 {
@@ -192,7 +246,72 @@ fn analytic(c: &Case, x: &[Vec3]) -> Vec<(&'static str, f64, Lin)> {
             out.push((GROUPS[4], dual.value.a[i][k], dual.a[i][k].clone()));
         }
     }
-    out
+    let plane = aux_plane_lin(&s, sid).unwrap();
+    let pv = plane.value;
+    for (v, d) in [
+        (pv.centre, &plane.centre),
+        (pv.normal, &plane.normal),
+        (pv.e1, &plane.e1),
+        (pv.e2, &plane.e2),
+    ] {
+        for k in 0..3 {
+            out.push((GROUPS[5], v[k], d[k].clone()));
+        }
+    }
+    let mut mcoords = Vec::new();
+    for (&y, &id) in m.nodes().iter().zip(&c.master) {
+        let q = plane.coords_lin(&Vec3Lin::node(id, y));
+        for k in 0..2 {
+            out.push((GROUPS[6], q.value[k], q.lin[k].clone()));
+        }
+        mcoords.push(q);
+    }
+    // probe = (1/2) P(x_m(centre)), x_m(centre) = sum_l phi_l(centre) y_l.
+    let phic = m.shape(m.centre_param());
+    let yc = Vec3Lin {
+        value: m.position(m.centre_param()),
+        lin: {
+            let nodes: Vec<Lin3> = c.master.iter().map(|&k| lin3_node(k)).collect();
+            lin3_sum(&(0..c.master.len()).map(|l| (phic[l], &nodes[l])).collect::<Vec<_>>())
+        },
+    };
+    let qc = plane.coords_lin(&yc);
+    let q =
+        Vec2Lin { value: scale2(0.5, qc.value), lin: [qc.lin[0].scale(0.5), qc.lin[1].scale(0.5)] };
+    for (f, ids) in [(&s, sid), (&m, &c.master[..])] {
+        let (xi, dxi) = invert_on_plane_lin(f, ids, &plane, &q).unwrap();
+        for k in 0..2 {
+            out.push((GROUPS[7], xi[k], dxi[k].clone()));
+        }
+    }
+    let nv: Vec<Vec3> = nrm.iter().map(|n| n.value).collect();
+    let nl: Vec<Lin3> = nrm.iter().map(|n| n.lin.clone()).collect();
+    let ids = PairIds3 { slave: ids4(sid), master: ids4(&c.master) };
+    let p = mortar_pair_lin_3d(&s, &nv, &dual.value, &m, ids, &nl).unwrap();
+    if let Some(p) = &p {
+        for (v, d) in p.polygon.iter().zip(&p.polygon_lin) {
+            for k in 0..2 {
+                out.push((GROUPS[8], v[k], d[k].clone()));
+            }
+        }
+    }
+    let (ns, nm) = (s.n_nodes(), m.n_nodes());
+    let zero = PairIntegrals::zero(ns, nm);
+    let v = p.as_ref().map_or(&zero, |p| &p.value);
+    let d = |f: &dyn Fn(&PairIntegralsLin3) -> Lin| p.as_ref().map_or(Lin::zero(), f);
+    for jj in 0..ns {
+        for l in 0..nm {
+            out.push((GROUPS[9], v.m[jj][l], d(&|p| p.m[jj][l].clone())));
+        }
+    }
+    for jj in 0..ns {
+        out.push((GROUPS[10], v.psi_integral[jj], d(&|p| p.psi_integral[jj].clone())));
+    }
+    for jj in 0..ns {
+        out.push((GROUPS[11], v.weighted_gap[jj], d(&|p| p.weighted_gap[jj].clone())));
+    }
+    out.push((GROUPS[12], v.overlap_measure, d(&|p| p.overlap_measure.clone())));
+    (out, p)
 }
 
 // ---------------- the finite-difference harness ----------------
@@ -241,7 +360,7 @@ const STEPS: [f64; 5] = [1e-3, 1e-4, 1e-5, 1e-6, 1e-7];
 
 /// Per group: (name, largest analytic derivative, relative error at each step).
 fn fd_table(c: &Case) -> Vec<(&'static str, f64, Vec<f64>)> {
-    let an = analytic(c, &c.x);
+    let (an, _) = analytic(c, &c.x);
     let dirs = directions(c);
     let mut names: Vec<&'static str> = Vec::new();
     for (g, _, _) in &an {
@@ -317,7 +436,7 @@ fn check_table(name: &str, t: &[(&'static str, f64, Vec<f64>)]) {
 
 fn values_match(c: &Case) {
     let sv = solver_values(c, &c.x);
-    let an = analytic(c, &c.x);
+    let (an, _) = analytic(c, &c.x);
     assert_eq!(sv.len(), an.len(), "{}", c.name);
     for ((g, v), (g2, w, _)) in sv.iter().zip(&an) {
         assert_eq!(g, g2, "{}", c.name);
@@ -329,10 +448,58 @@ fn values_match(c: &Case) {
 fn values_are_the_solvers() {
     for (c, _) in cases() {
         values_match(&c);
+        // And bit for bit where the same expressions run.
+        let (s, m) = facets(&c, &c.x);
         let normals = nodal_normals_3d(&c.x[..c.np], &c.patch, false).unwrap();
         let nl = nodal_normals_lin_3d(&c.x[..c.np], &c.patch, false).unwrap();
         assert!(normals.iter().zip(&nl).all(|(a, b)| *a == b.value));
+        let nrm: Vec<Vec3> = c.patch[0].iter().map(|&k| normals[k]).collect();
+        let nlin: Vec<Lin3> = c.patch[0].iter().map(|&k| nl[k].lin.clone()).collect();
+        let dual = dual_basis_3d(&s).unwrap();
+        assert_eq!(dual_basis_lin_3d(&s, &c.patch[0]).unwrap().value, dual);
+        assert_eq!(aux_plane_lin(&s, &c.patch[0]).unwrap().value, AuxPlane::of_slave(&s).unwrap());
+        let ids = PairIds3 { slave: ids4(&c.patch[0]), master: ids4(&c.master) };
+        let p = mortar_pair_3d(&s, &nrm, &dual, &m).unwrap();
+        let pl = mortar_pair_lin_3d(&s, &nrm, &dual, &m, ids, &nlin).unwrap();
+        assert_eq!(p, pl.map(|p| p.value), "{}", c.name);
     }
+}
+
+#[test]
+fn polygon_vertex_kinds() {
+    use PolyVertex::*;
+    let mut seen_slave = false;
+    let mut seen_master = false;
+    let mut seen_crossing = false;
+    for (c, expect) in cases() {
+        let (_, p) = analytic(&c, &c.x);
+        let p = p.expect("overlap");
+        println!("{}: {:?}", c.name, p.kinds);
+        if let Some(e) = expect {
+            let mut k = p.kinds.clone();
+            let mut e = e.clone();
+            k.sort_by_key(|v| format!("{v:?}"));
+            e.sort_by_key(|v| format!("{v:?}"));
+            assert_eq!(k, e, "{}", c.name);
+        }
+        if c.name.starts_with("quad/quad partial") {
+            for k in &p.kinds {
+                match k {
+                    Slave(_) => seen_slave = true,
+                    Master(_) => seen_master = true,
+                    Crossing { .. } => seen_crossing = true,
+                    Other => panic!("degenerate vertex"),
+                }
+            }
+        }
+        if c.name.contains("just inside") {
+            assert!(p.kinds.contains(&Slave(3)), "{:?}", p.kinds);
+        }
+        if c.name.contains("just outside") {
+            assert!(!p.kinds.contains(&Slave(3)), "{:?}", p.kinds);
+        }
+    }
+    assert!(seen_slave && seen_master && seen_crossing);
 }
 
 #[test]
