@@ -547,6 +547,14 @@ pub struct PairIntegralsLin3 {
     pub polygon: Vec<Vec2>,
     pub kinds: Vec<PolyVertex>,
     pub polygon_lin: Vec<Lin2>,
+    /// The polygon's vertex centroid `c` (the common corner of the sub-triangles) and its
+    /// derivative.
+    pub centre: Vec2,
+    pub centre_lin: Lin2,
+    /// The signed areas of the sub-triangles `(c, p_i, p_(i+1))` and their derivatives (a
+    /// sub-triangle of area `<= 0`, a sliver left by clipping, contributes nothing).
+    pub sub_areas: Vec<f64>,
+    pub sub_areas_lin: Vec<Lin>,
     /// `delta M_jl`.
     pub m: [[Lin; 4]; 4],
     /// `delta N_j`, `N_j = int_overlap psi_j`.
@@ -660,16 +668,20 @@ pub fn mortar_pair_lin_3d(
     let mut dnint: [Lin; 4] = Default::default();
     let mut dgap: [Lin; 4] = Default::default();
     let mut dmeas = Lin::zero();
+    let mut sub_areas = Vec::with_capacity(poly.len());
+    let mut sub_areas_lin = Vec::with_capacity(poly.len());
     for i in 0..poly.len() {
         let (v1, v2) = (&poly[i], &poly[(i + 1) % poly.len()]);
         let (p1, p2) = (v1.p.value, v2.p.value);
         let area = 0.5 * cross2(sub2(p1, c), sub2(p2, c));
-        if !(area > 0.0) {
-            continue;
-        }
         let (r1, r2) = (sub2(p1, c), sub2(p2, c));
         let (dr1, dr2) = (sub_lin(&v1.p.lin, &dc), sub_lin(&v2.p.lin, &dc));
         let darea = Lin::combine(0.5, &lin2_cross(r1, &dr2), -0.5, &lin2_cross(r2, &dr1));
+        sub_areas.push(area);
+        sub_areas_lin.push(darea.clone());
+        if !(area > 0.0) {
+            continue;
+        }
         for (l, w) in rule.iter() {
             let q = add2(add2(scale2(l[0], c), scale2(l[1], p1)), scale2(l[2], p2));
             let dq = {
@@ -740,6 +752,10 @@ pub fn mortar_pair_lin_3d(
         polygon: pv,
         kinds,
         polygon_lin: poly.into_iter().map(|v| v.p.lin).collect(),
+        centre: c,
+        centre_lin: dc,
+        sub_areas,
+        sub_areas_lin,
         m: dm,
         psi_integral: dnint,
         weighted_gap: dgap,

@@ -132,16 +132,18 @@ fn cases() -> Vec<(Case, Option<Vec<PolyVertex>>)> {
 
 // ---------------- the quantities, twice ----------------
 
-const GROUPS: [&str; 13] = [
+const GROUPS: [&str; 15] = [
     "n_q (nodal normals)",
     "e (facet unit normal at a point)",
     "J (slave Jacobian at a point)",
     "d_j (D of the facet)",
     "A (dual coefficients)",
     "aux plane (x0, n0, e1, e2)",
-    "projected master nodes",
+    "projected nodes (slave, master)",
     "xi_s, xi_m (inverse maps)",
     "polygon vertices",
+    "polygon centre",
+    "sub-triangle areas",
     "M_jl",
     "N_j",
     "g_j (weighted gaps)",
@@ -184,7 +186,7 @@ fn solver_values(c: &Case, x: &[Vec3]) -> Vec<(&'static str, f64)> {
     for v in [plane.centre, plane.normal, plane.e1, plane.e2] {
         out.extend(v.iter().map(|&v| (GROUPS[5], v)));
     }
-    for &y in m.nodes() {
+    for &y in s.nodes().iter().chain(m.nodes()) {
         out.extend(plane.coords(y).iter().map(|&v| (GROUPS[6], v)));
     }
     let q = probe(&plane, &m);
@@ -201,15 +203,24 @@ fn solver_values(c: &Case, x: &[Vec3]) -> Vec<(&'static str, f64)> {
     for p in &poly {
         out.extend(p.iter().map(|&v| (GROUPS[8], v)));
     }
+    if !poly.is_empty() {
+        let inv_n = 1.0 / poly.len() as f64;
+        let c = poly.iter().fold([0.0; 2], |acc, &p| add2(acc, scale2(inv_n, p)));
+        out.extend(c.iter().map(|&v| (GROUPS[9], v)));
+        for i in 0..poly.len() {
+            let (p1, p2) = (poly[i], poly[(i + 1) % poly.len()]);
+            out.push((GROUPS[10], 0.5 * cross2(sub2(p1, c), sub2(p2, c))));
+        }
+    }
     let p = mortar_pair_3d(&s, &nrm, &dual, &m)
         .unwrap()
         .unwrap_or(PairIntegrals::zero(s.n_nodes(), m.n_nodes()));
     for j in 0..p.n_slave {
-        out.extend(p.m[j][..p.n_master].iter().map(|&v| (GROUPS[9], v)));
+        out.extend(p.m[j][..p.n_master].iter().map(|&v| (GROUPS[11], v)));
     }
-    out.extend(p.psi_integral[..p.n_slave].iter().map(|&v| (GROUPS[10], v)));
-    out.extend(p.weighted_gap[..p.n_slave].iter().map(|&v| (GROUPS[11], v)));
-    out.push((GROUPS[12], p.overlap_measure));
+    out.extend(p.psi_integral[..p.n_slave].iter().map(|&v| (GROUPS[12], v)));
+    out.extend(p.weighted_gap[..p.n_slave].iter().map(|&v| (GROUPS[13], v)));
+    out.push((GROUPS[14], p.overlap_measure));
     out
 }
 
@@ -258,13 +269,11 @@ fn analytic(c: &Case, x: &[Vec3]) -> (Vec<(&'static str, f64, Lin)>, Option<Pair
             out.push((GROUPS[5], v[k], d[k].clone()));
         }
     }
-    let mut mcoords = Vec::new();
-    for (&y, &id) in m.nodes().iter().zip(&c.master) {
+    for (&y, &id) in s.nodes().iter().chain(m.nodes()).zip(sid.iter().chain(&c.master)) {
         let q = plane.coords_lin(&Vec3Lin::node(id, y));
         for k in 0..2 {
             out.push((GROUPS[6], q.value[k], q.lin[k].clone()));
         }
-        mcoords.push(q);
     }
     // probe = (1/2) P(x_m(centre)), x_m(centre) = sum_l phi_l(centre) y_l.
     let phic = m.shape(m.centre_param());
@@ -294,6 +303,12 @@ fn analytic(c: &Case, x: &[Vec3]) -> (Vec<(&'static str, f64, Lin)>, Option<Pair
                 out.push((GROUPS[8], v[k], d[k].clone()));
             }
         }
+        for k in 0..2 {
+            out.push((GROUPS[9], p.centre[k], p.centre_lin[k].clone()));
+        }
+        for (a, d) in p.sub_areas.iter().zip(&p.sub_areas_lin) {
+            out.push((GROUPS[10], *a, d.clone()));
+        }
     }
     let (ns, nm) = (s.n_nodes(), m.n_nodes());
     let zero = PairIntegrals::zero(ns, nm);
@@ -301,16 +316,16 @@ fn analytic(c: &Case, x: &[Vec3]) -> (Vec<(&'static str, f64, Lin)>, Option<Pair
     let d = |f: &dyn Fn(&PairIntegralsLin3) -> Lin| p.as_ref().map_or(Lin::zero(), f);
     for jj in 0..ns {
         for l in 0..nm {
-            out.push((GROUPS[9], v.m[jj][l], d(&|p| p.m[jj][l].clone())));
+            out.push((GROUPS[11], v.m[jj][l], d(&|p| p.m[jj][l].clone())));
         }
     }
     for jj in 0..ns {
-        out.push((GROUPS[10], v.psi_integral[jj], d(&|p| p.psi_integral[jj].clone())));
+        out.push((GROUPS[12], v.psi_integral[jj], d(&|p| p.psi_integral[jj].clone())));
     }
     for jj in 0..ns {
-        out.push((GROUPS[11], v.weighted_gap[jj], d(&|p| p.weighted_gap[jj].clone())));
+        out.push((GROUPS[13], v.weighted_gap[jj], d(&|p| p.weighted_gap[jj].clone())));
     }
-    out.push((GROUPS[12], v.overlap_measure, d(&|p| p.overlap_measure.clone())));
+    out.push((GROUPS[14], v.overlap_measure, d(&|p| p.overlap_measure.clone())));
     (out, p)
 }
 
