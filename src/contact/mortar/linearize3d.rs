@@ -41,6 +41,13 @@
 //! a duplicate (`dedupe_polygon`) passes its derivative to none, the one kept keeps its own;
 //! a pair without overlap has no derivative. The tests check both sides of a switch away from
 //! it (a slave node just inside and just outside the master).
+//!
+//! Matching meshes sit on a switch at every vertex (each master node projects onto a slave
+//! node). There the master nodes are kept (`>= -eps`), so the derivative returned is that of
+//! the polygon of the projected master nodes, exact along motions that keep the meshes
+//! matching (the test moves touching matched facets together); across the switch a single
+//! pair's integrals have a kink, and central differences of it do not converge to either side
+//! (as in 2D, the sum over the master facets around a node is smoother than one pair).
 
 // Deliberate: `!(a > b)` treats NaN as failing the test, which `a <= b` would not.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
