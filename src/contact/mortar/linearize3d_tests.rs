@@ -547,3 +547,26 @@ fn dual_coefficients_of_triangles_do_not_move() {
     let d = dual_basis_lin_3d(&f, &[0, 1, 2, 3]).unwrap();
     assert!(d.a[0][0].max_abs() > 1e-2, "a general quad's A moves: {:?}", d.a[0][0]);
 }
+
+/// Matching quads with a gap between them, the twins moved together: moving the slave turns
+/// the projection direction `n0`, so the master nodes' projections leave the slave nodes by
+/// O(h) and every vertex crosses its switch. The pair's `M` and `g` have a kink there; their
+/// central differences stay O(0.1) away from the derivative returned (the side where the
+/// master nodes are kept; see the module docs), at every step.
+#[test]
+fn matching_with_a_gap_is_a_switch() {
+    let (qx, qf) = quad_patch();
+    let f = Facet3::from_nodes(&qx, &[0, 1, 2, 3]).unwrap();
+    let n0 = AuxPlane::of_slave(&f).unwrap().normal;
+    let up = |p: Vec3| add3(p, scale3(0.05, n0));
+    let mut m =
+        case("matching with a gap", &qx, &qf, &[up(qx[3]), up(qx[2]), up(qx[1]), up(qx[0])]);
+    m.twin = Some(vec![3, 2, 1, 0]);
+    let (_, p) = analytic(&m, &m.x);
+    let kinds = p.unwrap().kinds;
+    assert!(kinds.iter().all(|k| matches!(k, PolyVertex::Master(_))), "{kinds:?}");
+    let t = fd_table(&m);
+    print_table(m.name, &t);
+    let mjl = t.iter().find(|g| g.0 == GROUPS[11]).unwrap();
+    assert!(mjl.2.iter().all(|&e| e > 1e-2), "M_jl converged at a switch? {:?}", mjl.2);
+}
