@@ -341,7 +341,7 @@ impl Job {
             if t0.elapsed().as_secs_f64() > limit.seconds {
                 self.kill_all();
                 panic!(
-                    "{}: HANG: no {what} {:.1} s later, beyond the limit of {:.1} s ({}); the job's processes were killed",
+                    "{}: HANG: waited {:.1} s for {what}, beyond the limit of {:.1} s ({}); the job's processes were killed",
                     self.what,
                     t0.elapsed().as_secs_f64(),
                     limit.seconds,
