@@ -172,8 +172,9 @@ fn space_study_shows_rates_2_and_1_and_writes_plots() {
         run_of(&runs, r);
         // The times nest (to the printed digits): stepping is a part of the program's run
         // time, which is a part of the whole process.
-        assert!(num(r, "stepping_s") <= num(r, "run_s") + 0.001, "{r:?}");
-        assert!(num(r, "run_s") <= num(r, "process_s") + 0.0055, "{r:?}");
+        let (stepping, run, process) = (num(r, "stepping_s"), num(r, "run_s"), num(r, "process_s"));
+        assert!(stepping <= run + 0.001, "stepping_s {stepping} > run_s {run}: {r:?}");
+        assert!(run <= process + 0.0055, "run_s {run} > process_s {process}: {r:?}");
         if r["h"] == "0.25" {
             assert_eq!(r["rate_l2_h"], "", "no rate on the coarsest mesh");
             continue;
