@@ -155,14 +155,14 @@ fn check_patch(
         assert_eq!(steps.len(), 4, "{name}: steps 0..3");
         let scale = steps[0].iter().fold(0.0f64, |a, &b| a.max(b.abs()));
         assert!(scale > 0.0);
-        for vals in &steps[..n_steps] {
+        for (step, vals) in steps[..n_steps].iter().enumerate() {
             for (i, (_, c)) in cells.iter().enumerate() {
                 let want = &state(centroid(&coords, c))[k];
                 for j in 0..comps {
                     let got = vals[i * comps + j];
                     assert!(
                         (got - want[j]).abs() <= 1e-9 * scale,
-                        "{name}[cell {i}][{j}] = {got}, exact {}",
+                        "{name}[cell {i}][{j}] = {got} at written step {step}, exact {}",
                         want[j]
                     );
                     checked += 1;
@@ -454,12 +454,16 @@ fn beam_stress_converges_at_rate_one() {
                 errs[k].0,
                 errs[k].1
             );
+            // Theory: the cell values are piecewise constant, first order in L2; the lumped
+            // projection is second order at interior nodes (the averaged gradient is
+            // superconvergent there) and first order only at the boundary nodes, a strip of
+            // width h: h * h^(1/2) in L2, rate 3/2. So it converges faster, at every level.
+            // (Which of the two errors is smaller on a given mesh depends on constants theory
+            // does not give: not asserted.)
+            assert!(rn > rc, "{mesh}: nodal rate {rn} not above the cell rate {rc}: {errs:?}");
             assert!(rc > 0.85, "{mesh}: cell stress rate {rc} at level {k}: {errs:?}");
             assert!(rn >= 0.85, "{mesh}: nodal stress rate {rn} at level {k}: {errs:?}");
         }
-        // The projection is at least as accurate as the cell values on the finest mesh.
-        let last = errs.last().unwrap();
-        assert!(last.1 <= last.0, "{mesh}: nodal {} vs cell {}", last.1, last.0);
     }
 }
 
@@ -550,6 +554,8 @@ fn stress_time_is_reported_and_zero_without_stress_fields() {
     let short = [("steps = 250", "steps = 20"), ("error_steps = [30, 250]", "error_steps = [20]")];
     let plain = scene_variant("beam.toml", &dir, &short);
     let s = run_scene(2, &plain, &["--param", "h=0.25"]);
+    // Exactly zero, no clock involved: the stress timer runs only around stress work, so this
+    // fails exactly when a run without stress fields does some.
     assert_eq!(s.timings.stress, 0.0, "no stress field, no stress work");
     let h5 = dir.join("beam-2.h5");
     assert!(
@@ -572,6 +578,7 @@ fn stress_time_is_reported_and_zero_without_stress_fields() {
         ],
     );
     let s = run_scene(2, &with, &["--param", "h=0.25"]);
+    // Reported: the stress work of the three written steps is timed (it stays 0 if untimed).
     assert!(s.timings.stress > 0.0, "{:?}", s.timings);
     let h5 = sub.join("beam-2.h5");
     let line = reader(&h5).text("timings");
