@@ -39,31 +39,39 @@ fn ball_dropped_on_a_plane_follows_hertz() {
     assert!((duration / t_c - 1.0).abs() < 0.10, "contact time {duration} vs Hertz {t_c}");
     assert!((peak / f_max - 1.0).abs() < 0.10, "peak force {peak} vs Hertz {f_max}");
     // The contact area at the peak against Hertz's radius for that force,
-    // a = (3 F R / (4 E*))^(1/3): the radius of the circle of the same area within one
-    // contact-zone mesh size (hc = 0.04; a is about 2.5 of them).
+    // a = (3 F R / (4 E*))^(1/3) (about 0.1, 2.5 contact-zone elements of hc = 0.04). The run
+    // reports the area as the sum of the active nodes' weights int phi_q, which reach half an
+    // element beyond the outermost active nodes: with the active set the nodes inside Hertz's
+    // circle, the radius of that area is within hc/2 of a (the active set resolves the edge
+    // to a node, the weights to half an element on either side of it). Hertz's own model
+    // error, the paraboloid for the sphere, is O((a/R)^2) of a. Bound: hc/2 + (a/R)^2 a
+    // (= 0.021; measured 0.003). An area summed wrong by a factor 2 (0.038 off) fails it.
     let area = values(&dir.join("sphere-2.h5"), &layout::contact(layout::CONTACT_PER_STEP[2]));
     let k = (0..force.len()).max_by(|&i, &j| force[i].total_cmp(&force[j])).unwrap();
     let a = (3.0 * force[k] * 1.0 / (4.0 * 100.0 / (1.0 - 0.09))).cbrt();
     let r = (area[k] / std::f64::consts::PI).sqrt();
-    eprintln!("contact area at the peak {} = pi {r}^2, Hertz a = {a}", area[k]);
-    assert!((r - a).abs() <= 0.04, "contact radius {r} vs Hertz {a}");
+    let (hc, radius) = (0.04, 1.0);
+    let bound = hc / 2.0 + (a / radius).powi(2) * a;
+    eprintln!("contact area at the peak {} = pi {r}^2, Hertz a = {a} (bound {bound})", area[k]);
+    assert!((r - a).abs() <= bound, "contact radius {r} vs Hertz {a}: more than {bound} apart");
     // One contact period, one episode per node, and the ball leaves the plane.
     assert_eq!(c.contact_steps, c.last_contact_step - c.first_contact_step + 1);
     assert_eq!(c.episodes_max, 1, "a node touched more than once (chatter)");
     assert!(c.last_contact_step < s.steps, "the ball must have left the plane");
     // The midpoint rule with contact loses no energy beyond the contact work, which vanishes
-    // for persistent contact (g lambda = 0 at every midpoint): after release E ~ E^0.
+    // for persistent contact (g lambda = 0 at every midpoint) and is `lambda g^n >= 0` at
+    // activation (METHOD.md 7): energy can only be lost, never gained beyond the balance's
+    // tolerance (1e-8 of the energy), and the loss stays below 1e-3 (METHOD.md 7, for every
+    // mass kind; the massless DOFs' correction puts it back here).
     let loss = (s.energy_initial - s.energy_final) / s.energy_initial;
-    assert!(loss.abs() < 1e-3, "energy after release differs by {loss} of the initial energy");
+    assert!((-1e-8..1e-3).contains(&loss), "relative energy loss {loss} (a gain if negative)");
     assert!(s.energy_balance < 1e-8, "energy balance {}", s.energy_balance);
     // Impulse = momentum change (z): the contact is the only force.
     let dp = s.momentum_final[2] - s.momentum_initial[2];
     assert!(rel_diff(c.impulse[2], dp) < 1e-8, "impulse {} vs momentum change {dp}", c.impulse[2]);
-    assert!(
-        c.active_set_iterations_mean <= 3.0,
-        "{} PDAS iterations",
-        c.active_set_iterations_mean
-    );
+    // The active-set iterations per contact step are a benchmark figure, not a test (no theory
+    // bounds their number; a cycling or capped active set is an error of the run itself).
+    eprintln!("figure: {:.2} active-set iterations per contact step", c.active_set_iterations_mean);
 }
 
 /// The sparse primal-dual active set (one constrained solve per iteration) and the Schur

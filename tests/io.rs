@@ -101,22 +101,30 @@ fn layout_is_documented_and_rank_independent() {
 #[test]
 fn sigterm_leaves_a_readable_file_with_a_checkpoint() {
     let dir = scratch("io-sigterm");
-    let scene = scene_variant("disc.toml", &dir, &[("steps = 1000", "steps = 1000000")]);
+    let scene = scene_variant("disc.toml", &dir, &[]);
     let out = dir.join("killed.h5");
-    let mut child = std::process::Command::new("mpirun")
-        .args(["--oversubscribe", "-n", "2"])
-        .arg(bin())
-        .args(["run", &scene.display().to_string(), "-q", "-o", &out.display().to_string()])
-        .env("OMPI_ALLOW_RUN_AS_ROOT", "1")
-        .env("OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1")
-        .env("OMPI_MCA_btl_vader_single_copy_mechanism", "none")
-        .stderr(std::process::Stdio::piped())
-        .spawn()
-        .unwrap();
-    std::thread::sleep(std::time::Duration::from_secs(3));
+    let args = |out: &Path, steps: &str| -> Vec<String> {
+        ["run", scene.to_str().unwrap(), "-q", "-o", out.to_str().unwrap(), "--steps", steps]
+            .iter()
+            .map(|s| s.to_string())
+            .collect()
+    };
+    // The pace: the same run for 1000 steps; then the run of 10^6 steps, signalled once more
+    // than two steps are in its file (waiting for the file, not for a time).
+    let reference = args(&dir.join("reference.h5"), "1000");
+    let pace = Pace::measure(&mut massfree_command(2, &reference), "the disc, 1000 steps, 2 ranks");
+    let long = args(&out, "1000000");
+    let mut job = Job::start(
+        massfree_command(2, &long).stderr(std::process::Stdio::piped()),
+        "the disc signalled",
+    );
+    job.wait_for(&pace.limit(1.0), "3 steps in the file", |_| {
+        std::thread::sleep(std::time::Duration::from_millis(20));
+        steps_in_growing_file(&out).is_some_and(|n| n > 2)
+    });
     // SIGTERM to mpirun, which forwards it to the ranks.
-    let _ = std::process::Command::new("kill").args(["-TERM", &child.id().to_string()]).status();
-    let status = child.wait().unwrap();
+    job.signal(nix::sys::signal::Signal::SIGTERM);
+    let status = job.wait(&pace.limit(1.0));
     assert!(!status.success());
     let f = open(&out);
     let st = attr(&f, "status");
@@ -206,6 +214,21 @@ fn restart_equals_the_uninterrupted_run() {
         150,
         "restart-disc",
     );
+}
+
+/// A checkpoint taken at a step whose massless-DOF energy correction is still pending (it
+/// hands contact work on to later steps right after an activation or a release, METHOD.md 7)
+/// must restart exactly too. It does not today: the checkpoint keeps no pending correction, and
+/// the continued run differs from the uninterrupted one (coarse disc, 1 rank: by 1.3e-4 of the
+/// displacement after a restart at step 64, 8e-7 at step 760; exact at 60, 400, 740, 1000). A
+/// known failure, run with `cargo test --test io -- --ignored`.
+#[test]
+#[ignore = "known failure: a checkpoint keeps no pending massless-DOF energy correction"]
+fn restart_with_a_pending_energy_correction() {
+    let coarse = [("steps = 1000", "steps = 1200"), ("h = 1.0, hc = 0.1", "h = 2.0, hc = 0.4")];
+    for k in [64, 760] {
+        restart_equals_uninterrupted("disc.toml", &coarse, k, &format!("restart-pending-{k}"));
+    }
 }
 
 #[test]

@@ -615,6 +615,39 @@ fn a_real_run_draws_its_velocity() {
     let (dx, dy) = ((x1 - x0) as f64, (y1 - y0) as f64);
     assert!((dx / dy - 1.0).abs() < 0.02, "disc drawn {dx} x {dy}");
     assert!(pic.mesh.len() as f64 > 0.6 * dx * dy, "{} mesh pixels", pic.mesh.len());
-    // At step 60 the disc has not touched yet: |v| = 800 nearly everywhere (one colour).
-    assert!(out.contains("velocity magnitude in ["), "{out}");
+    // At step 60 the disc has not touched yet (its first contact is at step 63): it moves as a
+    // rigid body at 800, which the midpoint rule keeps exactly, so |v| = 800 at every node to
+    // round-off (the printed range)...
+    let range = out
+        .split("velocity magnitude in [")
+        .nth(1)
+        .and_then(|r| r.split(']').next())
+        .unwrap_or_else(|| panic!("no range printed: {out}"));
+    let (lo, hi) = range.split_once(',').map(|(a, b)| (a.trim(), b.trim())).unwrap();
+    for x in [lo, hi] {
+        let v: f64 = x.parse().unwrap_or_else(|_| panic!("range [{range}]"));
+        assert!((v - 800.0).abs() <= 1e-6 * 800.0, "|v| in [{range}], not 800");
+    }
+    // ... and drawn with the colours of [0, 1000], every pixel of the disc has the colour of
+    // 0.8 (within the map's 8-bit steps, 1/256).
+    run_ok(&[
+        "post",
+        path_str(&h5),
+        "--snapshot",
+        "velocity",
+        "--range",
+        "0,1000",
+        "-o",
+        path_str(&prefix),
+    ]);
+    let pic = Picture::read(&dir.join("v-snapshot-velocity.png"));
+    let off: Vec<_> = pic.mesh.iter().filter(|p| (p.2 - 0.8).abs() > 1.0 / 256.0).collect();
+    eprintln!("|v| in [{range}]; {} of {} disc pixels off 0.8", off.len(), pic.mesh.len());
+    assert!(
+        off.len() * 1000 < pic.mesh.len(),
+        "{} of {} pixels of the disc not at 0.8 of the map, e.g. {:?}",
+        off.len(),
+        pic.mesh.len(),
+        &off[..off.len().min(5)]
+    );
 }

@@ -80,9 +80,10 @@ fn linear_field(d: usize) -> String {
     format!("[{}]", comps.join(", "))
 }
 
-/// A body whose whole boundary (`groups`) holds `u = G x + c`, starting there at rest: the
-/// exact solution is that static linear field, so every written step must hold its uniform
-/// strain and stress (per body material) in every cell and at every node.
+/// A body whose whole boundary (`groups`) holds `u = G x + c` (`field`: the scene's
+/// expressions, [`linear_field`] by default), starting there at rest: the exact solution is
+/// that static field, so every written step must hold its strain and stress (per body
+/// material) in every cell and at every node.
 fn patch_scene(
     dir: &Path,
     name: &str,
@@ -91,7 +92,17 @@ fn patch_scene(
     groups: &[&str],
     bodies: &str,
 ) -> std::path::PathBuf {
-    let u = linear_field(d);
+    patch_scene_with(dir, name, mesh, groups, bodies, &linear_field(d))
+}
+
+fn patch_scene_with(
+    dir: &Path,
+    name: &str,
+    mesh: &str,
+    groups: &[&str],
+    bodies: &str,
+    u: &str,
+) -> std::path::PathBuf {
     let dirichlet: String =
         groups.iter().map(|g| format!("[[dirichlet]]\ngroup = \"{g}\"\nvalue = {u}\n")).collect();
     let text = format!(
@@ -101,25 +112,28 @@ fn patch_scene(
     scene_text(dir, &format!("{name}.toml"), &text)
 }
 
-/// Check every stress field of `h5` at its first `steps` written steps against the uniform
-/// state of `G` with the material `material(cell centroid)` (E, nu): cells exactly, nodes for
-/// a single material (a node on two materials averages two stresses).
+/// Check every stress field of `h5` at its first `steps` written steps against the state of
+/// the displacement gradient `grad(cell centroid)` (G for the linear field) with the material
+/// `material(cell centroid)` (E, nu): cells exactly, nodes for a single material (a node on two
+/// materials averages two stresses).
 fn check_patch(
     h5: &Path,
     d: usize,
     steps: usize,
     material: &dyn Fn([f64; 3]) -> (f64, f64),
+    grad: &dyn Fn([f64; 3]) -> T3,
 ) -> usize {
     let f = reader(h5);
     let coords = f.coordinates().unwrap();
     let cells = f.cells().unwrap();
-    let mut eps = [[0.0; 3]; 3];
-    for i in 0..d {
-        for j in 0..d {
-            eps[i][j] = 0.5 * (G[i][j] + G[j][i]);
-        }
-    }
     let state = |x: [f64; 3]| {
+        let g = grad(x);
+        let mut eps = [[0.0; 3]; 3];
+        for i in 0..d {
+            for j in 0..d {
+                eps[i][j] = 0.5 * (g[i][j] + g[j][i]);
+            }
+        }
         let (e, nu) = material(x);
         let (l, m) = lame(e, nu);
         let s = hooke(&eps, l, m);
@@ -141,14 +155,14 @@ fn check_patch(
         assert_eq!(steps.len(), 4, "{name}: steps 0..3");
         let scale = steps[0].iter().fold(0.0f64, |a, &b| a.max(b.abs()));
         assert!(scale > 0.0);
-        for vals in &steps[..n_steps] {
+        for (step, vals) in steps[..n_steps].iter().enumerate() {
             for (i, (_, c)) in cells.iter().enumerate() {
                 let want = &state(centroid(&coords, c))[k];
                 for j in 0..comps {
                     let got = vals[i * comps + j];
                     assert!(
                         (got - want[j]).abs() <= 1e-9 * scale,
-                        "{name}[cell {i}][{j}] = {got}, exact {}",
+                        "{name}[cell {i}][{j}] = {got} at written step {step}, exact {}",
                         want[j]
                     );
                     checked += 1;
@@ -220,19 +234,39 @@ fn patch_test_every_kind_exact_stress_in_every_cell_and_node() {
     for (name, mesh, d, groups) in cases {
         let scene = patch_scene(&dir, name, mesh, d, &groups, "");
         // 2 ranks: the nodal projection sums over cells of both ranks.
-        let s = run_scene(2, &scene, &[]);
+        run_scene(2, &scene, &[]);
         let h5 = dir.join(format!("{name}-2.h5"));
         let kinds: Vec<ElementKind> = reader(&h5).cells().unwrap().iter().map(|c| c.0).collect();
-        let n = check_patch(&h5, d, 4, &steel);
-        assert!(s.timings.stress > 0.0);
+        let n = check_patch(&h5, d, 4, &steel, &|_| G);
         eprintln!("{name}: {} cells ({:?}), {n} values exact", kinds.len(), kinds[0]);
     }
 }
 
+/// The patch test of two materials side by side (E = 100, nu = 0.3 left of x = 1/2, E = 300,
+/// nu = 0.2 right of it, plane strain): `u = c + G x` on the left, `c + G x + a (x - 1/2)` on
+/// the right. Continuous (only d/dx jumps, by `a`) and, with `a` chosen so that the traction
+/// `sigma e_x` is the same on both sides of the interface, a static equilibrium without body
+/// force: each side's stress is uniform, and across the interface the tractions cancel. The
+/// mesh has the interface as a line, so the discrete solution is that field exactly (every
+/// interior node's residual is a sum of cancelling tractions): starting there at rest with the
+/// field on the whole boundary, the body stays, and every solved step holds it.
+///
+/// `a`: `sigma_xy` continuous: `2 mu_R (eps_xy + a_y / 2) = sigma_xy`, so
+/// `a_y = sigma_xy / mu_R - 2 eps_xy`; `sigma_xx` continuous:
+/// `(lambda_R + 2 mu_R)(eps_xx + a_x) + lambda_R eps_yy = sigma_xx`, with eps and sigma the
+/// left side's.
+fn two_material_jump() -> [f64; 2] {
+    let eps = |i: usize, j: usize| 0.5 * (G[i][j] + G[j][i]);
+    let (l, m) = lame(100.0, 0.3);
+    let (lr, mr) = lame(300.0, 0.2);
+    let (sxx, sxy) = ((l + 2.0 * m) * eps(0, 0) + l * eps(1, 1), 2.0 * m * eps(0, 1));
+    [(sxx - lr * eps(1, 1)) / (lr + 2.0 * mr) - eps(0, 0), sxy / mr - 2.0 * eps(0, 1)]
+}
+
 /// Two materials side by side on an unstructured mesh of quadrangles (left, first in the
-/// mesh) and triangles (right; first in the file, which stores kinds in gmsh type order): every
-/// cell holds its own material's stress of the common strain at the start (the linear field
-/// is no equilibrium of two materials: the interface's traction jumps, and the body moves).
+/// mesh) and triangles (right; first in the file, which stores kinds in gmsh type order), in
+/// the equilibrium of `two_material_jump`: every cell holds its own material's stress of its
+/// side's strain at the start and at every solved step.
 #[test]
 fn patch_test_two_materials_and_mixed_cells() {
     let dir = scratch("stress-patch-bodies");
@@ -251,22 +285,41 @@ fn patch_test_two_materials_and_mixed_cells() {
          Physical Curve(\"boundary\") = {1, 2, 3, 4, 5, 6};\n",
     )
     .unwrap();
-    let scene = patch_scene(
+    let a = two_material_jump();
+    let u: Vec<String> = (0..2)
+        .map(|i| {
+            format!(
+                "\"{} + {}*x + {}*y + {}*(x - 0.5 + abs(x - 0.5))/2\"",
+                C[i], G[i][0], G[i][1], a[i]
+            )
+        })
+        .collect();
+    let scene = patch_scene_with(
         &dir,
         "halves",
         "geo = \"halves.geo\"",
-        2,
         &["boundary"],
         "[[body]]\ngroup = \"stiff\"\nE = 300.0\nnu = 0.2",
+        &format!("[{}]", u.join(", ")),
     );
-    run_scene(2, &scene, &[]);
+    run_scene(2, &scene, &["--", "-ksp_rtol", "1e-12"]);
     let h5 = dir.join("halves-2.h5");
     let kinds: Vec<ElementKind> = reader(&h5).cells().unwrap().iter().map(|c| c.0).collect();
     assert!(
         kinds.contains(&ElementKind::Tri3) && kinds.contains(&ElementKind::Quad4),
         "mixed mesh"
     );
-    check_patch(&h5, 2, 1, &|x| if x[0] > 0.5 { (300.0, 0.2) } else { (100.0, 0.3) });
+    let right = |x: [f64; 3]| x[0] > 0.5;
+    let grad = |x: [f64; 3]| {
+        let mut g = G;
+        if right(x) {
+            g[0][0] += a[0];
+            g[1][0] += a[1];
+        }
+        g
+    };
+    // Step 0 (the prescribed field) and the three solved steps.
+    check_patch(&h5, 2, 4, &|x| if right(x) { (300.0, 0.2) } else { (100.0, 0.3) }, &grad);
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -401,12 +454,16 @@ fn beam_stress_converges_at_rate_one() {
                 errs[k].0,
                 errs[k].1
             );
+            // Theory: the cell values are piecewise constant, first order in L2; the lumped
+            // projection is second order at interior nodes (the averaged gradient is
+            // superconvergent there) and first order only at the boundary nodes, a strip of
+            // width h: h * h^(1/2) in L2, rate 3/2. So it converges faster, at every level.
+            // (Which of the two errors is smaller on a given mesh depends on constants theory
+            // does not give: not asserted.)
+            assert!(rn > rc, "{mesh}: nodal rate {rn} not above the cell rate {rc}: {errs:?}");
             assert!(rc > 0.85, "{mesh}: cell stress rate {rc} at level {k}: {errs:?}");
             assert!(rn >= 0.85, "{mesh}: nodal stress rate {rn} at level {k}: {errs:?}");
         }
-        // The projection is at least as accurate as the cell values on the finest mesh.
-        let last = errs.last().unwrap();
-        assert!(last.1 <= last.0, "{mesh}: nodal {} vs cell {}", last.1, last.0);
     }
 }
 
@@ -497,6 +554,8 @@ fn stress_time_is_reported_and_zero_without_stress_fields() {
     let short = [("steps = 250", "steps = 20"), ("error_steps = [30, 250]", "error_steps = [20]")];
     let plain = scene_variant("beam.toml", &dir, &short);
     let s = run_scene(2, &plain, &["--param", "h=0.25"]);
+    // Exactly zero, no clock involved: the stress timer runs only around stress work, so this
+    // fails exactly when a run without stress fields does some.
     assert_eq!(s.timings.stress, 0.0, "no stress field, no stress work");
     let h5 = dir.join("beam-2.h5");
     assert!(
@@ -519,6 +578,7 @@ fn stress_time_is_reported_and_zero_without_stress_fields() {
         ],
     );
     let s = run_scene(2, &with, &["--param", "h=0.25"]);
+    // Reported: the stress work of the three written steps is timed (it stays 0 if untimed).
     assert!(s.timings.stress > 0.0, "{:?}", s.timings);
     let h5 = sub.join("beam-2.h5");
     let line = reader(&h5).text("timings");

@@ -90,16 +90,65 @@ struct Contact {
     active: Vec<bool>,
 }
 
-fn contact(h5: &Path) -> Option<Contact> {
+/// The contact series of a run whose scene has contact (a missing dataset is a failure).
+fn contact(h5: &Path) -> Contact {
     let r = reader(h5);
-    r.file.dataset("/contact/force").ok()?;
-    let nodes = r.series("/contact/nodes").unwrap().len();
-    Some(Contact {
+    let series = |name: &str| {
+        r.series(name)
+            .unwrap_or_else(|e| panic!("{}: a contact run lacks {name}: {e}", h5.display()))
+    };
+    let nodes = series("/contact/nodes").len();
+    Contact {
         nodes,
-        force: r.series("/contact/force").unwrap(),
-        gap: r.series("/contact/gap").unwrap(),
-        active: r.series("/contact/active").unwrap().iter().map(|&a| a != 0.0).collect(),
-    })
+        force: series("/contact/force"),
+        gap: series("/contact/gap"),
+        active: series("/contact/active").iter().map(|&a| a != 0.0).collect(),
+    }
+}
+
+/// The scene a run of the suite ran (`runs/ID.scene.toml` beside `runs/ID.h5`).
+fn scene_of(h5: &Path) -> toml::Table {
+    let path = h5.with_extension("scene.toml");
+    let text = std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    toml::from_str(&text).unwrap_or_else(|e| panic!("{}: {e}", path.display()))
+}
+
+/// What the suite file marks for each case under `--reduced`: the number of runs (masses x
+/// sweep points), the rank sweep, the single-episode theory, the compared steps.
+#[derive(Debug)]
+struct Marks {
+    runs: usize,
+    rank_sweep: bool,
+    single_episode: bool,
+    rank_steps: Option<usize>,
+}
+
+/// The marks of every case of the suite file that the reduced suite runs (schema:
+/// src/suite/spec.rs; `[case.reduced]` replaces mass and sweep, `skip` leaves a case out).
+fn reduced_marks(spec: &toml::Value) -> HashMap<String, Marks> {
+    let mut out = HashMap::new();
+    for c in spec["case"].as_array().expect("[[case]]") {
+        let red = c.get("reduced");
+        if red.and_then(|r| r.get("skip")).and_then(|v| v.as_bool()) == Some(true) {
+            continue;
+        }
+        let pick = |key: &str| red.and_then(|r| r.get(key)).or_else(|| c.get(key));
+        let masses = pick("mass").map_or(1, |m| m.as_array().unwrap().len());
+        let points = pick("sweep").map_or(1, |t| {
+            t.as_table().unwrap().values().next().map_or(1, |v| v.as_array().unwrap().len())
+        });
+        let flag = |key: &str| c.get(key).and_then(|v| v.as_bool()).unwrap_or(false);
+        out.insert(
+            c["name"].as_str().unwrap().to_string(),
+            Marks {
+                runs: masses * points,
+                rank_sweep: flag("rank_sweep"),
+                single_episode: flag("single_episode"),
+                rank_steps: c.get("rank_steps").and_then(|v| v.as_integer()).map(|k| k as usize),
+            },
+        );
+    }
+    out
 }
 
 fn body_size(h5: &Path) -> f64 {
@@ -113,26 +162,35 @@ fn body_size(h5: &Path) -> f64 {
         .fold(0.0, f64::max)
 }
 
-/// Non-finite values in every energy series, the contact forces and pressures, the gaps after
-/// the start (row 0 is NaN by design), the written fields and the final checkpoint.
-fn non_finite(h5: &Path) -> usize {
+/// Non-finite values in every energy series, the final checkpoint, the displacement and
+/// velocity fields unless the scene's `output.fields` leaves them out, and with contact the forces, pressures and the
+/// gaps after the start (row 0 is NaN by design). Every one of these datasets the run must have
+/// written is required: a missing one is a failure, not a dataset without NaN.
+fn non_finite(h5: &Path, scene: &toml::Table) -> usize {
     let r = reader(h5);
     let mut n = 0;
     let mut count = |name: &str, skip: usize| {
-        if r.file.dataset(name).is_ok() {
-            n += r.series(name).unwrap().iter().skip(skip).filter(|x| !x.is_finite()).count();
-        }
+        let v = r.series(name).unwrap_or_else(|e| panic!("{}: no {name}: {e}", h5.display()));
+        n += v.iter().skip(skip).filter(|x| !x.is_finite()).count();
     };
     for s in ["total", "kinetic", "potential", "external_work", "contact_work", "dirichlet_work"] {
         count(&format!("/energy/{s}"), 0);
     }
-    for s in ["/contact/force", "/contact/pressure", "/fields/displacement", "/fields/velocity"] {
-        count(s, 0);
-    }
     count("/checkpoint/u", 0);
     count("/checkpoint/v", 0);
-    let nc = r.file.dataset("/contact/nodes").map(|d| d.size()).unwrap_or(0);
-    count("/contact/gap", nc);
+    // Without `output.fields` a run writes displacement and velocity.
+    let fields = scene.get("output").and_then(|o| o.get("fields")).and_then(|f| f.as_array());
+    for f in ["displacement", "velocity"] {
+        if fields.is_none_or(|fs| fs.iter().any(|x| x.as_str() == Some(f))) {
+            count(&format!("/fields/{f}"), 0);
+        }
+    }
+    if scene.contains_key("contact") {
+        count("/contact/force", 0);
+        count("/contact/pressure", 0);
+        let nc = r.series("/contact/nodes").unwrap_or_else(|e| panic!("{e}")).len();
+        count("/contact/gap", nc);
+    }
     n
 }
 
@@ -249,34 +307,36 @@ fn reduced_suite_is_stable_by_theory() {
         assert!(p.is_file() && std::fs::metadata(&p).unwrap().len() > 500, "{}", p.display());
     }
     let rows = read_csv(&out.join("suite.csv"));
-    assert!(rows.len() >= 30, "{} rows", rows.len());
     let md = std::fs::read_to_string(out.join("suite.md")).unwrap();
     let mut cases: Vec<&str> = rows.iter().map(|r| r["case"].as_str()).collect();
     cases.dedup();
     for c in &cases {
         assert!(md.contains(&format!("| {c} |")), "suite.md lacks case {c}");
     }
-    // The cases whose rank sweep compares only their first steps (chaotic histories).
+    // What the suite file marks: every row of a marked case is checked, and every run the
+    // reduced suite must make is in the table (a missing row or file is a failure).
     let spec_text: toml::Value =
         toml::from_str(&std::fs::read_to_string(&spec).unwrap()).expect("the suite file");
-    let rank_steps: HashMap<&str, usize> = spec_text["case"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .filter_map(|c| {
-            let k = c.get("rank_steps")?.as_integer()? as usize;
-            Some((c["name"].as_str().unwrap(), k))
-        })
-        .collect();
-    let mut single = 0;
-    let mut swept = 0;
+    let marks = reduced_marks(&spec_text);
+    let mut per_case: HashMap<&str, usize> = HashMap::new();
+    for r in &rows {
+        *per_case.entry(r["case"].as_str()).or_default() += 1;
+    }
+    for (name, m) in &marks {
+        assert_eq!(per_case.get(name.as_str()).copied().unwrap_or(0), m.runs, "rows of {name}");
+    }
+    assert_eq!(per_case.len(), marks.len(), "cases in the table: {per_case:?}");
+    let (mut single, mut swept) = (0, 0);
     let mut report = Vec::new();
     for r in &rows {
         let what = format!("{} {} {}", r["case"], r["variant"], r["mass"]);
+        let m = &marks[r["case"].as_str()];
         assert_ne!(r["status"], "error", "{what}: {}", r["failed_checks"]);
+        assert_eq!(r["single_episode"], m.single_episode.to_string(), "{what}: single_episode");
         let h5: PathBuf = out.join(&r["file"]);
+        let scene = scene_of(&h5);
         // No NaN/inf anywhere.
-        assert_eq!(non_finite(&h5), 0, "{what}: non-finite values in {}", h5.display());
+        assert_eq!(non_finite(&h5, &scene), 0, "{what}: non-finite values in {}", h5.display());
         assert_eq!(num(r, "non_finite"), 0.0, "{what}");
         // The energy never rises above the initial energy plus the work done.
         let (e, w) = energy_and_work(&h5);
@@ -287,9 +347,10 @@ fn reduced_suite_is_stable_by_theory() {
             "{what}: rise {rise:e}, the suite says {}",
             r["energy_rise"]
         );
-        // No penetration beyond tolerance at any step.
+        // No penetration beyond tolerance at any step, and no pulling contact force, in every
+        // run whose scene has contact.
         let size = body_size(&h5);
-        let c = contact(&h5);
+        let c = scene.contains_key("contact").then(|| contact(&h5));
         if let Some(c) = &c {
             let min_gap = c.gap[c.nodes..]
                 .iter()
@@ -331,45 +392,59 @@ fn reduced_suite_is_stable_by_theory() {
             );
         }
         // M_H^1 impacts from rest-length starts: one contact episode per node and impact.
-        if r["single_episode"] == "true" && r["mass"] == "modified1" {
-            let c = c.as_ref().expect("an impact case has contact");
+        if m.single_episode && r["mass"] == "modified1" {
+            let c = c.as_ref().unwrap_or_else(|| panic!("{what}: an impact case without contact"));
             assert!(!impacts(c).is_empty(), "{what}: no contact");
             assert_eq!(episodes_per_impact(c), 1, "{what}: a node flickers");
             assert_eq!(num(r, "episodes_per_impact_max"), 1.0, "{what}");
             single += 1;
         }
-        // Rank independence: the 1-rank run of the cases so marked.
+        // Rank independence: the 1-rank run of every run of a case so marked (and of no other).
         let one = h5.with_file_name(format!("{}-n1.h5", h5.file_stem().unwrap().to_string_lossy()));
-        if one.is_file() {
-            swept += 1;
-            let d = rank_difference(&h5, &one, rank_steps.get(r["case"].as_str()).copied());
-            assert!(
-                (d - num(r, "rank_diff")).abs() <= 1e-9 * d.max(1e-300) || d == num(r, "rank_diff"),
-                "{what}: rank difference {d:e}, the suite says {}",
-                r["rank_diff"]
+        if !m.rank_sweep {
+            assert!(!one.exists() && r["rank_diff"].is_empty(), "{what}: swept, not marked");
+            continue;
+        }
+        assert!(
+            one.is_file(),
+            "{what}: marked for the rank sweep, but {} is missing",
+            one.display()
+        );
+        swept += 1;
+        let d = rank_difference(&h5, &one, m.rank_steps);
+        assert!(
+            (d - num(r, "rank_diff")).abs() <= 1e-9 * d.max(1e-300) || d == num(r, "rank_diff"),
+            "{what}: rank difference {d:e}, the suite says {}",
+            r["rank_diff"]
+        );
+        if sum.pc_type == "gamg" {
+            // GAMG's aggregates follow the partition: rank counts agree to the solver's
+            // tolerance only. Solved to 1e-12 they must agree to 1e-8.
+            let scene = h5.with_extension("scene.toml");
+            let (t1, t2) = (
+                dir.join(format!("{}-tight1.h5", r["case"].replace('/', "_"))),
+                dir.join(format!("{}-tight2.h5", r["case"].replace('/', "_"))),
             );
-            if sum.pc_type == "gamg" {
-                // GAMG's aggregates follow the partition: rank counts agree to the solver's
-                // tolerance only. Solved to 1e-12 they must agree to 1e-8.
-                let scene = h5.with_extension("scene.toml");
-                let (t1, t2) = (
-                    dir.join(format!("{}-tight1.h5", r["case"].replace('/', "_"))),
-                    dir.join(format!("{}-tight2.h5", r["case"].replace('/', "_"))),
-                );
-                rerun_tight(&scene, 1, &t1);
-                rerun_tight(&scene, 2, &t2);
-                let tight = rank_difference(&t2, &t1, None);
-                report.push(format!(
-                    "{what}: GAMG, 1 vs 2 ranks {d:.1e} at the default rtol, {tight:.1e} at 1e-12"
-                ));
-                assert!(tight <= 1e-8, "{what}: 1 and 2 ranks differ by {tight:e} at rtol 1e-12");
-            } else {
-                assert!(d <= 1e-8, "{what}: 1 and 2 ranks differ by {d:e}");
-            }
+            rerun_tight(&scene, 1, &t1);
+            rerun_tight(&scene, 2, &t2);
+            let tight = rank_difference(&t2, &t1, None);
+            report.push(format!(
+                "{what}: GAMG, 1 vs 2 ranks {d:.1e} at the default rtol, {tight:.1e} at 1e-12"
+            ));
+            assert!(tight <= 1e-8, "{what}: 1 and 2 ranks differ by {tight:e} at rtol 1e-12");
+        } else {
+            assert!(d <= 1e-8, "{what}: 1 and 2 ranks differ by {d:e}");
         }
     }
-    assert!(single >= 8, "only {single} single-episode runs with M_H^1");
-    assert!(swept >= 20, "only {swept} runs compared across rank counts");
+    // Every marked run was checked (the counts the suite file gives).
+    let marked = |f: &dyn Fn(&Marks) -> bool| {
+        rows.iter().filter(|r| f(&marks[r["case"].as_str()])).collect::<Vec<_>>()
+    };
+    let want_single =
+        marked(&|m| m.single_episode).iter().filter(|r| r["mass"] == "modified1").count();
+    assert_eq!(single, want_single, "single-episode runs checked");
+    assert_eq!(swept, marked(&|m| m.rank_sweep).len(), "runs compared across rank counts");
+    eprintln!("{single} single-episode runs and {swept} rank sweeps checked");
     eprintln!("{}", report.join("\n"));
 }
 

@@ -11,6 +11,42 @@ fn contact(s: &RunSummary) -> &massfree::contact::history::ContactSummary {
     s.contact.as_ref().expect("a [contact] summary")
 }
 
+/// The discs of `two_discs.toml` and `disc.toml`: radius, the P-wave speed
+/// `c_p = sqrt((lambda + 2 mu) / rho)` of E = 100, nu = 0.3, rho = 2e-8, the time step.
+const DISC_R: f64 = 8.0;
+const DISC_CP: f64 = 82_041.265;
+const DISC_TAU: f64 = 1e-6;
+
+/// The contact half-width of a run: the largest |x| of a node active at any step.
+fn half_width(h5: &std::path::Path) -> f64 {
+    let r = reader(h5);
+    let x = r.coordinates().unwrap();
+    let nodes = r.series(layout::CONTACT_NODES).unwrap();
+    let active = r.series(&layout::contact("active")).unwrap();
+    let nc = nodes.len();
+    (0..active.len())
+        .filter(|&i| active[i] != 0.0)
+        .map(|i| x[nodes[i % nc] as usize][0].abs())
+        .fold(0.0, f64::max)
+}
+
+/// Two total-force histories of the disc compared as the models differ, beyond the mesh-scale
+/// waves of the pressure: both are averaged over the time a P-wave needs to cross the contact
+/// zone (`2a / c_p`, about 20 steps), which the waves' phase does not survive, and the largest
+/// difference of the averages is returned relative to the peak of `reference`. The waves
+/// themselves (about 2% of the peak in either run, at steps of their own phase) are no model
+/// difference: unaveraged, two runs that differ in anything differ by their sum.
+fn averaged_difference(force: &[f64], reference: &[f64], a: f64) -> (f64, usize) {
+    let w = ((2.0 * a / (DISC_CP * DISC_TAU)).round() as usize).max(1);
+    let avg = |f: &[f64]| -> Vec<f64> {
+        f.windows(w).map(|s| s.iter().sum::<f64>() / w as f64).collect()
+    };
+    let (x, y) = (avg(force), avg(reference));
+    assert_eq!(x.len(), y.len(), "histories of different lengths");
+    let d = x.iter().zip(&y).map(|(p, q)| (p - q).abs()).fold(0.0, f64::max);
+    (d / peak(reference), w)
+}
+
 /// Each of the two declared bodies: its momentum change equals the impulse the contact gave it
 /// (no other load; `M` and `A` block diagonal by body, METHOD.md 7), to `tol` of its initial
 /// momentum, and the impulse is not negligible (at least `min` of the initial momentum).
@@ -31,12 +67,21 @@ fn assert_impulse_is_momentum_change(s: &RunSummary, tol: f64, min: f64) {
 /// Two discs at distance 0.1 moving towards each other at 800 are, by symmetry, one disc at
 /// 0.05 from a rigid plane moving at 800 (METHOD.md 5), and the two-disc mesh is the disc's
 /// mirrored. The two discretizations differ only in the gap: the mortar gap is the dual-weighted
-/// average over a slave node's support along its averaged normal (with the interface kept
-/// from the touch-down through the contact), the plane's is nodal and vertical; both converge
-/// to the same continuum gap. Asserted: contact starts at the same step, the total contact
-/// force agrees within 5% of its peak at every step (measured 2.7%: the gap differences are
-/// O(h^2/R) = 1e-3 relative, amplified by the mesh-scale waves of the pressure), energy is
-/// conserved up to the accounted contact work, and the total momentum of the pair is kept.
+/// average over a slave node's support along its slave normal (with the interface kept from
+/// the touch-down through the contact), the plane's is nodal and vertical; both converge to
+/// the same continuum gap. Asserted: contact starts at the same step, energy is conserved up
+/// to the accounted contact work, the total momentum of the pair is kept, each body's momentum
+/// change is its impulse, and the total forces agree as follows.
+///
+/// The forces: the meshes are mirror images, so with averaged normals the two are one
+/// discrete problem (`two_discs_with_averaged_normals_are_the_half_model_to_solver_tolerance`);
+/// with the default slave normals the pair's constraint and force act along normals tilted by
+/// up to `a/R` at the edge of the contact zone (half-width a), the plane's vertically: the
+/// summed force magnitudes and the gaps along the normals differ by `1 - cos(a/R) <= (a/R)^2/2`,
+/// the contact stiffness at the same order. Asserted: the total forces, averaged over the
+/// mesh-scale waves (`averaged_difference`), within `(a/R)^2` of the peak (a from the run: 0.85,
+/// bound 1.1%; measured 0.6%). Step by step they differ by the waves' phase too (measured
+/// 2.7%): printed, not asserted.
 #[test]
 fn two_discs_as_two_bodies_match_the_disc_on_a_plane() {
     let dir = scratch("two-discs");
@@ -79,10 +124,19 @@ fn two_discs_as_two_bodies_match_the_disc_on_a_plane() {
     let total = |h5: &std::path::Path| force_history(h5).0;
     let fb = total(&dir.join("two_discs-2.h5"));
     let fp = total(&dir.join("disc-2.h5"));
-    let peak = fp.iter().cloned().fold(0.0, f64::max);
+    let peak = peak(&fp);
     let dmax = fb.iter().zip(&fp).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
-    eprintln!("total contact force: peak {peak}, largest difference {dmax}");
-    assert!(dmax < 0.05 * peak, "total contact force differs by {dmax} (peak {peak})");
+    let a = half_width(&dir.join("two_discs-2.h5"));
+    let (d, w) = averaged_difference(&fb, &fp, a);
+    let bound = (a / DISC_R).powi(2);
+    eprintln!(
+        "total contact force: peak {peak}; averaged over {w} steps the pair and the plane differ by {d:.2e} of it (bound (a/R)^2 = {bound:.2e}, a = {a:.3}); step by step by {:.2e}",
+        dmax / peak
+    );
+    assert!(
+        d <= bound,
+        "averaged total forces differ by {d:e} of the peak, beyond (a/R)^2 = {bound:e}"
+    );
 }
 
 /// The half model on a two-disc mesh: the upper disc alone on the rigid plane y = 0 (its own
@@ -158,7 +212,17 @@ fn two_discs_with_averaged_normals_are_the_half_model_to_solver_tolerance() {
 }
 
 /// The paper's Figure 7.5 as two bodies: with `M` the lowest slave node's pressure chatters,
-/// with `M_H` it does not, and the total force is one smooth hump.
+/// with `M_H` it does not. What METHOD.md 7 gives (the period-2 mode of an active node enters
+/// the pressure with `M`, never with `M_H`, whose contact nodes are massless):
+/// * with `M_H` every slave node has one contact episode, with `M` nodes flicker at release
+///   (more than one);
+/// * the period-2 measure osc2 of the lowest slave node: with `M_H` below 1e-2, with `M`
+///   above it: 1e-2 separates the ranges METHOD.md 7 reports from the independent
+///   implementation (around 1e-3 with `M_H`, 1e-2 to 1e-1 with `M`);
+/// * the total force varies less with `M_H` (TV index, `TV / (2 max)`, 1 for one hump).
+///
+/// The ratios of the two runs' measures are benchmark figures (printed): theory gives their
+/// direction, not their size.
 #[test]
 fn two_discs_mass_free_layer_removes_chatter() {
     let dir = scratch("two-discs-chatter");
@@ -167,14 +231,26 @@ fn two_discs_mass_free_layer_removes_chatter() {
     let m = run("consistent");
     let h = run("modified1");
     let (cm, ch) = (contact(&m), contact(&h));
-    assert!(
-        ch.lowest_osc2 * 5.0 <= cm.lowest_osc2,
-        "osc2 {} vs M {}",
+    eprintln!(
+        "figures: osc2 {:.2e} with M_H, {:.2e} with M (ratio {:.1}); total-force TV index {:.2} with M_H, {:.2} with M; episodes {} and {}",
         ch.lowest_osc2,
-        cm.lowest_osc2
+        cm.lowest_osc2,
+        cm.lowest_osc2 / ch.lowest_osc2,
+        ch.total_force_tv_index,
+        cm.total_force_tv_index,
+        ch.episodes_max,
+        cm.episodes_max
     );
-    assert!(ch.total_force_tv_index < 1.5, "total-force TV index {}", ch.total_force_tv_index);
-    assert!(cm.total_force_tv_index > 2.0 * ch.total_force_tv_index);
+    assert_eq!(ch.episodes_max, 1, "M_H: a slave node touched more than once");
+    assert!(cm.episodes_max > 1, "M: no node flickers ({} episodes)", cm.episodes_max);
+    assert!(ch.lowest_osc2 < 1e-2, "M_H: osc2 {} chatters", ch.lowest_osc2);
+    assert!(cm.lowest_osc2 > 1e-2, "M: osc2 {} does not chatter", cm.lowest_osc2);
+    assert!(
+        ch.total_force_tv_index < cm.total_force_tv_index,
+        "total-force TV index {} with M_H, {} with M",
+        ch.total_force_tv_index,
+        cm.total_force_tv_index
+    );
     for s in [&m, &h] {
         assert!(s.energy_balance < 1e-8, "energy balance {}", s.energy_balance);
     }
@@ -445,19 +521,29 @@ fn renamed_variant(
 /// disc alone on the plane, `half_model`), through the whole contact (it ends near step 846 of
 /// the paper's set-up; 870 steps are run). Each variant of the lower (master) disc's contact
 /// mesh, `hc_lower`, against the slave's `hc` = 0.1, must give the plane's contact history
-/// (issue 12): the same first contact step (the gap of 0.05 per disc closes at 62.5 steps, and
-/// the weighted gap of the lowest slave node differs from the plane's nodal gap by O(hc^2/R) ~
-/// 1e-4, far below the half step of approach, 8e-4, that separates the arrival from a step),
-/// the last contact step within 2 steps (measured 0-2: the mortar model keeps the slave normals
-/// of the touch-down, tilted by up to a/R = 0.12 at the edge of the contact zone, half-width
-/// a ~ 0.95, while the plane's forces are vertical: a contact stiffness changed at
-/// O((a/R)^2)), the peak of the total contact force and the largest nodal pressure within 3%,
-/// and the total force within 5% of its peak at every step (the models differ in the gap at
-/// O(h^2/R), which the mesh-scale waves of the pressure amplify to a few %; measured 1.6-2.6%).
-/// Also: one episode per slave node (M_H, METHOD.md 7), the energy balance below 1e-8, the
-/// energy after release below the initial one by less than 1e-3 (METHOD.md 7), and the pair's
-/// momentum kept. (Against the independently meshed `disc.toml` the end differed by up to 3
-/// steps: part of that was the other mesh.)
+/// (issue 12). Asserted:
+/// * the same first contact step: the gap of 0.05 per disc closes at 62.5 steps, and the
+///   weighted gap of the lowest slave node differs from the plane's nodal gap by O(hc^2/R) ~
+///   1e-4, far below the half step of approach, 8e-4, that separates the arrival from a step;
+/// * the total forces, averaged over the mesh-scale waves (`averaged_difference`), within
+///   `(a/R)^2 + (h/a)^2` of the peak: the slave normals of the touch-down are tilted by up to
+///   `a/R` at the edge of the contact zone (half-width a ~ 1, from the run), the plane's force
+///   is vertical (`(a/R)^2`, as for mirrored meshes), and the master disc is a discretization
+///   of its own, whose contact-zone compliance differs from the slave's mirror image at the
+///   leading order of the FE error, `(h/a)^2` with h the coarser contact mesh (bounds 2.6-3.3%;
+///   measured 0.7-1.6%). Step by step they also differ by the waves' phase (measured
+///   1.9-2.5%): printed;
+/// * the last contact step: where the averaged plane force falls to zero at its mean slope
+///   `s` (per step, over the averaging window before the release), a force difference within
+///   the bound above moves the release by at most `bound x peak / s` steps, plus one for the
+///   step grid (measured 0-2 steps);
+/// * one episode per slave node (M_H, METHOD.md 7), the energy balance below 1e-8, the energy
+///   after release below the initial one by less than 1e-3 (METHOD.md 7), the pair's momentum
+///   kept.
+///
+/// The peaks of the total force and of the nodal pressure are printed figures (the averaged
+/// histories bound the former; the latter is a single node's crest, where the tilted normals
+/// change a node's pressure by up to 10%).
 fn discs_on_non_matching_meshes(geo: &str, hc_lower: &[f64]) {
     let dir = scratch("two-discs-non-matching");
     let args = ["--steps", "870", "--", "-ksp_rtol", "1e-12"];
@@ -492,19 +578,20 @@ fn discs_on_non_matching_meshes(geo: &str, hc_lower: &[f64]) {
         );
         assert!(cb.max_active_nodes > 5, "hc_lower {hl}: hardly any contact");
         assert_eq!(cb.first_contact_step, cp.first_contact_step, "hc_lower {hl}: contact start");
-        let d_end = cb.last_contact_step.abs_diff(cp.last_contact_step);
-        assert!(d_end <= 2, "hc_lower {hl}: contact ends {d_end} steps apart");
-        assert!(
-            rel_diff(fb_peak, fp_peak) < 0.03,
-            "hc_lower {hl}: peak force {fb_peak} vs {fp_peak}"
+        let a = half_width(&dir.join(format!("{name}-2.h5")));
+        let h = hl.max(0.1);
+        let bound = (a / DISC_R).powi(2) + (h / a).powi(2);
+        let (d, w) = averaged_difference(&fb, &fp, a);
+        eprintln!(
+            "{geo}, hc_lower {hl}: averaged over {w} steps the total forces differ by {d:.2e} of the peak (bound {bound:.2e}: a = {a:.3}, h = {h})"
         );
-        assert!(
-            rel_diff(cb.max_pressure, cp.max_pressure) < 0.03,
-            "hc_lower {hl}: peak pressure {} vs {}",
-            cb.max_pressure,
-            cp.max_pressure
-        );
-        assert!(dmax < 0.05 * fp_peak, "hc_lower {hl}: total force differs by {dmax}");
+        assert!(d <= bound, "hc_lower {hl}: averaged total forces differ by {d:e} > {bound:e}");
+        let end = cp.last_contact_step;
+        let slope = (fp[end + 1 - w..=end].iter().sum::<f64>() / w as f64) / (w as f64 / 2.0);
+        let shift = (bound * fp_peak / slope).ceil() as usize + 1;
+        let d_end = cb.last_contact_step.abs_diff(end);
+        eprintln!("{geo}, hc_lower {hl}: contact ends {d_end} steps apart (bound {shift})");
+        assert!(d_end <= shift, "hc_lower {hl}: contact ends {d_end} steps apart (> {shift})");
         assert_eq!(cb.episodes_max, 1, "hc_lower {hl}: a slave node touched more than once");
         for s in [&b, &p] {
             assert!(s.energy_balance < 1e-8, "energy balance {}", s.energy_balance);
@@ -533,9 +620,11 @@ fn two_discs_on_non_matching_triangle_meshes_match_the_disc_on_a_plane() {
 /// standard mass the interface of `t_n` used at `t_{n+1}` keeps the energy balance to solver
 /// tolerance, energy can only be lost at activation (METHOD.md 7), and for this small-sliding
 /// impact the total contact force stays close to the run with the interface frozen from the
-/// touch-down: the normals differ by up to the arc's angle a/R at the contact edge (contact
-/// half-width a = 1, R = 8), the gaps along them by O((a/R)^2) = 1.6% relative; asserted
-/// within 3 (a/R)^2 ~ 5% of the peak (measured 1.7%).
+/// touch-down: the normals differ by up to the arc's angle a/R at the contact edge (a the
+/// contact half-width, from the run), the gaps along them by `1 - cos(a/R) <= (a/R)^2 / 2`;
+/// asserted: the total forces averaged over the mesh-scale waves (`averaged_difference`)
+/// within `(a/R)^2` of the peak (bound 1.1%; measured 0.4%; step by step, waves included,
+/// 1.7%: printed).
 #[test]
 fn two_discs_with_the_interface_updated_at_every_step() {
     let run = |name: &str, extra: &[&str]| {
@@ -555,11 +644,17 @@ fn two_discs_with_the_interface_updated_at_every_step() {
     let loss = (u.energy_initial - u.energy_final) / u.energy_initial;
     assert!((-1e-8..1e-3).contains(&loss), "relative energy loss {loss}");
     let total = |h5: &std::path::Path| force_history(h5).0;
-    let (a, b) = (total(&frozen), total(&updated));
-    let peak = a.iter().cloned().fold(0.0, f64::max);
-    let dmax = a.iter().zip(&b).map(|(x, y)| (x - y).abs()).fold(0.0, f64::max);
-    eprintln!("updated interface: total force differs by {dmax} (peak {peak})");
-    assert!(dmax < 0.05 * peak, "total force differs by {dmax} (peak {peak})");
+    let (f_frozen, f_updated) = (total(&frozen), total(&updated));
+    let peak = peak(&f_frozen);
+    let dmax = f_frozen.iter().zip(&f_updated).map(|(x, y)| (x - y).abs()).fold(0.0, f64::max);
+    let a = half_width(&updated);
+    let bound = (a / DISC_R).powi(2);
+    let (d, w) = averaged_difference(&f_updated, &f_frozen, a);
+    eprintln!(
+        "updated interface: averaged over {w} steps the total force differs by {d:.2e} of the peak (bound (a/R)^2 = {bound:.2e}); step by step by {:.2e}",
+        dmax / peak
+    );
+    assert!(d <= bound, "averaged total forces differ by {d:e} of the peak, beyond {bound:e}");
 }
 
 /// Finite sliding with the mass-free layer on a pair warns (once, on rank 0) that frequent
