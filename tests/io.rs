@@ -218,12 +218,10 @@ fn restart_equals_the_uninterrupted_run() {
 
 /// A checkpoint taken at a step whose massless-DOF energy correction is still pending (it
 /// hands contact work on to later steps right after an activation or a release, METHOD.md 7)
-/// must restart exactly too. It does not today: the checkpoint keeps no pending correction, and
-/// the continued run differs from the uninterrupted one (coarse disc, 1 rank: by 1.3e-4 of the
-/// displacement after a restart at step 64, 8e-7 at step 760; exact at 60, 400, 740, 1000). A
-/// known failure, run with `cargo test --test io -- --ignored`.
+/// must restart exactly too: the checkpoint keeps the pending work. Without it the continued
+/// run differed from the uninterrupted one (coarse disc, 1 rank: by 1.3e-4 of the displacement
+/// after a restart at step 64, 8e-7 at step 760; exact at 60, 400, 740, 1000).
 #[test]
-#[ignore = "known failure: a checkpoint keeps no pending massless-DOF energy correction"]
 fn restart_with_a_pending_energy_correction() {
     let coarse = [("steps = 1000", "steps = 1200"), ("h = 1.0, hc = 0.1", "h = 2.0, hc = 0.4")];
     for k in [64, 760] {
