@@ -42,6 +42,10 @@ fn run_study(file: &Path) -> Output {
         .env("OMPI_ALLOW_RUN_AS_ROOT", "1")
         .env("OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1")
         .env("OMPI_MCA_btl_vader_single_copy_mechanism", "none")
+        // The study's runs inherit it: HDF5's file locks off, as for every launch of the tests
+        // (`tests/common/mod.rs`, `mpi_env`: a descriptor inherited by a launch of another
+        // test thread keeps this process's read lock).
+        .env("HDF5_USE_FILE_LOCKING", "FALSE")
         .output()
         .expect("cannot start massfree")
 }

@@ -88,9 +88,16 @@ pub fn massfree(ranks: usize, args: &[&str]) -> Output {
 }
 
 /// The environment of every launch: mpirun as root, no shared-memory single copy (containers),
-/// oversubscription allowed, no backtraces in the program's messages.
+/// oversubscription allowed, no backtraces in the program's messages, and HDF5's file locks
+/// off. A run file this test process reads (`RunReader`) is opened by the HDF5 library
+/// without close-on-exec, so a launch that another test thread starts meanwhile inherits the
+/// descriptor and, with it, the read lock, for as long as that launch runs; a later run
+/// writing the same file then fails with "unable to lock file, errno = 11" (seen once in
+/// `tests/mass_free.rs`, whose two tests launch runs in parallel threads). The runs of one
+/// test never write a file another process is writing, so the locks protect nothing here.
 pub fn mpi_env(cmd: &mut Command) -> &mut Command {
-    cmd.env("OMPI_ALLOW_RUN_AS_ROOT", "1")
+    cmd.env("HDF5_USE_FILE_LOCKING", "FALSE")
+        .env("OMPI_ALLOW_RUN_AS_ROOT", "1")
         .env("OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1")
         .env("OMPI_MCA_btl_vader_single_copy_mechanism", "none")
         .env("OMPI_MCA_rmaps_base_oversubscribe", "1")
