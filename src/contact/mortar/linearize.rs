@@ -41,7 +41,9 @@
 use super::dual::{dual_basis_2d, DualBasis};
 use super::facet::{dshape_line2, shape_line2, Facet2};
 use super::geom::*;
-use super::segment::{project_onto_master_2d, project_onto_slave_2d, PairIntegrals, PARAM_TOL};
+use super::segment::{
+    check_pair_2d, project_onto_master_2d, project_onto_slave_2d, PairIntegrals, PARAM_TOL,
+};
 use crate::fem::quadrature::gauss_legendre;
 
 // ------------------------------------------------------------------------------------------
@@ -480,28 +482,11 @@ pub fn mortar_pair_lin_2d(
     ids: PairIds2,
     normals_lin: &[Lin2; 2],
 ) -> Result<Option<PairIntegralsLin>, GeomError> {
-    // The checks of mortar_pair_2d, in its order.
-    if !slave.is_finite()
-        || !master.is_finite()
-        || !all_finite(&[
-            slave_normals[0][0],
-            slave_normals[0][1],
-            slave_normals[1][0],
-            slave_normals[1][1],
-        ])
-    {
-        return fail("2D mortar pair has non-finite coordinates or normals");
-    }
-    if dual.n != 2 {
-        return fail(format!("2D mortar pair needs a line2 dual basis, got {} nodes", dual.n));
-    }
-    let js = slave.jacobian();
-    if !(js > 0.0) || !(master.jacobian() > 0.0) {
-        return fail("2D mortar pair with a zero-length facet");
-    }
-    if dot2(slave.normal(), master.normal()) > 0.0 {
+    // The checks of mortar_pair_2d.
+    if !check_pair_2d(slave, slave_normals, dual, master)? {
         return Ok(None);
     }
+    let js = slave.jacobian();
     let normals = [
         Vec2Lin { value: slave_normals[0], lin: normals_lin[0].clone() },
         Vec2Lin { value: slave_normals[1], lin: normals_lin[1].clone() },

@@ -102,6 +102,36 @@ pub fn project_onto_master_2d(master: &Facet2, x: Vec2, n: Vec2) -> Option<f64> 
     eta.is_finite().then_some(eta)
 }
 
+/// The input checks of a 2D slave/master pair (finite coordinates and normals, a line2 dual
+/// basis, facets of positive length); `Ok(false)` when the master facet faces the same way as
+/// the slave (the back of the master body: no overlap). Shared by [`mortar_pair_2d`] and its
+/// linearization, so that both refuse and skip the same pairs.
+pub(crate) fn check_pair_2d(
+    slave: &Facet2,
+    slave_normals: &[Vec2; 2],
+    dual: &DualBasis,
+    master: &Facet2,
+) -> Result<bool, GeomError> {
+    if !slave.is_finite()
+        || !master.is_finite()
+        || !all_finite(&[
+            slave_normals[0][0],
+            slave_normals[0][1],
+            slave_normals[1][0],
+            slave_normals[1][1],
+        ])
+    {
+        return fail("2D mortar pair has non-finite coordinates or normals");
+    }
+    if dual.n != 2 {
+        return fail(format!("2D mortar pair needs a line2 dual basis, got {} nodes", dual.n));
+    }
+    if !(slave.jacobian() > 0.0) || !(master.jacobian() > 0.0) {
+        return fail("2D mortar pair with a zero-length facet");
+    }
+    Ok(dot2(slave.normal(), master.normal()) <= 0.0)
+}
+
 /// Segment-based mortar integrals of a line2 slave facet against a line2 master facet
 /// (Popp, Gee, Wall 2009).
 ///
@@ -124,28 +154,10 @@ pub fn mortar_pair_2d(
     dual: &DualBasis,
     master: &Facet2,
 ) -> Result<Option<PairIntegrals>, GeomError> {
-    if !slave.is_finite()
-        || !master.is_finite()
-        || !all_finite(&[
-            slave_normals[0][0],
-            slave_normals[0][1],
-            slave_normals[1][0],
-            slave_normals[1][1],
-        ])
-    {
-        return fail("2D mortar pair has non-finite coordinates or normals");
-    }
-    if dual.n != 2 {
-        return fail(format!("2D mortar pair needs a line2 dual basis, got {} nodes", dual.n));
-    }
-    let js = slave.jacobian();
-    if !(js > 0.0) || !(master.jacobian() > 0.0) {
-        return fail("2D mortar pair with a zero-length facet");
-    }
-    // A master facet facing the same way as the slave is the back of the master body.
-    if dot2(slave.normal(), master.normal()) > 0.0 {
+    if !check_pair_2d(slave, slave_normals, dual, master)? {
         return Ok(None);
     }
+    let js = slave.jacobian();
     let inside = |p: f64| (-1.0 - PARAM_TOL..=1.0 + PARAM_TOL).contains(&p);
     let mut lo = f64::INFINITY;
     let mut hi = f64::NEG_INFINITY;
