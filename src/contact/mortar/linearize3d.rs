@@ -64,7 +64,9 @@ use super::dual::{dual_basis_3d, invert_small, DualBasis};
 use super::facet::{triangle_rule_deg5, Facet3};
 use super::geom::*;
 use super::linearize::{lin2_cross, Lin, Lin2, Vec2Lin};
-use super::segment::{invert_on_plane, is_convex_ccw, polygon_area, AuxPlane, PairIntegrals};
+use super::segment::{
+    check_pair_3d, invert_on_plane, is_convex_ccw, polygon_area, AuxPlane, PairIntegrals,
+};
 
 // ------------------------------------------------------------------------------------------
 // 3D vectors with derivatives
@@ -614,16 +616,14 @@ pub fn mortar_pair_lin_3d(
 ) -> Result<Option<PairIntegralsLin3>, GeomError> {
     let ns = slave.n_nodes();
     let nm = master.n_nodes();
-    if slave_normals.len() != ns || dual.n != ns || normals_lin.len() != ns {
+    // The checks of mortar_pair_3d, and one normal derivative per slave node.
+    check_pair_3d(slave, slave_normals, dual, master)?;
+    if normals_lin.len() != ns {
         return fail(format!(
-            "3D mortar pair: slave facet has {} nodes but {} normals and a dual basis of {}",
+            "3D mortar pair: slave facet has {} nodes but {} normal derivatives",
             ns,
-            slave_normals.len(),
-            dual.n
+            normals_lin.len()
         ));
-    }
-    if !slave.is_finite() || !master.is_finite() || !slave_normals.iter().all(|n| all_finite(n)) {
-        return fail("3D mortar pair has non-finite coordinates or normals");
     }
     let sid = &ids.slave[..ns];
     let mid = &ids.master[..nm];

@@ -364,6 +364,29 @@ pub(crate) fn dedupe_polygon(p: Vec<Vec2>, tol: f64) -> Vec<Vec2> {
     out
 }
 
+/// The input checks of a 3D slave/master pair: one normal and one dual function per slave
+/// node, finite coordinates and normals. Shared by [`mortar_pair_3d`] and its linearization.
+pub(crate) fn check_pair_3d(
+    slave: &Facet3,
+    slave_normals: &[Vec3],
+    dual: &DualBasis,
+    master: &Facet3,
+) -> Result<(), GeomError> {
+    let ns = slave.n_nodes();
+    if slave_normals.len() != ns || dual.n != ns {
+        return fail(format!(
+            "3D mortar pair: slave facet has {} nodes but {} normals and a dual basis of {}",
+            ns,
+            slave_normals.len(),
+            dual.n
+        ));
+    }
+    if !slave.is_finite() || !master.is_finite() || !slave_normals.iter().all(|n| all_finite(n)) {
+        return fail("3D mortar pair has non-finite coordinates or normals");
+    }
+    Ok(())
+}
+
 /// Segment-based mortar integrals of a tri3/quad4 slave facet against a tri3/quad4 master
 /// facet in 3D (Puso & Laursen 2004; Popp, Gee, Wohlmuth, Wall 2010).
 ///
@@ -395,17 +418,7 @@ pub fn mortar_pair_3d(
 ) -> Result<Option<PairIntegrals>, GeomError> {
     let ns = slave.n_nodes();
     let nm = master.n_nodes();
-    if slave_normals.len() != ns || dual.n != ns {
-        return fail(format!(
-            "3D mortar pair: slave facet has {} nodes but {} normals and a dual basis of {}",
-            ns,
-            slave_normals.len(),
-            dual.n
-        ));
-    }
-    if !slave.is_finite() || !master.is_finite() || !slave_normals.iter().all(|n| all_finite(n)) {
-        return fail("3D mortar pair has non-finite coordinates or normals");
-    }
+    check_pair_3d(slave, slave_normals, dual, master)?;
     let plane = AuxPlane::of_slave(slave)?;
     let sp: Vec<Vec2> = slave.nodes().iter().map(|&x| plane.coords(x)).collect();
     let s_area = polygon_area(&sp);
