@@ -31,6 +31,12 @@ pub struct MortarCost {
     /// Wall time of the per-step check whether the interface moved (one reduction of the
     /// interface nodes' displacements), and of the basis changes `T^T rhs`, `T u~`.
     pub step_seconds: f64,
+    /// With the interface following the bodies: the steps that ended in contact, and the
+    /// rounds (solves of the active set with one geometry) they took in all.
+    #[serde(default)]
+    pub following_steps: usize,
+    #[serde(default)]
+    pub rounds: usize,
 }
 
 impl MortarCost {
@@ -51,6 +57,8 @@ impl MortarCost {
             search_seconds: all[1],
             operator_seconds: all[2],
             step_seconds: all[3],
+            following_steps: self.following_steps,
+            rounds: self.rounds,
         }
     }
 }

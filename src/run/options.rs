@@ -7,7 +7,7 @@
 
 use std::path::PathBuf;
 
-use crate::contact::mortar::{MortarOptions, NormalKind};
+use crate::contact::mortar::{InterfaceMode, MortarOptions, NormalKind};
 use crate::contact::{ContactOptions, ContactSolverKind};
 use crate::error::{Error, Result};
 use crate::petsc::Petsc;
@@ -95,6 +95,12 @@ impl AppOptions {
     /// `[solver] options` where the command line did not set the same name
     /// ([`apply_scene_options`], called first). A bad value is an error naming the option.
     pub fn read() -> Result<AppOptions> {
+        let follow = mortar_interface(Petsc::options_get_string("-mortar_interface")?)?;
+        if follow == InterfaceMode::Follow && Petsc::options_has("-mortar_update_in_contact")? {
+            return Err(Error::Scene(
+                "-mortar_update_in_contact is an update of the frozen interface: -mortar_interface follow evaluates it in contact already".into(),
+            ));
+        }
         Ok(AppOptions {
             contact: ContactOptions {
                 solver: contact_solver(Petsc::options_get_string("-contact_solver")?.as_deref())?,
@@ -105,6 +111,8 @@ impl AppOptions {
                 update_distance: Petsc::options_get_real("-mortar_update_distance")?,
                 update_in_contact: Petsc::options_has("-mortar_update_in_contact")?,
                 normal: mortar_normal(Petsc::options_get_string("-mortar_normal")?)?,
+                mode: follow,
+                geometry_tol: positive("-mortar_geometry_tol", Petsc::options_get_real("-mortar_geometry_tol")?)?,
             },
             massless_energy_correction: massless_energy_correction(
                 Petsc::options_get_string("-massless_energy_correction")?.as_deref(),
@@ -122,6 +130,26 @@ fn contact_solver(value: Option<&str>) -> Result<ContactSolverKind> {
         Some(other) => Err(Error::Usage(format!(
             "-contact_solver {other}: unknown contact solver (pdas or columns)"
         ))),
+    }
+}
+
+fn mortar_interface(value: Option<String>) -> Result<InterfaceMode> {
+    match value.as_deref() {
+        Some("follow") => Ok(InterfaceMode::Follow),
+        None | Some("frozen") => Ok(InterfaceMode::Frozen),
+        Some(s) => Err(Error::Scene(format!(
+            "-mortar_interface {s}: give frozen (the default: small sliding) or follow (finite sliding)"
+        ))),
+    }
+}
+
+/// A length option that must be positive and finite.
+fn positive(name: &str, value: Option<f64>) -> Result<Option<f64>> {
+    match value {
+        Some(x) if !(x > 0.0 && x.is_finite()) => {
+            Err(Error::Scene(format!("{name} {x}: give a positive length")))
+        }
+        v => Ok(v),
     }
 }
 

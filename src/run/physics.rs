@@ -9,6 +9,7 @@ use super::domain::Domain;
 use super::options::AppOptions;
 use crate::assembly::{self, Loads};
 use crate::console::Console;
+use crate::contact::mortar::InterfaceMode;
 use crate::contact::{self, ContactBoundary, ContactSolver, Obstacles};
 use crate::error::{Error, Result};
 use crate::fem::kernels;
@@ -52,6 +53,12 @@ impl<'a> Physics<'a> {
         let dirichlet = Dirichlet::new(mesh, part, &d.scene.dirichlet)?;
         let contact = contact_solver(d, app)?;
         warn_finite_sliding_without_mass(d, app.mortar.update_in_contact, console);
+        if contact.as_ref().is_some_and(|c| c.is_pair()) {
+            console.say(match app.mortar.mode {
+                InterfaceMode::Follow => "mortar interface: follows the bodies inside every contact step (finite sliding; -mortar_interface follow)",
+                InterfaceMode::Frozen => "mortar interface: kept from the touch-down (small sliding; -mortar_interface follow for finite sliding)",
+            }.to_string());
+        }
         let loads = LoadsAt::new(
             loads,
             Rc::clone(&d.mesh),

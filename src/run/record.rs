@@ -410,8 +410,16 @@ pub fn summary_lines(d: &Domain, layer: Option<(usize, usize)>, s: &RunSummary) 
             c.lowest_osc2, c.total_force_tv_index, c.episodes_max, c.episodes_mean
         ));
         if let Some(m) = &c.mortar {
+            let rounds = if m.following_steps > 0 {
+                format!(
+                    "; interface following the bodies: {:.2} rounds per contact step",
+                    m.rounds as f64 / m.following_steps as f64
+                )
+            } else {
+                String::new()
+            };
             lines.push(format!(
-                "mortar: {} interface evaluations {:.3} s (search {:.3} s), T^T K T rebuilds {:.3} s, per-step basis changes {:.3} s; {:.1}% of the stepping",
+                "mortar: {} interface evaluations {:.3} s (search {:.3} s), T^T K T rebuilds {:.3} s, per-step basis changes {:.3} s; {:.1}% of the stepping{rounds}",
                 m.evaluations,
                 m.evaluation_seconds,
                 m.search_seconds,

@@ -1,7 +1,9 @@
 //! The mortar interface of one contact pair: dual-mortar matrices `D` (diagonal) and `M`, the
 //! averaged slave normals and the weighted gaps, on a given configuration (METHOD.md 5b).
 //!
-//! `D_qq = int_{Gamma_s} phi_q`, `M_ql = int_{Gamma_s} psi_q (phi_l o projection)`,
+//! `D_qq = int_{Gamma_s} phi_q`, `M_ql = int_{Gamma_s} psi_q (phi_l o projection)`, both over
+//! the part of the slave surface the master covers (a partly covered facet with the dual basis
+//! biorthogonal there: [`covered_part`]),
 //! `g_q = int psi_q n_q . (x_m(projection) - x_s)` (positive while the bodies are apart), so
 //! that the weighted gap after an increment `du` is, to first order,
 //! `g_q - n_q . (D_qq du_q - sum_l M_ql du_l)`.
@@ -19,12 +21,12 @@ use mpi::datatype::PartitionMut;
 use mpi::topology::SimpleCommunicator;
 use mpi::traits::*;
 
-use super::dual::{dual_basis_2d, dual_basis_3d};
+use super::dual::{dual_basis_2d, dual_basis_3d, invert_small, DualBasis};
 use super::facet::{Facet2, Facet3};
 use super::geom::*;
 use super::normals::{averaged_normals_2d, NormalKind};
 use super::search::{candidate_pairs, facet_aabb_2d, facet_aabb_3d, Aabb};
-use super::segment::{mortar_pair_2d, mortar_pair_3d};
+use super::segment::{mortar_pair_2d, mortar_pair_3d, PairIntegrals};
 use crate::error::{Error, Result};
 use crate::mesh::topology::{boundary_group, cells_near, facet_key, facet_map};
 use crate::mesh::Mesh;
@@ -209,14 +211,12 @@ impl MortarInterface {
                 let fs = Facet3::from_nodes(&p, &idx).map_err(err)?;
                 (dual_basis_3d(&fs).map_err(err)?, None, Some(fs))
             };
-            for (j, &q) in qs.iter().enumerate() {
-                d[q] += dual.d[j];
-            }
+            let mut found = Vec::new();
             while k < pairs.len() && pairs[k].0 == si {
                 let mf = masters[pairs[k].1];
                 k += 1;
                 let pm = pos(mf);
-                let found = if let Some(fs) = &slave2 {
+                let pi = if let Some(fs) = &slave2 {
                     let nrm = [
                         [normals[qs[0]][0], normals[qs[0]][1]],
                         [normals[qs[1]][0], normals[qs[1]][1]],
@@ -231,7 +231,15 @@ impl MortarInterface {
                     let fm = Facet3::from_nodes(&pm, &idx).map_err(err)?;
                     mortar_pair_3d(fs, &nrm, &dual, &fm).map_err(err)?
                 };
-                let Some(pi) = found else { continue };
+                if let Some(pi) = pi {
+                    found.push((mf, pi));
+                }
+            }
+            let Some((d_e, found)) = covered_part(&dual, found) else { continue };
+            for (j, &q) in qs.iter().enumerate() {
+                d[q] += d_e[j];
+            }
+            for (mf, pi) in found {
                 for (j, &q) in qs.iter().enumerate() {
                     gap[q] += pi.weighted_gap[j];
                     for (l, &v) in mf.nodes.iter().enumerate() {
@@ -261,6 +269,55 @@ impl MortarInterface {
         }
         s
     }
+}
+
+/// Below this covered fraction a slave facet is left out (its Gram matrix on the covered part
+/// is too ill-conditioned to invert): the force it would carry is at most this fraction of
+/// its share.
+const MIN_COVERED: f64 = 1e-5;
+/// From this covered fraction on a facet counts as fully covered (the sum of its overlaps
+/// equals its measure to round-off).
+const FULL_COVERED: f64 = 1.0 - 1e-9;
+
+/// A slave facet's `D_e` and its pairs' integrals, on the part of the facet that the master
+/// covers (Popp et al. 2013's consistent dual basis): fully covered, the facet's own dual
+/// basis and `d_j = int_e phi_j`; partly covered, the dual basis biorthogonal on the covered
+/// part, `A = diag(p) G^{-1}` with `G = int_cov phi phi^T`, `p = int_cov phi`, and `d_j = p_j`,
+/// so that `sum_l M_jl = D_jj` still holds at every node (a rigid translation of both bodies
+/// leaves every weighted gap unchanged) and a node's share falls continuously to zero as the
+/// master slides off its support. `None`: too little covered (`MIN_COVERED`), the facet
+/// carries nothing.
+pub(crate) fn covered_part<'a>(
+    dual: &DualBasis,
+    found: Vec<(&'a SurfaceFacet, PairIntegrals)>,
+) -> Option<([f64; 4], Vec<(&'a SurfaceFacet, PairIntegrals)>)> {
+    let whole = found.first()?.1.slave_measure;
+    let covered: f64 = found.iter().map(|(_, p)| p.overlap_measure).sum();
+    let fraction = covered / whole;
+    if !(fraction >= MIN_COVERED) {
+        return None;
+    }
+    if fraction >= FULL_COVERED {
+        return Some((dual.d, found));
+    }
+    let n = dual.n;
+    let (mut g, mut p) = ([[0.0; 4]; 4], [0.0; 4]);
+    for (_, pi) in &found {
+        for k in 0..n {
+            p[k] += pi.phi_integral[k];
+            for i in 0..n {
+                g[k][i] += pi.phi_phi[k][i];
+            }
+        }
+    }
+    let ginv = invert_small(&g, n).ok()?;
+    let mut a = [[0.0; 4]; 4];
+    for i in 0..n {
+        for k in 0..n {
+            a[i][k] = p[i] * ginv[i][k];
+        }
+    }
+    Some((p, found.into_iter().map(|(f, pi)| (f, pi.with_dual(&a))).collect()))
 }
 
 /// The averaged normals (2D) of the slave nodes `slave` with slave normals `ns`: each node's

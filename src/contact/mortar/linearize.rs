@@ -549,6 +549,7 @@ pub fn mortar_pair_lin_2d(
     let ym_node = [lin2_node(ids.master[0]), lin2_node(ids.master[1])];
 
     let mut out = PairIntegrals::zero(2, 2);
+    out.slave_measure = 2.0 * js;
     let mut dm: [[Lin; 2]; 2] = Default::default();
     let mut dn_int: Lin2 = Default::default();
     let mut dgap: Lin2 = Default::default();
@@ -590,6 +591,7 @@ pub fn mortar_pair_lin_2d(
         let gn = [dot2(slave_normals[0], gap), dot2(slave_normals[1], gap), 0.0, 0.0];
         // 7. Accumulate (values exactly as mortar_pair_2d).
         out.add_point(w * half * js, &psi, &[pm[0], pm[1], 0.0, 0.0], &gn);
+        out.add_primal(w * half * js, &[phi[0], phi[1], 0.0, 0.0], &[pm[0], pm[1], 0.0, 0.0], &gn);
         for j in 0..2 {
             let wj = wg * psi[j];
             let dwj = Lin::combine(psi[j], &dwg, wg * dpsi[j], &dxi);

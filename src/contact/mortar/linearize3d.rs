@@ -679,6 +679,7 @@ pub fn mortar_pair_lin_3d(
     let dual_lin = dual_basis_lin_3d(slave, sid)?;
     let rule = triangle_rule_deg5();
     let mut out = PairIntegrals::zero(ns, nm);
+    out.slave_measure = s_area;
     let mut dm: [[Lin; 4]; 4] = Default::default();
     let mut dnint: [Lin; 4] = Default::default();
     let mut dgap: [Lin; 4] = Default::default();
@@ -742,6 +743,7 @@ pub fn mortar_pair_lin_3d(
                 *g = dot3(*n, gap);
             }
             out.add_point(w * area, &psi, &phim, &gn);
+            out.add_primal(w * area, &phis, &phim, &gn);
             let wg = w * area;
             let dwg = darea.scale(*w);
             for j in 0..ns {

@@ -25,6 +25,19 @@ pub struct PairIntegrals {
     pub weighted_gap: [f64; 4],
     /// Measure of the overlap, `int_overlap 1`.
     pub overlap_measure: f64,
+    /// Measure of the whole slave facet, in the overlap's measure (2D: its length; 3D: its
+    /// polygon's area on the auxiliary plane): the covered fraction is
+    /// `sum overlap_measure / slave_measure` over the facet's pairs.
+    pub slave_measure: f64,
+    /// The same integrals with the standard slave functions `phi_k` in place of `psi_j`
+    /// (rows k): `int phi_k (phi_l o projection)`, `int phi_k n_j . (x_m - x_s)` (column j),
+    /// and the overlap's Gram matrix `int phi_k phi_i` and `int phi_k`. Linear in the slave
+    /// function, they give the integrals of any dual basis on the covered part
+    /// ([`PairIntegrals::with_dual`]).
+    pub phi_m: [[f64; 4]; 4],
+    pub phi_gap: [[f64; 4]; 4],
+    pub phi_phi: [[f64; 4]; 4],
+    pub phi_integral: [f64; 4],
 }
 
 impl PairIntegrals {
@@ -36,7 +49,43 @@ impl PairIntegrals {
             psi_integral: [0.0; 4],
             weighted_gap: [0.0; 4],
             overlap_measure: 0.0,
+            slave_measure: 0.0,
+            phi_m: [[0.0; 4]; 4],
+            phi_gap: [[0.0; 4]; 4],
+            phi_phi: [[0.0; 4]; 4],
+            phi_integral: [0.0; 4],
         }
+    }
+
+    /// Adds one quadrature point to the standard-function integrals: weight `w`, slave values
+    /// `phi`, master values `phi_m`, gaps `gn` as in [`PairIntegrals::add_point`].
+    pub(crate) fn add_primal(&mut self, w: f64, phi: &[f64; 4], phi_m: &[f64; 4], gn: &[f64; 4]) {
+        for k in 0..self.n_slave {
+            let wp = w * phi[k];
+            self.phi_integral[k] += wp;
+            for l in 0..self.n_master {
+                self.phi_m[k][l] += wp * phi_m[l];
+            }
+            for j in 0..self.n_slave {
+                self.phi_gap[k][j] += wp * gn[j];
+                self.phi_phi[k][j] += wp * phi[j];
+            }
+        }
+    }
+
+    /// `M`, `N` and the weighted gaps of the dual basis `psi_j = sum_k a_jk phi_k` instead of
+    /// the one integrated (exact: they are linear in the slave function).
+    pub fn with_dual(&self, a: &[[f64; 4]; 4]) -> PairIntegrals {
+        let mut out = *self;
+        for j in 0..self.n_slave {
+            let row = |f: &dyn Fn(usize) -> f64| (0..self.n_slave).map(|k| a[j][k] * f(k)).sum();
+            for l in 0..self.n_master {
+                out.m[j][l] = row(&|k| self.phi_m[k][l]);
+            }
+            out.psi_integral[j] = row(&|k| self.phi_integral[k]);
+            out.weighted_gap[j] = row(&|k| self.phi_gap[k][j]);
+        }
+        out
     }
 
     /// Adds one quadrature point: weight `w`, dual values `psi`, master values `phi_m`, and the
@@ -185,6 +234,7 @@ pub fn mortar_pair_2d(
     }
     let (mid, half) = (0.5 * (lo + hi), 0.5 * (hi - lo));
     let mut out = PairIntegrals::zero(2, 2);
+    out.slave_measure = 2.0 * js;
     for (s, w) in gauss_legendre(5) {
         let xi = mid + half * s;
         let phi = shape_line2(xi);
@@ -197,6 +247,7 @@ pub fn mortar_pair_2d(
         let gap = sub2(master.position(eta), xs);
         let gn = [dot2(slave_normals[0], gap), dot2(slave_normals[1], gap), 0.0, 0.0];
         out.add_point(w * half * js, &psi, &[pm[0], pm[1], 0.0, 0.0], &gn);
+        out.add_primal(w * half * js, &[phi[0], phi[1], 0.0, 0.0], &[pm[0], pm[1], 0.0, 0.0], &gn);
     }
     Ok(Some(out))
 }
@@ -444,6 +495,7 @@ pub fn mortar_pair_3d(
     let c = poly.iter().fold([0.0; 2], |acc, &p| add2(acc, scale2(inv_n, p)));
     let rule = triangle_rule_deg5();
     let mut out = PairIntegrals::zero(ns, nm);
+    out.slave_measure = s_area;
     for i in 0..poly.len() {
         let (p1, p2) = (poly[i], poly[(i + 1) % poly.len()]);
         let area = 0.5 * cross2(sub2(p1, c), sub2(p2, c));
@@ -454,13 +506,15 @@ pub fn mortar_pair_3d(
             let q = add2(add2(scale2(l[0], c), scale2(l[1], p1)), scale2(l[2], p2));
             let xs = invert_on_plane(slave, &plane, q)?;
             let xm = invert_on_plane(master, &plane, q)?;
-            let psi = dual.psi(&slave.shape(xs));
+            let phi = slave.shape(xs);
+            let psi = dual.psi(&phi);
             let gap = sub3(master.position(xm), slave.position(xs));
             let mut gn = [0.0; 4];
             for (g, n) in gn.iter_mut().zip(slave_normals.iter()) {
                 *g = dot3(*n, gap);
             }
             out.add_point(w * area, &psi, &master.shape(xm), &gn);
+            out.add_primal(w * area, &phi, &master.shape(xm), &gn);
         }
     }
     Ok(Some(out))

@@ -14,10 +14,13 @@
 //! each slave node meets one plane, which the active set solves unchanged; then `du = T u~`.
 //! The slave nodes get the force `D lambda` (the inner solver's nodal force), the master
 //! nodes `-M^T lambda`, and the contact work `-lambda^T (D n.du_s - M n.du_m)` equals
-//! `-sum_q (D lambda)_q n_q . u~_q`, the inner solver's. Small sliding: `D`, `M`, normals and
-//! gaps are evaluated on the reference configuration and re-evaluated on the current one
-//! while the bodies approach (no node in contact), then kept through the contact (METHOD.md
-//! 5b).
+//! `-sum_q (D lambda)_q n_q . u~_q`, the inner solver's. Small sliding
+//! ([`InterfaceMode::Frozen`]): `D`, `M`, normals and gaps are evaluated on the reference
+//! configuration and re-evaluated on the current one while the bodies approach (no node in
+//! contact), then kept through the contact (METHOD.md 5b). Finite sliding
+//! ([`InterfaceMode::Follow`]): inside every contact step, `D`, `M` and the normals at the
+//! step's midpoint and the planes shifted onto the weighted gaps at its end, in rounds until
+//! neither moves (METHOD.md 5c; README "Finite sliding").
 //!
 //! Memory: `T` (O(slave nodes) entries beyond the identity) and `T^T K T`, a second operator
 //! with `K`'s pattern widened at the slave nodes towards their master neighbours.
@@ -30,7 +33,7 @@ pub use crate::contact::cost::MortarCost;
 use crate::contact::interface::ContactSolver;
 use crate::contact::nodes::ContactNodes;
 use crate::contact::pdas::ActiveSet;
-use crate::contact::step::{StepContact, StepSystem};
+use crate::contact::step::{NodePlane, StepContact, StepSystem};
 use crate::error::{Error, Result};
 use crate::partition::Partition;
 use crate::petsc::{Ksp, Matrix, Vector};
@@ -60,6 +63,31 @@ pub struct MortarActiveSet<'w> {
     /// The interface nodes' displacements at the last evaluation.
     evaluated_at: Vec<f64>,
     cost: MortarCost,
+    /// Whether the interface follows the bodies inside the step (`-mortar_interface`).
+    mode: InterfaceMode,
+    /// Following: the step is done when the midpoint configuration has moved less than this
+    /// since the interface was evaluated on it, and every active slave node's gap at the end
+    /// of the step is this close to the planes' prediction (`-mortar_geometry_tol`).
+    geometry_tol: f64,
+    /// The slave nodes' planes as evaluated (linearized from the evaluation point), and the
+    /// shift per contact node that moves them onto the end-of-step weighted gap.
+    base_planes: Vec<Option<NodePlane>>,
+    shift: Vec<f64>,
+    /// The contact node of every slave node (the slave nodes never change).
+    slots: Vec<usize>,
+    /// Solves beyond one per round of the active set, and rounds beyond one per step.
+    extra_rounds: usize,
+}
+
+/// How the pair's interface moves with the bodies.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum InterfaceMode {
+    /// Evaluated inside every contact step on the configuration the step reaches (finite
+    /// sliding): `D`, `M` and the normals at the midpoint `u^n + du/2` (the force of the
+    /// midpoint rule), the weighted gaps at the end `u^{n+1}` (non-penetration at `t_{n+1}`).
+    Follow,
+    /// Evaluated while no node is in contact and kept from the touch-down (small sliding).
+    Frozen,
 }
 
 /// What the interface is evaluated from: the pair's facets and nodes, the mesh and partition.
@@ -129,6 +157,8 @@ struct Hat {
     u: Vector,
     du: Vector,
     tmp: Vector,
+    /// A configuration the interface is asked at (midpoint, end of the step).
+    mid: Vector,
 }
 
 impl<'w> MortarActiveSet<'w> {
@@ -138,7 +168,7 @@ impl<'w> MortarActiveSet<'w> {
         mut nodes: ContactNodes<'w>,
         pair: Pair,
         update_distance: f64,
-        update_in_contact: bool,
+        options: Settings,
         factor: f64,
     ) -> Result<MortarActiveSet<'w>> {
         let zero = vec![0.0; pair.dofs.len()];
@@ -155,7 +185,14 @@ impl<'w> MortarActiveSet<'w> {
         let e = transfer(&pair.part, &iface, false)?;
         let t = transfer(&pair.part, &iface, true)?;
         let nodes_len = nodes.len();
+        let base_planes = nodes.node_planes.clone().expect("set above");
         Ok(MortarActiveSet {
+            mode: options.mode,
+            geometry_tol: options.geometry_tol,
+            base_planes,
+            shift: vec![0.0; nodes_len],
+            slots: slots.clone(),
+            extra_rounds: 0,
             inner: ActiveSet::new(nodes, factor),
             pair,
             e,
@@ -165,7 +202,7 @@ impl<'w> MortarActiveSet<'w> {
             couplings: couplings(&iface, &slots),
             master: iface.master,
             update_distance,
-            update_in_contact,
+            update_in_contact: options.update_in_contact,
             evaluated_at: zero,
             cost,
         })
@@ -189,7 +226,7 @@ fn planes(
     let mut out = vec![None; n_nodes];
     for q in 0..iface.slave.len() {
         let n = iface.normals[q];
-        out[slots[q]] = Some(if covered[q] <= 0.0 {
+        out[slots[q]] = Some(if !(covered[q] > 0.0 && iface.d[q] > 0.0) {
             (f64::MAX, n)
         } else {
             let x = pair.mesh.coords[iface.slave[q]];
@@ -205,7 +242,7 @@ fn planes(
 fn coverage(iface: &MortarInterface, slots: &[usize], n_nodes: usize) -> Vec<f64> {
     let mut out = vec![0.0; n_nodes];
     for (q, (s, d)) in iface.m_row_sums().iter().zip(&iface.d).enumerate() {
-        out[slots[q]] = s / d;
+        out[slots[q]] = if *d > 0.0 { s / d } else { 0.0 };
     }
     out
 }
@@ -326,7 +363,8 @@ impl MortarActiveSet<'_> {
         }
         let slots = slave_slots(self.inner.nodes(), &iface)?;
         let n_nodes = self.inner.nodes().len();
-        self.inner.nodes_mut().node_planes = Some(planes(&iface, &self.pair, &ut, &slots, n_nodes));
+        self.base_planes = planes(&iface, &self.pair, &ut, &slots, n_nodes);
+        self.inner.nodes_mut().node_planes = Some(self.shifted_planes());
         self.e = transfer(&self.pair.part, &iface, false)?;
         self.t = transfer(&self.pair.part, &iface, true)?;
         self.coverage = coverage(&iface, &slots, n_nodes);
@@ -353,46 +391,202 @@ impl MortarActiveSet<'_> {
             None => {
                 let (rhs, u) = k_hat.create_vecs()?;
                 let (du, tmp) = k_hat.create_vecs()?;
-                self.hat = Some(Hat { k: k_hat, ksp: None, rhs, u, du, tmp });
+                let mid = tmp.duplicate()?;
+                self.hat = Some(Hat { k: k_hat, ksp: None, rhs, u, du, tmp, mid });
             }
         }
         Ok(())
     }
 }
 
-impl ContactSolver for MortarActiveSet<'_> {
-    fn prepare(&mut self, k: &Matrix) -> Result<()> {
-        let t0 = std::time::Instant::now();
-        self.rebuild(k)?;
-        self.cost.operator_seconds += t0.elapsed().as_secs_f64();
-        Ok(())
-    }
-
-    fn solve(&mut self, sys: StepSystem<'_>) -> Result<(StepContact, usize)> {
-        let StepSystem { k, ksp, rhs, u, du, step, time } = sys;
-        if self.hat.is_none() {
-            self.rebuild(k)?;
-        }
-        // By default re-evaluated only while no slave node is active (small sliding): in
-        // contact the interface stays as it was at the touch-down. Re-evaluating in contact is
-        // explicit in the geometry (the interface of t_n holds at t_{n+1}); with the massless
-        // layer on both sides, re-evaluations a few steps apart let the energy grow
-        // exponentially in the two-disc run (measured, README "Two bodies"), while with the
-        // standard mass every step is stable.
+impl MortarActiveSet<'_> {
+    /// Small sliding: re-evaluated only while no slave node is active; in contact the interface
+    /// stays as it was at the touch-down. With `-mortar_update_in_contact` re-evaluated in
+    /// contact too, explicitly (the interface of `t_n` holds at `t_{n+1}`; README "Two bodies").
+    fn solve_frozen(&mut self, sys: StepSystem<'_>) -> Result<(StepContact, usize)> {
         let in_contact = self.inner.nodes().active.iter().any(|&a| a);
         let t0 = std::time::Instant::now();
-        let mut step_seconds = 0.0;
         if self.update_distance.is_finite() && (!in_contact || self.update_in_contact) {
-            let trace = self.pair.trace(self.inner.nodes().world, u)?;
-            let moved =
-                trace.iter().zip(&self.evaluated_at).fold(0.0f64, |a, (x, y)| a.max((x - y).abs()));
-            step_seconds += t0.elapsed().as_secs_f64();
+            let trace = self.pair.trace(self.inner.nodes().world, sys.u)?;
+            let moved = largest_difference(&trace, &self.evaluated_at);
+            self.cost.step_seconds += t0.elapsed().as_secs_f64();
             if moved > self.update_distance {
-                self.update(k, trace)?;
+                self.update(sys.k, trace)?;
+            }
+        }
+        self.round(sys)
+    }
+
+    /// Finite sliding: rounds of the active set, each on the interface evaluated at the
+    /// midpoint configuration of the last round's result, with the planes shifted so that
+    /// they predict the weighted gaps at the end of the step; done when neither moves any
+    /// more (`geometry_tol`). While no node is active or about to be, the interface is
+    /// re-evaluated only as the update distance says, like the frozen one's approach.
+    fn solve_following(&mut self, sys: StepSystem<'_>) -> Result<(StepContact, usize)> {
+        let StepSystem { k, ksp, rhs, u, du, step, time } = sys;
+        const MAX_ROUNDS: usize = 30;
+        self.shift.iter_mut().for_each(|x| *x = 0.0);
+        let mut its = 0;
+        let mut rounds = 0;
+        loop {
+            rounds += 1;
+            let t0 = std::time::Instant::now();
+            let mid = self.midpoint_trace(u, du)?;
+            let moved = largest_difference(&mid, &self.evaluated_at);
+            let near = self.inner.nodes().active.iter().any(|&a| a) || rounds > 1;
+            self.cost.step_seconds += t0.elapsed().as_secs_f64();
+            // D, M and the normals need not follow to the last digit: lagging by 1e3 geometry
+            // tolerances (1e-6 of a facet by default) changes the forces' direction and share
+            // by that fraction of a facet, while the planes' shift keeps the gaps exact.
+            let move_tol = MOVE_FACTOR * self.geometry_tol;
+            let limit = if near { move_tol } else { self.update_distance };
+            if moved > limit {
+                self.update(k, mid)?;
+            } else if rounds > 1 {
+                self.inner.nodes_mut().node_planes = Some(self.shifted_planes());
+            }
+            let sys = StepSystem { k: &mut *k, ksp: &mut *ksp, rhs, u, du: &mut *du, step, time };
+            let (out, n) = self.round(sys)?;
+            its += n;
+            if !out.row.active.iter().any(|&a| a) && rounds == 1 && !self.penetrates_at_end(u, du)?
+            {
+                return Ok((out, its));
+            }
+            // Where the planes put the slave nodes at the end of the step, against the
+            // weighted gaps there: the shift that moves each plane onto the truth.
+            let t1 = std::time::Instant::now();
+            let end = self.end_trace(u, du)?;
+            let predicted = self.predicted_gaps(&end);
+            let truth = self.end_gaps(&end)?;
+            let t_cost = t1.elapsed().as_secs_f64();
+            self.cost.step_seconds += t_cost;
+            let mut off = 0.0f64;
+            for (p, (t, pr)) in truth.iter().zip(&predicted).enumerate() {
+                let (Some(pr), Some(t)) = (pr, t) else {
+                    if pr.is_some() && out.row.active[p] {
+                        off = f64::INFINITY; // an active node with no master left under it
+                    }
+                    if pr.is_some() {
+                        self.shift[p] = f64::INFINITY;
+                    }
+                    continue;
+                };
+                let delta = t - pr;
+                if out.row.active[p] || *t < -self.geometry_tol {
+                    off = off.max(delta.abs());
+                }
+                self.shift[p] += delta;
+            }
+            let mid = self.midpoint_trace(u, du)?;
+            let moved = largest_difference(&mid, &self.evaluated_at);
+            let largest = (moved, off);
+            if moved <= MOVE_FACTOR * self.geometry_tol && off <= self.geometry_tol {
+                self.cost.following_steps += usize::from(out.row.active.iter().any(|&a| a));
+                self.cost.rounds += rounds;
+                self.extra_rounds += rounds - 1;
+                return Ok((out, its));
+            }
+            if rounds == MAX_ROUNDS {
+                return Err(Error::Solver(format!(
+                    "mortar: the interface did not settle in {MAX_ROUNDS} rounds at step {step} (t = {time}): the midpoint moved {:.3e} since its evaluation, the planes miss the end-of-step gaps by {:.3e}, tolerance {:.3e} (-mortar_geometry_tol)",
+                    largest.0, largest.1, self.geometry_tol
+                )));
+            }
+        }
+    }
+
+    /// The pair's nodes' displacements at the midpoint `u + du/2` (every rank).
+    fn midpoint_trace(&mut self, u: &Vector, du: &Vector) -> Result<Vec<f64>> {
+        let h = self.hat.as_mut().expect("built in solve");
+        h.mid.waxpy(0.5, du, u)?;
+        self.pair.trace(self.inner.nodes().world, &h.mid)
+    }
+
+    /// The pair's nodes' displacements at the end `u + du` (every rank).
+    fn end_trace(&mut self, u: &Vector, du: &Vector) -> Result<Vec<f64>> {
+        let h = self.hat.as_mut().expect("built in solve");
+        h.mid.waxpy(1.0, du, u)?;
+        self.pair.trace(self.inner.nodes().world, &h.mid)
+    }
+
+    /// Whether a slave node ends the step behind its plane (approach: the first round found
+    /// no contact, yet the linearization may be off at the end).
+    fn penetrates_at_end(&mut self, u: &Vector, du: &Vector) -> Result<bool> {
+        let end = self.end_trace(u, du)?;
+        let predicted = self.predicted_gaps(&end);
+        Ok(predicted.iter().flatten().any(|&g| g < -self.geometry_tol))
+    }
+
+    /// Per contact node: the gap the current planes give at the pair displacement `end`
+    /// (`c_q - n_q . (x_q + u~_q)`, `u~_q = u_q - sum_l (M_ql / D_qq) u_l`); `None` off the
+    /// slave nodes and where no plane holds.
+    fn predicted_gaps(&self, end: &[f64]) -> Vec<Option<f64>> {
+        let dim = self.pair.part.dim;
+        let at = self.pair.slots();
+        let nodes = self.inner.nodes();
+        let planes = nodes.node_planes.as_ref().expect("a pair's planes");
+        let mut ut: Vec<[f64; 3]> = vec![[0.0; 3]; nodes.len()];
+        for &p in &self.slots {
+            let k = at[&nodes.boundary.nodes[p]];
+            for c in 0..dim {
+                ut[p][c] = end[k * dim + c];
+            }
+        }
+        for &(p, l, w) in &self.couplings {
+            let k = at[&self.master[l]];
+            for c in 0..dim {
+                ut[p][c] -= w * end[k * dim + c];
+            }
+        }
+        (0..nodes.len())
+            .map(|p| match planes[p] {
+                Some((c, n)) if c < f64::MAX / 2.0 && self.base_planes[p].is_some_and(|b| b.0 < f64::MAX) => {
+                    let x = self.pair.mesh.coords[nodes.boundary.nodes[p]];
+                    Some(c - (0..dim).map(|i| n[i] * (x[i] + ut[p][i])).sum::<f64>())
+                }
+                _ => None,
+            })
+            .collect()
+    }
+
+    /// Per contact node: the weighted gap at the pair displacement `end`, per unit of `D`
+    /// (`g_q / D_qq`, a length); `None` off the slave nodes and where no master lies under
+    /// the node's support (collective: one interface evaluation).
+    fn end_gaps(&mut self, end: &[f64]) -> Result<Vec<Option<f64>>> {
+        let world = self.inner.nodes().world;
+        let iface = self.pair.evaluate(world, end, &mut self.cost)?;
+        let covered = iface.m_row_sums();
+        let mut out = vec![None; self.inner.nodes().len()];
+        for (q, &p) in self.slots.iter().enumerate() {
+            if covered[q] > 0.0 && iface.d[q] > 0.0 {
+                out[p] = Some(iface.gap[q] / iface.d[q]);
+            }
+        }
+        Ok(out)
+    }
+
+    /// The evaluated planes moved by `shift`.
+    fn shifted_planes(&self) -> Vec<Option<NodePlane>> {
+        (self.base_planes.iter().zip(&self.shift))
+            .map(|(b, s)| b.map(|(c, n)| if c < f64::MAX { ((c + s).min(f64::MAX), n) } else { (c, n) }))
+            .collect()
+    }
+
+    /// One solve of the active set on the interface as it stands: the basis changes around
+    /// the inner solver, and the master side's forces.
+    fn round(&mut self, sys: StepSystem<'_>) -> Result<(StepContact, usize)> {
+        let StepSystem { ksp, rhs, u, du, step, time, .. } = sys;
+        // A node with no master under it any more cannot stay in contact.
+        let nodes = self.inner.nodes_mut();
+        if let Some(planes) = nodes.node_planes.as_ref() {
+            for (a, p) in nodes.active.iter_mut().zip(planes) {
+                if p.is_some_and(|(c, _)| c >= f64::MAX) {
+                    *a = false;
+                }
             }
         }
         let t1 = std::time::Instant::now();
-        let h = self.hat.as_mut().expect("built above");
+        let h = self.hat.as_mut().expect("built in solve");
         if h.ksp.is_none() {
             h.ksp = Some(ksp_like(&h.k, ksp)?);
         }
@@ -402,7 +596,7 @@ impl ContactSolver for MortarActiveSet<'_> {
         h.u.waxpy(-1.0, &h.tmp, u)?;
         self.e.mult(du, &mut h.tmp)?;
         h.du.waxpy(-1.0, &h.tmp, du)?;
-        step_seconds += t1.elapsed().as_secs_f64();
+        let mut step_seconds = t1.elapsed().as_secs_f64();
         let inner = StepSystem {
             k: &mut h.k,
             ksp: h.ksp.as_mut().expect("built above"),
@@ -415,7 +609,8 @@ impl ContactSolver for MortarActiveSet<'_> {
         let (mut out, its) = self.inner.solve(inner)?;
         let t2 = std::time::Instant::now();
         self.t.mult(&h.du, du)?;
-        self.cost.step_seconds += step_seconds + t2.elapsed().as_secs_f64();
+        step_seconds += t2.elapsed().as_secs_f64();
+        self.cost.step_seconds += step_seconds;
         // The master nodes get -M^T lambda in the equation of motion: a force
         // sum_q coverage_q lambda_q n_q on the master body.
         for (q, &f) in out.row.force.iter().enumerate() {
@@ -431,6 +626,34 @@ impl ContactSolver for MortarActiveSet<'_> {
         }
         Ok((out, its))
     }
+}
+
+/// How far, in geometry tolerances, the midpoint may move before `D`, `M` and the normals are
+/// evaluated again inside a step.
+const MOVE_FACTOR: f64 = 1e5;
+
+/// The largest difference between two equally long lists.
+fn largest_difference(a: &[f64], b: &[f64]) -> f64 {
+    a.iter().zip(b).fold(0.0f64, |m, (x, y)| m.max((x - y).abs()))
+}
+
+impl ContactSolver for MortarActiveSet<'_> {
+    fn prepare(&mut self, k: &Matrix) -> Result<()> {
+        let t0 = std::time::Instant::now();
+        self.rebuild(k)?;
+        self.cost.operator_seconds += t0.elapsed().as_secs_f64();
+        Ok(())
+    }
+
+    fn solve(&mut self, sys: StepSystem<'_>) -> Result<(StepContact, usize)> {
+        if self.hat.is_none() {
+            self.rebuild(sys.k)?;
+        }
+        match self.mode {
+            InterfaceMode::Frozen => self.solve_frozen(sys),
+            InterfaceMode::Follow => self.solve_following(sys),
+        }
+    }
 
     fn nodes(&self) -> &ContactNodes<'_> {
         self.inner.nodes()
@@ -439,7 +662,7 @@ impl ContactSolver for MortarActiveSet<'_> {
         self.inner.active_mut()
     }
     fn extra_solves(&self) -> usize {
-        self.inner.extra_solves()
+        self.inner.extra_solves() + self.extra_rounds
     }
     fn is_pair(&self) -> bool {
         true
@@ -481,12 +704,33 @@ pub struct MortarOptions {
     /// projections, the slave side's averaged nodal normals or, in 2D, halfway between them
     /// and the master's across.
     pub normal: NormalKind,
+    /// `-mortar_interface follow|frozen` (default `frozen` until its cost is brought down,
+    /// issue 24): the interface follows the bodies inside every contact step (finite
+    /// sliding), or is kept from the touch-down (small sliding).
+    pub mode: InterfaceMode,
+    /// `-mortar_geometry_tol L` (default 1e-9 of the smallest slave facet): following, the
+    /// distance the interface may still move, and the gap the planes may still miss, when a
+    /// step is done.
+    pub geometry_tol: Option<f64>,
 }
 
 impl Default for MortarOptions {
     fn default() -> Self {
-        MortarOptions { update_distance: None, update_in_contact: false, normal: NormalKind::Slave }
+        MortarOptions {
+            update_distance: None,
+            update_in_contact: false,
+            normal: NormalKind::Slave,
+            mode: InterfaceMode::Frozen,
+            geometry_tol: None,
+        }
     }
+}
+
+/// The options of one pair solver with their defaults resolved.
+struct Settings {
+    mode: InterfaceMode,
+    geometry_tol: f64,
+    update_in_contact: bool,
 }
 
 /// The contact solver of slave/master pairs of deformable bodies: the interface evaluated
@@ -541,7 +785,11 @@ pub fn pair_solver<'w>(
     let reach = sf.iter().map(size).fold(0.0, f64::max);
     let smallest = sf.iter().map(size).fold(f64::MAX, f64::min);
     let update_distance = options.update_distance.unwrap_or(0.1 * smallest);
-    let update_in_contact = options.update_in_contact;
+    let settings = Settings {
+        mode: options.mode,
+        geometry_tol: options.geometry_tol.unwrap_or(1e-9 * smallest),
+        update_in_contact: options.update_in_contact,
+    };
     let normal = options.normal;
     if normal == NormalKind::Average && part.dim != 2 {
         return Err(Error::Scene("-mortar_normal average is built for 2D meshes only".into()));
@@ -592,7 +840,7 @@ pub fn pair_solver<'w>(
         contact_nodes,
         pair,
         update_distance,
-        update_in_contact,
+        settings,
         factor,
     )?))
 }

@@ -957,3 +957,54 @@ fn bucket_search_equals_brute_force() {
     let b = facet_aabb_2d(&Facet2 { x: [[0.0, 1.0], [2.0, -1.0]] }, 0.1);
     assert_eq!((b.min, b.max), ([-0.1, -1.1, -0.1], [2.1, 1.1, 0.1]));
 }
+
+/// A slave facet partly over the master (issue 24): the dual basis biorthogonal on the covered
+/// part keeps what the mortar method needs there. Slave (1,0) -> (0,0), master lines covering
+/// x in [c, 1] at height d, split in two at x = s (two pairs of one facet). Asserted from
+/// theory: `D_jj = int_cov phi_j` (closed form: with `xi = 1 - 2x`, `phi_1 = x`,
+/// `phi_2 = 1 - x` over [c, 1]); `sum_l M_jl = D_jj` (partition of unity, so a rigid
+/// translation of both bodies leaves the gaps alone); exact transfer of a master field linear
+/// in x, `sum_l M_jl f(x_l) = D_jj f(x_j)` (biorthogonality on the covered part), even for the
+/// node beyond the master's end; `g_j = d D_jj`. Fully covered (c = 0) it is the facet's own
+/// dual basis; below the smallest covered fraction the facet is left out.
+#[test]
+fn a_partly_covered_slave_facet_keeps_partition_of_unity_and_linear_transfer() {
+    let d = 0.02;
+    let s = Facet2 { x: [[1.0, 0.0], [0.0, 0.0]] };
+    let nrm = [[0.0, 1.0]; 2];
+    let ds = dual_basis_2d(&s).unwrap();
+    let facet = SurfaceFacet { nodes: vec![], cell: 0, pairs: 1 };
+    let f = |x: f64| 3.0 - 2.0 * x;
+    for c in [0.0, 0.3, 0.9, 0.999] {
+        let split = 0.5 * (c + 1.0);
+        let masters = [Facet2 { x: [[c, d], [split, d]] }, Facet2 { x: [[split, d], [1.2, d]] }];
+        let found: Vec<_> = masters
+            .iter()
+            .map(|m| (&facet, mortar_pair_2d(&s, &nrm, &ds, m).unwrap().expect("overlap")))
+            .collect();
+        let (d_e, pairs) = covered_part(&ds, found).expect("covered");
+        // Node 0 at x = 1 (phi = x), node 1 at x = 0 (phi = 1 - x), over [c, 1].
+        let exact = [(1.0 - c * c) / 2.0, (1.0 - c) - (1.0 - c * c) / 2.0];
+        let xs = [1.0, 0.0];
+        for j in 0..2 {
+            assert_close(d_e[j], exact[j], 1e-14, &format!("c = {c}: D_jj"));
+            let (mut sum, mut transfer, mut gap) = (0.0, 0.0, 0.0);
+            for ((_, p), m) in pairs.iter().zip(&masters) {
+                for l in 0..2 {
+                    sum += p.m[j][l];
+                    transfer += p.m[j][l] * f(m.x[l][0]);
+                }
+                gap += p.weighted_gap[j];
+            }
+            assert_close(sum / d_e[j], 1.0, 1e-9, &format!("c = {c}: sum_l M_jl / D_jj"));
+            assert_close(transfer / d_e[j], f(xs[j]), 1e-9, &format!("c = {c}: linear transfer"));
+            assert_close(gap / d_e[j], d, 1e-9, &format!("c = {c}: weighted gap"));
+        }
+        if c == 0.0 {
+            assert_eq!(d_e, ds.d, "fully covered: the facet's own D_e");
+        }
+    }
+    let tiny = Facet2 { x: [[1.0 - 1e-7, d], [1.2, d]] };
+    let p = mortar_pair_2d(&s, &nrm, &ds, &tiny).unwrap().expect("a sliver of overlap");
+    assert!(covered_part(&ds, vec![(&facet, p)]).is_none(), "a sliver below MIN_COVERED");
+}
