@@ -23,7 +23,17 @@ fn contact_steps(h5: &std::path::Path) -> (Vec<usize>, Vec<f64>) {
 /// percent); from then on no node is active and no contact force acts (the block falls
 /// freely to the end at step 500). The gaps in the file (the end-of-step weighted gaps the
 /// planes reach) stay above -1e-8 of the block's size (1), and the energy balance holds to
-/// 1e-8. The frozen interface, asked for on the command line, holds the block up to the end.
+/// 1e-8. Frictionless contact only takes energy, at activation (METHOD.md 7), and the
+/// energy correction puts that back: up to step 280, before the block's leading end reaches
+/// the end of the lower block, the contact creates no energy beyond 1e-6 of the initial and
+/// takes less than 1e-3 (without the consistent force it gained 1.1e-4 there; measured now:
+/// losses of 6e-6 on quads and 1.1e-5 on triangles, above the aim of 1e-6); over the
+/// whole run, with the releases at the edge, within 1e-3 of it either way (without: +1.2e-2).
+/// The
+/// upper block is free: its momentum change is the contact
+/// impulse plus gravity's, `-m g T` in y (m = 0.5, T = 5), to 1e-8 of its initial momentum,
+/// the consistent force's tangential part included. The frozen interface, asked for on the
+/// command line, holds the block up to the end.
 fn slides_off_and_lets_go(extra: &[&str], name: &str) {
     let dir = scratch(name);
     let scene = scene_variant("slide_off.toml", &dir, &[]);
@@ -41,6 +51,20 @@ fn slides_off_and_lets_go(extra: &[&str], name: &str) {
     assert!(lowest > -1e-8, "{name}: a gap of {lowest}");
     assert!(s.energy_balance < 1e-8, "{name}: energy balance {}", s.energy_balance);
     assert!(contact(&s).mortar.expect("mortar cost").following_steps > 0);
+    let history = values(&h5, &massfree::io::layout::energy("contact_work"));
+    let flat = history[280] / s.energy_initial;
+    assert!((-1e-3..=1e-6).contains(&flat), "{name}: contact work {flat:e} of the energy by step 280");
+    let work = contact(&s).contact_work / s.energy_initial;
+    assert!(work.abs() <= 1e-3, "{name}: contact work {work:e} of the energy");
+    let upper = s.bodies.iter().find(|b| b.group == "upper").expect("body upper");
+    let p0 = upper.momentum_initial[0];
+    let gravity = [0.0, -0.5 * 1.0 * 5.0];
+    for c in 0..2 {
+        let dp = upper.momentum_final[c] - upper.momentum_initial[c];
+        let miss = (dp - upper.contact_impulse[c] - gravity[c]).abs();
+        assert!(miss < 1e-8 * p0, "{name}: momentum balance of the block, component {c}: {miss:e}");
+    }
+    eprintln!("{name}: last contact step {last}, contact work {flat:.2e} (flat, step 280) and {work:.2e} (run) of the initial energy");
 
     let mut frozen = extra.to_vec();
     frozen.extend(["--", "-mortar_interface", "frozen"]);
@@ -62,8 +86,12 @@ fn a_block_sliding_off_the_end_lets_go_triangles() {
 }
 
 /// 1, 2 and 3 ranks (x-slabs: the partition cuts the sliding zone, slave and master nodes of a
-/// mortar row on different ranks) give the same contact histories: the same active sets and
-/// forces to 1e-8 of the peak, through the release (300 steps... the whole run).
+/// mortar row on different ranks) give the same contact histories over the whole run, the
+/// release included: the same active sets, and forces to the interface's own tolerance. A
+/// step ends when the midpoint has moved less than 1e5 geometry tolerances (1e-4 of the
+/// smallest slave facet) since `D`, `M`, the normals and the consistent force were evaluated,
+/// and round-off decides where within that the ranks stop: the forces may differ by that
+/// fraction, 1e-4 of the peak (measured: 4e-8).
 #[test]
 fn sliding_does_not_depend_on_the_number_of_ranks() {
     let dir = scratch("slide-off-ranks");
@@ -81,14 +109,16 @@ fn sliding_does_not_depend_on_the_number_of_ranks() {
     for (k, (f, a)) in runs[1..].iter().enumerate() {
         assert_eq!(a1, a, "{} ranks: active sets differ", k + 2);
         let d = f1.iter().zip(f).fold(0.0f64, |m, (x, y)| m.max((x - y).abs()));
-        assert!(d <= 1e-8 * fmax, "{} ranks: forces differ by {d:e} of {fmax:e}", k + 2);
+        eprintln!("{} ranks: forces differ by {:.2e} of the peak", k + 2, d / fmax);
+        assert!(d <= 1e-4 * fmax, "{} ranks: forces differ by {d:e} of {fmax:e}", k + 2);
     }
 }
 
 /// The paper's two discs with the mass-free layer on both sides and the interface following
 /// the bodies (the explicit update diverged there, README "Two bodies"): the run stays stable
-/// and the energy balance holds to 1e-8; the energy changes by less than 1e-3 (the bound on the
-/// activation loss of METHOD.md 7 that the frozen runs meet); and, a small-sliding impact, the
+/// and the energy balance holds to 1e-8; the contact only takes energy, at activation, and
+/// less than 1e-3 (METHOD.md 7; the relative loss in [-1e-8, 1e-3]: without the consistent
+/// force the discs gained 1.4e-6); and, a small-sliding impact, the
 /// total force averaged over the mesh-scale waves stays within `(a/R)^2` of the frozen
 /// interface's (the normals differ by up to a/R at the contact edge, the gaps along them by
 /// `1 - cos(a/R)`; the same bound as the explicit update's test in tests/two_body.rs).
@@ -103,8 +133,8 @@ fn two_discs_with_the_mass_free_layer_and_the_interface_following() {
     let (f, frozen) = run("two-discs-frozen-layer", "frozen");
     let (u, follow) = run("two-discs-follow-layer", "follow");
     assert!(u.energy_balance < 1e-8, "energy balance {}", u.energy_balance);
-    let change = ((u.energy_final - u.energy_initial) / u.energy_initial).abs();
-    assert!(change < 1e-3, "relative energy change {change}");
+    let change = (u.energy_initial - u.energy_final) / u.energy_initial;
+    assert!((-1e-8..1e-3).contains(&change), "relative energy loss {change:e}");
     assert!(contact(&u).mortar.unwrap().following_steps > 0);
     assert_eq!(contact(&f).mortar.unwrap().following_steps, 0);
     let (f_frozen, f_follow) = (force_history(&frozen).0, force_history(&follow).0);
@@ -125,7 +155,7 @@ fn two_discs_with_the_mass_free_layer_and_the_interface_following() {
     let peak = f_frozen.iter().cloned().fold(0.0, f64::max);
     let d = avg(&f_frozen).iter().zip(avg(&f_follow)).fold(0.0f64, |m, (p, q)| m.max((p - q).abs()));
     eprintln!(
-        "following interface: energy change {change:.2e}; averaged total force within {:.2e} of the peak (bound {bound:.2e})",
+        "following interface: energy loss {change:.2e}; averaged total force within {:.2e} of the peak (bound {bound:.2e})",
         d / peak
     );
     assert!(d <= bound * peak, "averaged forces differ by {:e} of the peak, beyond {bound:e}", d / peak);

@@ -37,6 +37,9 @@ pub struct MortarCost {
     pub following_steps: usize,
     #[serde(default)]
     pub rounds: usize,
+    /// Wall time of the consistent force's rest (finite differences of the weighted gaps).
+    #[serde(default)]
+    pub gradient_seconds: f64,
 }
 
 impl MortarCost {
@@ -48,8 +51,9 @@ impl MortarCost {
             self.search_seconds,
             self.operator_seconds,
             self.step_seconds,
+            self.gradient_seconds,
         ];
-        let mut all = [0.0; 4];
+        let mut all = [0.0; 5];
         world.all_reduce_into(&local[..], &mut all[..], mpi::collective::SystemOperation::max());
         MortarCost {
             evaluations: self.evaluations,
@@ -59,6 +63,7 @@ impl MortarCost {
             step_seconds: all[3],
             following_steps: self.following_steps,
             rounds: self.rounds,
+            gradient_seconds: all[4],
         }
     }
 }

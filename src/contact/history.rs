@@ -105,6 +105,11 @@ impl History {
                 *x -= tau * c.row.force[p] * c.normals[p][i];
             }
         }
+        for (imp, f) in self.node_impulse.iter_mut().zip(&c.contact_nodal) {
+            for i in 0..3 {
+                imp[i] += tau * f[i];
+            }
+        }
         self.master_node_impulse.resize(c.master_nodal.len(), [0.0; 3]);
         for (imp, f) in self.master_node_impulse.iter_mut().zip(&c.master_nodal) {
             for i in 0..3 {

@@ -283,6 +283,7 @@ impl<'w> ContactNodes<'w> {
             obstacle_force: [0.0; 3],
             master_force: [0.0; 3],
             master_nodal: Vec::new(),
+            contact_nodal: Vec::new(),
         };
         for p in 0..nc {
             if out.row.active[p] {

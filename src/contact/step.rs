@@ -41,6 +41,9 @@ pub struct StepContact {
     /// Per master node `l` (of [`ContactSolver::master_nodes`]): its share
     /// `sum_q (M_ql / D_qq) lambda_q n_q` of `master_force` (empty against rigid obstacles).
     pub master_nodal: Vec<[f64; 3]>,
+    /// Per contact node: a force beside `-force n` (the rest of the consistent force of an
+    /// interface that follows the bodies; empty otherwise).
+    pub contact_nodal: Vec<[f64; 3]>,
 }
 
 /// A slave node's plane in the mortar basis, `(c_q, n_q)`: `n_q . y_q <= c_q`.

@@ -412,8 +412,9 @@ pub fn summary_lines(d: &Domain, layer: Option<(usize, usize)>, s: &RunSummary) 
         if let Some(m) = &c.mortar {
             let rounds = if m.following_steps > 0 {
                 format!(
-                    "; interface following the bodies: {:.2} rounds per contact step",
-                    m.rounds as f64 / m.following_steps as f64
+                    "; interface following the bodies: {:.2} rounds per contact step, consistent force {:.3} s",
+                    m.rounds as f64 / m.following_steps as f64,
+                    m.gradient_seconds
                 )
             } else {
                 String::new()
@@ -425,7 +426,7 @@ pub fn summary_lines(d: &Domain, layer: Option<(usize, usize)>, s: &RunSummary) 
                 m.search_seconds,
                 m.operator_seconds,
                 m.step_seconds,
-                100.0 * (m.evaluation_seconds + m.operator_seconds + m.step_seconds)
+                100.0 * (m.evaluation_seconds + m.operator_seconds + m.step_seconds + m.gradient_seconds)
                     / s.timings.stepping.max(1e-300)
             ));
         }

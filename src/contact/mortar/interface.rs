@@ -77,7 +77,7 @@ fn centroid(x: &[[f64; 3]]) -> [f64; 3] {
 }
 
 /// The (unnormalized) normal of a facet at its centre, in 3D components (z = 0 in 2D).
-fn facet_normal(dim: usize, x: &[[f64; 3]]) -> std::result::Result<Vec3, GeomError> {
+pub(crate) fn facet_normal(dim: usize, x: &[[f64; 3]]) -> std::result::Result<Vec3, GeomError> {
     let idx: Vec<usize> = (0..x.len()).collect();
     if dim == 2 {
         let p: Vec<Vec2> = x.iter().map(|p| [p[0], p[1]]).collect();
@@ -200,42 +200,18 @@ impl MortarInterface {
         let mut m: HashMap<(u32, u32), f64> = HashMap::new();
         let mut k = 0;
         for (si, f) in mine.iter().enumerate() {
-            let p = pos(f);
             let qs: Vec<usize> = f.nodes.iter().map(|v| s_of[v] as usize).collect();
-            let (dual, slave2, slave3) = if dim == 2 {
-                let q: Vec<Vec2> = p.iter().map(|a| [a[0], a[1]]).collect();
-                let fs = Facet2::from_nodes(&q, [0, 1]).map_err(err)?;
-                (dual_basis_2d(&fs).map_err(err)?, Some(fs), None)
-            } else {
-                let idx: Vec<usize> = (0..p.len()).collect();
-                let fs = Facet3::from_nodes(&p, &idx).map_err(err)?;
-                (dual_basis_3d(&fs).map_err(err)?, None, Some(fs))
-            };
-            let mut found = Vec::new();
+            let mut candidates = Vec::new();
             while k < pairs.len() && pairs[k].0 == si {
-                let mf = masters[pairs[k].1];
+                candidates.push(masters[pairs[k].1]);
                 k += 1;
-                let pm = pos(mf);
-                let pi = if let Some(fs) = &slave2 {
-                    let nrm = [
-                        [normals[qs[0]][0], normals[qs[0]][1]],
-                        [normals[qs[1]][0], normals[qs[1]][1]],
-                    ];
-                    let q: Vec<Vec2> = pm.iter().map(|a| [a[0], a[1]]).collect();
-                    let fm = Facet2::from_nodes(&q, [0, 1]).map_err(err)?;
-                    mortar_pair_2d(fs, &nrm, &dual, &fm).map_err(err)?
-                } else {
-                    let fs = slave3.as_ref().expect("3D slave facet");
-                    let nrm: Vec<Vec3> = qs.iter().map(|&q| normals[q]).collect();
-                    let idx: Vec<usize> = (0..pm.len()).collect();
-                    let fm = Facet3::from_nodes(&pm, &idx).map_err(err)?;
-                    mortar_pair_3d(fs, &nrm, &dual, &fm).map_err(err)?
-                };
-                if let Some(pi) = pi {
-                    found.push((mf, pi));
-                }
             }
-            let Some((d_e, found)) = covered_part(&dual, found) else { continue };
+            let nrm: Vec<Vec3> = qs.iter().map(|&q| normals[q]).collect();
+            let Some((d_e, found)) =
+                facet_integrals(dim, &pos(f), &nrm, &candidates, &pos).map_err(err)?
+            else {
+                continue;
+            };
             for (j, &q) in qs.iter().enumerate() {
                 d[q] += d_e[j];
             }
@@ -268,6 +244,47 @@ impl MortarInterface {
             s[q as usize] += v;
         }
         s
+    }
+}
+
+/// One slave facet (nodes at `p`, nodal normals `nrm`) against its candidate master facets
+/// (positions by `pos`): its `D_e` and the integrals of the master facets it overlaps, on its
+/// covered part ([`covered_part`]); `None` when too little of it is covered.
+#[allow(clippy::type_complexity)]
+pub(crate) fn facet_integrals<'a>(
+    dim: usize,
+    p: &[[f64; 3]],
+    nrm: &[Vec3],
+    candidates: &[&'a SurfaceFacet],
+    pos: &dyn Fn(&SurfaceFacet) -> Vec<[f64; 3]>,
+) -> std::result::Result<Option<([f64; 4], Vec<(&'a SurfaceFacet, PairIntegrals)>)>, GeomError> {
+    let mut found = Vec::new();
+    if dim == 2 {
+        let q: Vec<Vec2> = p.iter().map(|a| [a[0], a[1]]).collect();
+        let fs = Facet2::from_nodes(&q, [0, 1])?;
+        let dual = dual_basis_2d(&fs)?;
+        let n2 = [[nrm[0][0], nrm[0][1]], [nrm[1][0], nrm[1][1]]];
+        for &mf in candidates {
+            let q: Vec<Vec2> = pos(mf).iter().map(|a| [a[0], a[1]]).collect();
+            let fm = Facet2::from_nodes(&q, [0, 1])?;
+            if let Some(pi) = mortar_pair_2d(&fs, &n2, &dual, &fm)? {
+                found.push((mf, pi));
+            }
+        }
+        Ok(covered_part(&dual, found))
+    } else {
+        let idx: Vec<usize> = (0..p.len()).collect();
+        let fs = Facet3::from_nodes(p, &idx)?;
+        let dual = dual_basis_3d(&fs)?;
+        for &mf in candidates {
+            let pm = pos(mf);
+            let idx: Vec<usize> = (0..pm.len()).collect();
+            let fm = Facet3::from_nodes(&pm, &idx)?;
+            if let Some(pi) = mortar_pair_3d(&fs, nrm, &dual, &fm)? {
+                found.push((mf, pi));
+            }
+        }
+        Ok(covered_part(&dual, found))
     }
 }
 

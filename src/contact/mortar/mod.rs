@@ -29,6 +29,7 @@
 mod dual;
 mod facet;
 mod geom;
+mod gradient;
 mod interface;
 mod linearize;
 mod linearize3d;

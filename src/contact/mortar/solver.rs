@@ -77,6 +77,17 @@ pub struct MortarActiveSet<'w> {
     slots: Vec<usize>,
     /// Solves beyond one per round of the active set, and rounds beyond one per step.
     extra_rounds: usize,
+    /// Following: the rest of the consistent contact force, `sum_q lambda_q grad g~_q` minus
+    /// the main terms the basis change applies (per pair node and component, like the pair's
+    /// trace), and what it needs: the slave side's adjacency, `D` per contact node where the
+    /// interface was evaluated, the factor of the force in the step equation.
+    rest: Vec<f64>,
+    adjacency: super::gradient::SlaveAdjacency,
+    /// This rank's slave facets' Jacobians at the midpoint where the interface was evaluated
+    /// (computed when first needed, dropped at each evaluation).
+    jacobians: HashMap<usize, super::gradient::FacetJacobian>,
+    d_evaluated: Vec<f64>,
+    factor: f64,
 }
 
 /// How the pair's interface moves with the bodies.
@@ -159,6 +170,9 @@ struct Hat {
     tmp: Vector,
     /// A configuration the interface is asked at (midpoint, end of the step).
     mid: Vector,
+    /// The rest of the consistent force as a vector, and the right-hand side with it.
+    rest: Vector,
+    rhs_plus: Vector,
 }
 
 impl<'w> MortarActiveSet<'w> {
@@ -193,6 +207,11 @@ impl<'w> MortarActiveSet<'w> {
             shift: vec![0.0; nodes_len],
             slots: slots.clone(),
             extra_rounds: 0,
+            rest: vec![0.0; pair.dofs.len()],
+            adjacency: super::gradient::SlaveAdjacency::new(&pair.slave),
+            jacobians: HashMap::new(),
+            d_evaluated: d_at_contact_nodes(&iface, &slots, nodes_len),
+            factor,
             inner: ActiveSet::new(nodes, factor),
             pair,
             e,
@@ -234,6 +253,15 @@ fn planes(
                 + iface.gap[q] / iface.d[q];
             (c, n)
         });
+    }
+    out
+}
+
+/// `D_qq` per contact node (0 off the slave nodes).
+fn d_at_contact_nodes(iface: &MortarInterface, slots: &[usize], n_nodes: usize) -> Vec<f64> {
+    let mut out = vec![0.0; n_nodes];
+    for (q, &d) in iface.d.iter().enumerate() {
+        out[slots[q]] = d;
     }
     out
 }
@@ -368,6 +396,8 @@ impl MortarActiveSet<'_> {
         self.e = transfer(&self.pair.part, &iface, false)?;
         self.t = transfer(&self.pair.part, &iface, true)?;
         self.coverage = coverage(&iface, &slots, n_nodes);
+        self.d_evaluated = d_at_contact_nodes(&iface, &slots, n_nodes);
+        self.jacobians.clear();
         self.couplings = couplings(&iface, &slots);
         self.master = iface.master;
         self.rebuild(k)?;
@@ -392,7 +422,8 @@ impl MortarActiveSet<'_> {
                 let (rhs, u) = k_hat.create_vecs()?;
                 let (du, tmp) = k_hat.create_vecs()?;
                 let mid = tmp.duplicate()?;
-                self.hat = Some(Hat { k: k_hat, ksp: None, rhs, u, du, tmp, mid });
+                let (rest, rhs_plus) = (tmp.duplicate()?, tmp.duplicate()?);
+                self.hat = Some(Hat { k: k_hat, ksp: None, rhs, u, du, tmp, mid, rest, rhs_plus });
             }
         }
         Ok(())
@@ -424,7 +455,7 @@ impl MortarActiveSet<'_> {
     /// re-evaluated only as the update distance says, like the frozen one's approach.
     fn solve_following(&mut self, sys: StepSystem<'_>) -> Result<(StepContact, usize)> {
         let StepSystem { k, ksp, rhs, u, du, step, time } = sys;
-        const MAX_ROUNDS: usize = 30;
+        const MAX_ROUNDS: usize = 100;
         self.shift.iter_mut().for_each(|x| *x = 0.0);
         let mut its = 0;
         let mut rounds = 0;
@@ -445,12 +476,21 @@ impl MortarActiveSet<'_> {
             } else if rounds > 1 {
                 self.inner.nodes_mut().node_planes = Some(self.shifted_planes());
             }
+            let applied = self.rest.clone();
+            self.load_rest()?;
             let sys = StepSystem { k: &mut *k, ksp: &mut *ksp, rhs, u, du: &mut *du, step, time };
-            let (out, n) = self.round(sys)?;
+            let (mut out, n) = self.round(sys)?;
             its += n;
-            if !out.row.active.iter().any(|&a| a) && rounds == 1 && !self.penetrates_at_end(u, du)?
-            {
-                return Ok((out, its));
+            if !out.row.active.iter().any(|&a| a) {
+                if applied.iter().any(|&x| x != 0.0) {
+                    // The rest of the force of the last contact step was applied as a guess:
+                    // solve again without it.
+                    self.rest.iter_mut().for_each(|x| *x = 0.0);
+                    continue;
+                }
+                if rounds == 1 && !self.penetrates_at_end(u, du)? {
+                    return Ok((out, its));
+                }
             }
             // Where the planes put the slave nodes at the end of the step, against the
             // weighted gaps there: the shift that moves each plane onto the truth.
@@ -479,20 +519,173 @@ impl MortarActiveSet<'_> {
             }
             let mid = self.midpoint_trace(u, du)?;
             let moved = largest_difference(&mid, &self.evaluated_at);
-            let largest = (moved, off);
-            if moved <= MOVE_FACTOR * self.geometry_tol && off <= self.geometry_tol {
+            // The rest of the consistent force at this midpoint, with this round's forces.
+            let t2 = std::time::Instant::now();
+            self.rest = self.consistent_rest(&out)?;
+            self.cost.gradient_seconds += t2.elapsed().as_secs_f64();
+            let fmax = out.row.force.iter().fold(0.0f64, |a, f| a.max(f.abs()));
+            let changed = largest_difference(&self.rest, &applied);
+            let largest = (moved, off, changed);
+            if moved <= MOVE_FACTOR * self.geometry_tol
+                && off <= self.geometry_tol
+                && changed <= REST_RTOL * fmax
+            {
                 self.cost.following_steps += usize::from(out.row.active.iter().any(|&a| a));
                 self.cost.rounds += rounds;
                 self.extra_rounds += rounds - 1;
+                self.rest_into(&applied, &mut out, du)?;
                 return Ok((out, its));
             }
             if rounds == MAX_ROUNDS {
                 return Err(Error::Solver(format!(
-                    "mortar: the interface did not settle in {MAX_ROUNDS} rounds at step {step} (t = {time}): the midpoint moved {:.3e} since its evaluation, the planes miss the end-of-step gaps by {:.3e}, tolerance {:.3e} (-mortar_geometry_tol)",
-                    largest.0, largest.1, self.geometry_tol
+                    "mortar: the interface did not settle in {MAX_ROUNDS} rounds at step {step} (t = {time}): the midpoint moved {:.3e} since its evaluation, the planes miss the end-of-step gaps by {:.3e}, tolerance {:.3e} (-mortar_geometry_tol); the consistent force changed by {:.3e}",
+                    largest.0, largest.1, self.geometry_tol, largest.2
                 )));
             }
         }
+    }
+
+    /// `sum_q lambda_q grad g~_q` at the pair displacement `mid` with the forces of `out`
+    /// (`lambda_q = f_q / D_qq`), minus the main terms the solve applied (`-f_q n_q` on the
+    /// slave nodes, `sum_q (M_ql / D_qq) f_q n_q` on the master nodes): per pair node and
+    /// component, the same on every rank (collective).
+    fn consistent_rest(&mut self, out: &StepContact) -> Result<Vec<f64>> {
+        let dim = self.pair.part.dim;
+        let at = self.pair.slots();
+        let nodes = self.inner.nodes();
+        let mut lambda: HashMap<usize, f64> = HashMap::new();
+        for &p in &self.slots {
+            if out.row.force[p] != 0.0 && self.d_evaluated[p] > 0.0 {
+                lambda.insert(nodes.boundary.nodes[p], out.row.force[p] / self.d_evaluated[p]);
+            }
+        }
+        let mut local = vec![0.0; self.pair.dofs.len()];
+        if !lambda.is_empty() {
+            let loaded: Vec<usize> = (0..self.pair.slave.len())
+                .filter(|&i| {
+                    let f = &self.pair.slave[i];
+                    self.pair.part.cell_rank[f.cell] == self.pair.part.rank
+                        && f.nodes.iter().any(|v| lambda.contains_key(v))
+                })
+                .collect();
+            // The Jacobians at the configuration the interface was evaluated on.
+            let missing: Vec<usize> =
+                loaded.iter().copied().filter(|i| !self.jacobians.contains_key(i)).collect();
+            if !missing.is_empty() {
+                let at_eval = &self.evaluated_at;
+                let x = |v: usize| {
+                    let mut p = self.pair.mesh.coords[v];
+                    if let Some(&k) = at.get(&v) {
+                        for c in 0..dim {
+                            p[c] += at_eval[k * dim + c];
+                        }
+                    }
+                    p
+                };
+                let jac = super::gradient::facet_jacobians(
+                    dim,
+                    &self.pair.slave,
+                    &missing,
+                    &self.pair.master,
+                    &self.adjacency,
+                    &x,
+                    self.pair.reach,
+                )?;
+                self.jacobians.extend(missing.into_iter().zip(jac));
+            }
+            for i in &loaded {
+                let f = &self.pair.slave[*i];
+                let jac = &self.jacobians[i];
+                for (j, v) in f.nodes.iter().enumerate() {
+                    let Some(&lam) = lambda.get(v) else { continue };
+                    for (kk, w) in jac.moving.iter().enumerate() {
+                        let Some(&k) = at.get(w) else { continue };
+                        for c in 0..dim {
+                            local[k * dim + c] += lam * jac.d[j][kk][c];
+                        }
+                    }
+                }
+            }
+        }
+        let nodes = self.inner.nodes();
+        let mut rest = vec![0.0; local.len()];
+        mpi::traits::CommunicatorCollectives::all_reduce_into(
+            nodes.world,
+            &local[..],
+            &mut rest[..],
+            mpi::collective::SystemOperation::sum(),
+        );
+        if lambda.is_empty() {
+            return Ok(rest);
+        }
+        for &p in &self.slots {
+            let k = at[&nodes.boundary.nodes[p]];
+            for c in 0..dim {
+                rest[k * dim + c] += out.row.force[p] * out.normals[p][c];
+            }
+        }
+        for (l, f) in out.master_nodal.iter().enumerate() {
+            let k = at[&self.master[l]];
+            for c in 0..dim {
+                rest[k * dim + c] -= f[c];
+            }
+        }
+        Ok(rest)
+    }
+
+    /// The rest of the consistent force into the hat's vector (owned DOFs).
+    fn load_rest(&mut self) -> Result<()> {
+        let lo = self.pair.part.first_dof();
+        let h = self.hat.as_mut().expect("built in solve");
+        let rest = &self.rest;
+        let dofs = &self.pair.dofs;
+        h.rest.with_local_slice_mut(|v| {
+            v.iter_mut().for_each(|x| *x = 0.0);
+            for (k, &(dof, owned)) in dofs.iter().enumerate() {
+                if owned {
+                    v[dof as usize - lo] = rest[k];
+                }
+            }
+        })?;
+        Ok(())
+    }
+
+    /// The step's contact data with the rest of the consistent force `applied` (as the last
+    /// round solved with it): its work over `du`, its share of each body's force.
+    fn rest_into(&mut self, applied: &[f64], out: &mut StepContact, du: &Vector) -> Result<()> {
+        if !applied.iter().any(|&x| x != 0.0) {
+            return Ok(());
+        }
+        let dim = self.pair.part.dim;
+        let h = self.hat.as_ref().expect("built in solve");
+        out.work += h.rest.dot(du)?;
+        let at = self.pair.slots();
+        let nodes = self.inner.nodes();
+        let mut is_slave = vec![false; applied.len() / dim];
+        for &p in &self.slots {
+            is_slave[at[&nodes.boundary.nodes[p]]] = true;
+        }
+        let m_of: HashMap<usize, usize> =
+            self.master.iter().enumerate().map(|(l, &v)| (v, l)).collect();
+        let p_of: HashMap<usize, usize> =
+            self.slots.iter().map(|&p| (nodes.boundary.nodes[p], p)).collect();
+        out.contact_nodal = vec![[0.0; 3]; nodes.len()];
+        for (k, &v) in self.pair.nodes.iter().enumerate() {
+            for c in 0..dim {
+                let f = applied[k * dim + c];
+                if is_slave[k] {
+                    // The slave body gets -resultant.
+                    out.resultant[c] -= f;
+                    out.contact_nodal[p_of[&v]][c] += f;
+                } else {
+                    out.master_force[c] += f;
+                    if let Some(&l) = m_of.get(&v) {
+                        out.master_nodal[l][c] += f;
+                    }
+                }
+            }
+        }
+        Ok(())
     }
 
     /// The pair's nodes' displacements at the midpoint `u + du/2` (every rank).
@@ -590,8 +783,14 @@ impl MortarActiveSet<'_> {
         if h.ksp.is_none() {
             h.ksp = Some(ksp_like(&h.k, ksp)?);
         }
-        // rhs~ = T^T rhs, u~ = T^{-1} u, du~ = T^{-1} du (the first guess).
-        self.t.mult_transpose(rhs, &mut h.rhs)?;
+        // rhs~ = T^T rhs, u~ = T^{-1} u, du~ = T^{-1} du (the first guess); following, the
+        // rest of the consistent force joins the right-hand side as a load.
+        if self.rest.iter().any(|&x| x != 0.0) {
+            h.rhs_plus.waxpy(self.factor, &h.rest, rhs)?;
+            self.t.mult_transpose(&h.rhs_plus, &mut h.rhs)?;
+        } else {
+            self.t.mult_transpose(rhs, &mut h.rhs)?;
+        }
         self.e.mult(u, &mut h.tmp)?;
         h.u.waxpy(-1.0, &h.tmp, u)?;
         self.e.mult(du, &mut h.tmp)?;
@@ -627,6 +826,10 @@ impl MortarActiveSet<'_> {
         Ok((out, its))
     }
 }
+
+/// Following: a step is done when the rest of the consistent force changed by less than this
+/// fraction of the largest nodal contact force in its last round.
+const REST_RTOL: f64 = 1e-6;
 
 /// How far, in geometry tolerances, the midpoint may move before `D`, `M` and the normals are
 /// evaluated again inside a step.
