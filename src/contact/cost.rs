@@ -40,6 +40,10 @@ pub struct MortarCost {
     /// Wall time of the consistent force's rest (finite differences of the weighted gaps).
     #[serde(default)]
     pub gradient_seconds: f64,
+    /// The sum of the wall times above on one rank, the largest over the ranks (the parts
+    /// are each the largest over the ranks, which may be different ranks).
+    #[serde(default)]
+    pub total_seconds: f64,
 }
 
 impl MortarCost {
@@ -52,8 +56,9 @@ impl MortarCost {
             self.operator_seconds,
             self.step_seconds,
             self.gradient_seconds,
+            self.evaluation_seconds + self.operator_seconds + self.step_seconds + self.gradient_seconds,
         ];
-        let mut all = [0.0; 5];
+        let mut all = [0.0; 6];
         world.all_reduce_into(&local[..], &mut all[..], mpi::collective::SystemOperation::max());
         MortarCost {
             evaluations: self.evaluations,
@@ -64,6 +69,7 @@ impl MortarCost {
             following_steps: self.following_steps,
             rounds: self.rounds,
             gradient_seconds: all[4],
+            total_seconds: all[5],
         }
     }
 }

@@ -112,6 +112,7 @@ impl AppOptions {
                 update_in_contact: Petsc::options_has("-mortar_update_in_contact")?,
                 normal: mortar_normal(Petsc::options_get_string("-mortar_normal")?)?,
                 mode: follow,
+                closed_form: mortar_jacobian(Petsc::options_get_string("-mortar_jacobian")?)?,
                 geometry_tol: positive("-mortar_geometry_tol", Petsc::options_get_real("-mortar_geometry_tol")?)?,
             },
             massless_energy_correction: massless_energy_correction(
@@ -139,6 +140,16 @@ fn mortar_interface(value: Option<String>) -> Result<InterfaceMode> {
         None | Some("frozen") => Ok(InterfaceMode::Frozen),
         Some(s) => Err(Error::Scene(format!(
             "-mortar_interface {s}: give frozen (the default: small sliding) or follow (finite sliding)"
+        ))),
+    }
+}
+
+fn mortar_jacobian(value: Option<String>) -> Result<bool> {
+    match value.as_deref() {
+        None | Some("differences") => Ok(false),
+        Some("closed_form") => Ok(true),
+        Some(s) => Err(Error::Scene(format!(
+            "-mortar_jacobian {s}: give differences (the default) or closed_form"
         ))),
     }
 }

@@ -426,7 +426,7 @@ pub fn summary_lines(d: &Domain, layer: Option<(usize, usize)>, s: &RunSummary) 
                 m.search_seconds,
                 m.operator_seconds,
                 m.step_seconds,
-                100.0 * (m.evaluation_seconds + m.operator_seconds + m.step_seconds + m.gradient_seconds)
+                100.0 * m.total_seconds
                     / s.timings.stepping.max(1e-300)
             ));
         }

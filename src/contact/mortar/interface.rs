@@ -258,6 +258,20 @@ pub(crate) fn facet_integrals<'a>(
     candidates: &[&'a SurfaceFacet],
     pos: &dyn Fn(&SurfaceFacet) -> Vec<[f64; 3]>,
 ) -> std::result::Result<Option<([f64; 4], Vec<(&'a SurfaceFacet, PairIntegrals)>)>, GeomError> {
+    let (dual, found) = facet_pairs(dim, p, nrm, candidates, pos)?;
+    Ok(covered_part(&dual, found))
+}
+
+/// The facet's own dual basis and its integrals against each candidate it overlaps, before the
+/// covered part is taken ([`facet_integrals`] = this, then [`covered_part`]).
+#[allow(clippy::type_complexity)]
+pub(crate) fn facet_pairs<'a>(
+    dim: usize,
+    p: &[[f64; 3]],
+    nrm: &[Vec3],
+    candidates: &[&'a SurfaceFacet],
+    pos: &dyn Fn(&SurfaceFacet) -> Vec<[f64; 3]>,
+) -> std::result::Result<(DualBasis, Vec<(&'a SurfaceFacet, PairIntegrals)>), GeomError> {
     let mut found = Vec::new();
     if dim == 2 {
         let q: Vec<Vec2> = p.iter().map(|a| [a[0], a[1]]).collect();
@@ -271,7 +285,7 @@ pub(crate) fn facet_integrals<'a>(
                 found.push((mf, pi));
             }
         }
-        Ok(covered_part(&dual, found))
+        Ok((dual, found))
     } else {
         let idx: Vec<usize> = (0..p.len()).collect();
         let fs = Facet3::from_nodes(p, &idx)?;
@@ -284,7 +298,7 @@ pub(crate) fn facet_integrals<'a>(
                 found.push((mf, pi));
             }
         }
-        Ok(covered_part(&dual, found))
+        Ok((dual, found))
     }
 }
 

@@ -4,7 +4,8 @@
 //! Everything here is a pure function of the same inputs as its counterpart in
 //! `dual.rs`/`segment.rs` plus node ids, and returns the counterpart's value (computed by the
 //! same expressions, so bit for bit the same) together with its derivative with respect to
-//! the coordinates of every node it depends on. Nothing here is used by the solver yet.
+//! the coordinates of every node it depends on. The solver uses it for the consistent force
+//! of an interface that follows the bodies with `-mortar_jacobian closed_form` (gradient.rs).
 //!
 //! # Convention
 //!

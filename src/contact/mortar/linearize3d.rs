@@ -6,7 +6,8 @@
 //! counterpart's value (computed by the same expressions in the same order, so bit for bit
 //! the same) together with its derivative as a [`Lin`] keyed by `(involved node, component)`,
 //! components 0, 1, 2 = x, y, z. A 3D vector carries one `Lin` per component ([`Lin3`],
-//! [`Vec3Lin`]). Nothing here is used by the solver yet.
+//! [`Vec3Lin`]). The solver uses it for the consistent force with `-mortar_jacobian
+//! closed_form` (gradient.rs).
 //!
 //! Notation: a facet `x(xi) = sum_k phi_k(xi) x_k`, tangents `t_1 = x_xi`, `t_2 = x_eta`,
 //! raw normal `n = t_1 x t_2`, `J = |n|`; `delta` is the directional derivative and
