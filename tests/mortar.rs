@@ -6,7 +6,9 @@
 
 use std::path::{Path, PathBuf};
 
-use massfree::contact::mortar::{oriented_facets, MortarInterface, NormalKind, SurfaceFacet};
+use massfree::contact::mortar::{
+    oriented_facets, MortarInterface, NormalKind, SearchState, SurfaceFacet,
+};
 use massfree::mesh::gmsh::mesh_geo;
 use massfree::mesh::msh::read_msh;
 use massfree::mesh::Mesh;
@@ -29,7 +31,8 @@ fn build(
     x: &dyn Fn(usize) -> [f64; 3],
     reach: f64,
 ) -> massfree::Result<MortarInterface> {
-    MortarInterface::build_timed(world, mesh, part, slave, master, x, reach, NormalKind::Slave)
+    let mut search = SearchState::default();
+    MortarInterface::build_timed(world, mesh, part, slave, master, x, reach, NormalKind::Slave, &mut search)
         .map(|r| r.0)
 }
 
@@ -80,6 +83,7 @@ fn mortar_interfaces() {
     let universe = mpi::initialize().expect("MPI initialized twice");
     let world = universe.world();
     two_discs(&world);
+    kept_search_pairs_give_the_fresh_search_interface(&world);
     for kind in [0.0, 1.0, 2.0] {
         for gap in [0.0, 0.01] {
             check(&world, "two_blocks_2d", 2, kind, gap);
@@ -115,4 +119,46 @@ fn two_discs(world: &mpi::topology::SimpleCommunicator) {
             assert!((s - i.d[q]).abs() < 1e-12 * i.d[q], "node {q}: {s} vs {}", i.d[q]);
         }
     }
+}
+
+/// The search's pairs kept between searches (issue 24: searched again only once a node moved
+/// farther than the margin): the upper block of `two_blocks_3d` (tetrahedra, non-matching,
+/// gap 0.01) slid sideways in steps of 0.02 up to 0.3, with a margin of 0.1. At every position
+/// the interface from the kept pairs is bit for bit the one a fresh search gives (the kept
+/// pairs filtered by the reach are exactly the pairs within reach), and fewer searches are made
+/// than positions.
+fn kept_search_pairs_give_the_fresh_search_interface(world: &mpi::topology::SimpleCommunicator) {
+    let mesh = load("two_blocks_3d", &[("kind", 1.0), ("gap", 0.01)], 3);
+    let part = Partition::new(&mesh, 0, 1).unwrap();
+    let slave = oriented_facets(&mesh, "upper_contact").unwrap();
+    let master = oriented_facets(&mesh, "lower_contact").unwrap();
+    let upper: std::collections::HashSet<usize> =
+        mesh.group_nodes("upper").unwrap().into_iter().collect();
+    let mut kept = SearchState { margin: 0.1, ..SearchState::default() };
+    let mut searched_at = f64::NEG_INFINITY;
+    let mut positions = 0;
+    for k in 0..=15 {
+        let shift = 0.02 * k as f64;
+        let x = |v: usize| {
+            let mut p = mesh.coords[v];
+            if upper.contains(&v) {
+                p[0] += shift;
+                p[1] += 0.5 * shift;
+            }
+            p
+        };
+        kept.reuse = shift - searched_at <= kept.margin;
+        let before = kept.searches;
+        let (a, _) = MortarInterface::build_timed(
+            world, &mesh, &part, &slave, &master, &x, 0.3, NormalKind::Slave, &mut kept,
+        )
+        .unwrap();
+        if kept.searches > before {
+            searched_at = shift;
+        }
+        let b = build(world, &mesh, &part, &slave, &master, &x, 0.3).unwrap();
+        assert_eq!((&a.d, &a.m, &a.gap), (&b.d, &b.m, &b.gap), "shift {shift}: interfaces differ");
+        positions += 1;
+    }
+    assert!(kept.searches < positions, "{} searches for {positions} positions", kept.searches);
 }

@@ -24,8 +24,13 @@ pub struct MortarCost {
     pub evaluations: usize,
     /// Wall time of the evaluations: `D`, `M`, normals, weighted gaps, with the search.
     pub evaluation_seconds: f64,
-    /// Of that, the bucket search for candidate facet pairs.
+    /// Of that, the bucket search for candidate facet pairs (and, between searches, keeping
+    /// the pairs within reach).
     pub search_seconds: f64,
+    /// Bucket searches: the first, and one each time an interface node has moved farther than
+    /// the search's margin since the last.
+    #[serde(default)]
+    pub searches: usize,
     /// Wall time of rebuilding `T` and `T^T K T` with its constraint rows after an evaluation.
     pub operator_seconds: f64,
     /// Wall time of the per-step check whether the interface moved (one reduction of the
@@ -62,6 +67,7 @@ impl MortarCost {
         world.all_reduce_into(&local[..], &mut all[..], mpi::collective::SystemOperation::max());
         MortarCost {
             evaluations: self.evaluations,
+            searches: self.searches,
             evaluation_seconds: all[0],
             search_seconds: all[1],
             operator_seconds: all[2],

@@ -420,9 +420,11 @@ pub fn summary_lines(d: &Domain, layer: Option<(usize, usize)>, s: &RunSummary) 
                 String::new()
             };
             lines.push(format!(
-                "mortar: {} interface evaluations {:.3} s (search {:.3} s), T^T K T rebuilds {:.3} s, per-step basis changes {:.3} s; {:.1}% of the stepping{rounds}",
+                "mortar: {} interface evaluations {:.3} s ({} {} {:.3} s), T^T K T rebuilds {:.3} s, per-step basis changes {:.3} s; {:.1}% of the stepping{rounds}",
                 m.evaluations,
                 m.evaluation_seconds,
+                m.searches,
+                if m.searches == 1 { "search" } else { "searches" },
                 m.search_seconds,
                 m.operator_seconds,
                 m.step_seconds,

@@ -89,6 +89,19 @@ pub(crate) fn facet_normal(dim: usize, x: &[[f64; 3]]) -> std::result::Result<Ve
     }
 }
 
+/// The candidate facet pairs of the last bucket search, kept while the interface moves less
+/// than `margin` (the caller decides: `reuse`), and how many searches were made.
+#[derive(Debug, Clone, Default)]
+pub struct SearchState {
+    /// How far beyond the reach the last search looked.
+    pub margin: f64,
+    /// Take the kept pairs (filtered by the reach) instead of searching.
+    pub reuse: bool,
+    /// `(owned slave facet, master facet)` within reach + margin at the last search.
+    pub pairs: Option<Vec<(usize, usize)>>,
+    pub searches: usize,
+}
+
 /// The mortar data of one slave/master pair, identical on every rank.
 #[derive(Debug, Clone, Default)]
 pub struct MortarInterface {
@@ -122,6 +135,7 @@ impl MortarInterface {
         x: &dyn Fn(usize) -> [f64; 3],
         reach: f64,
         normal: NormalKind,
+        search: &mut SearchState,
     ) -> Result<(MortarInterface, f64)> {
         let err = |e: GeomError| Error::Solver(format!("mortar: {e}"));
         let dim = mesh.dim;
@@ -174,7 +188,7 @@ impl MortarInterface {
         };
 
         // Candidate pairs by bucket search over the boxes of the facets.
-        let boxes = |fs: &[&SurfaceFacet]| -> Result<Vec<Aabb>> {
+        let boxes = |fs: &[&SurfaceFacet], reach: f64| -> Result<Vec<Aabb>> {
             fs.iter()
                 .map(|f| {
                     let p = pos(f);
@@ -190,8 +204,19 @@ impl MortarInterface {
         };
         let t_search = std::time::Instant::now();
         let masters: Vec<&SurfaceFacet> = master_facets.iter().collect();
-        let mut pairs = candidate_pairs(&boxes(&mine)?, &boxes(&masters)?);
-        pairs.retain(|&(s, m)| mine[s].pairs & masters[m].pairs != 0);
+        let (sboxes, mboxes) = (boxes(&mine, reach)?, boxes(&masters, reach)?);
+        if !search.reuse || search.pairs.is_none() {
+            // Search with the boxes inflated by the margin too: the pairs found hold every
+            // pair within reach until a node has moved farther than the margin.
+            let wide = reach + search.margin;
+            let mut found = candidate_pairs(&boxes(&mine, wide)?, &boxes(&masters, wide)?);
+            found.retain(|&(s, m)| mine[s].pairs & masters[m].pairs != 0);
+            search.pairs = Some(found);
+            search.searches += 1;
+        }
+        // Those within reach now: the pairs a fresh search would find.
+        let mut pairs = search.pairs.clone().expect("searched above");
+        pairs.retain(|&(s, m)| sboxes[s].intersects(&mboxes[m]));
         search_seconds += t_search.elapsed().as_secs_f64();
 
         // D per owned slave facet, M and the weighted gaps per overlapping pair.

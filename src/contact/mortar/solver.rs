@@ -27,7 +27,7 @@
 
 use std::collections::HashMap;
 
-use super::interface::{oriented_facets, MortarInterface, SurfaceFacet};
+use super::interface::{oriented_facets, MortarInterface, SearchState, SurfaceFacet};
 use super::normals::NormalKind;
 pub use crate::contact::cost::MortarCost;
 use crate::contact::interface::ContactSolver;
@@ -115,6 +115,10 @@ struct Pair {
     /// Slave and master nodes (mesh indices, ascending) and their DOFs (global, owned here).
     nodes: Vec<usize>,
     dofs: Vec<(i32, bool)>,
+    /// The last bucket search's pairs, and the pair's displacement there: searched again once
+    /// a node has moved farther than the search's margin (the smallest slave facet) since.
+    search: SearchState,
+    searched_at: Vec<f64>,
 }
 
 impl Pair {
@@ -129,7 +133,7 @@ impl Pair {
 
     /// The interface at displacement `trace` (of `self.nodes`), its cost counted in `cost`.
     fn evaluate(
-        &self,
+        &mut self,
         world: &mpi::topology::SimpleCommunicator,
         trace: &[f64],
         cost: &mut MortarCost,
@@ -146,6 +150,9 @@ impl Pair {
             }
             p
         };
+        self.search.reuse = self.searched_at.len() == trace.len()
+            && largest_difference(trace, &self.searched_at) <= self.search.margin;
+        let searches = self.search.searches;
         let (iface, search) = MortarInterface::build_timed(
             world,
             &self.mesh,
@@ -155,7 +162,12 @@ impl Pair {
             &x,
             self.reach,
             self.normal,
+            &mut self.search,
         )?;
+        if self.search.searches > searches {
+            self.searched_at = trace.to_vec();
+            cost.searches += 1;
+        }
         cost.evaluations += 1;
         cost.search_seconds += search;
         cost.evaluation_seconds += t0.elapsed().as_secs_f64();
@@ -182,7 +194,7 @@ impl<'w> MortarActiveSet<'w> {
     /// of the group meeting obstacles beside the pair, if any (no plane, `u~ = u` there).
     fn new(
         mut nodes: ContactNodes<'w>,
-        pair: Pair,
+        mut pair: Pair,
         update_distance: f64,
         options: Settings,
         factor: f64,
@@ -1052,7 +1064,19 @@ pub fn pair_solver<'w>(
         None => crate::contact::obstacle::Obstacles(Vec::new()),
     };
     let contact_nodes = ContactNodes::new(world, &mesh, &part, boundary, obstacles);
-    let pair = Pair { mesh, part, slave: sf, master: mf, reach, normal, nodes, dofs };
+    let search = SearchState { margin: smallest, ..SearchState::default() };
+    let pair = Pair {
+        mesh,
+        part,
+        slave: sf,
+        master: mf,
+        reach,
+        normal,
+        nodes,
+        dofs,
+        search,
+        searched_at: Vec::new(),
+    };
     Ok(Box::new(MortarActiveSet::new(
         contact_nodes,
         pair,
