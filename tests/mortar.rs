@@ -32,7 +32,9 @@ fn build(
     reach: f64,
 ) -> massfree::Result<MortarInterface> {
     let mut search = SearchState::default();
-    MortarInterface::build_timed(world, mesh, part, slave, master, x, reach, NormalKind::Slave, &mut search)
+    MortarInterface::build_timed(
+        world, mesh, part, slave, master, x, reach, NormalKind::Slave, &mut search, None,
+    )
         .map(|r| r.0)
 }
 
@@ -150,7 +152,7 @@ fn kept_search_pairs_give_the_fresh_search_interface(world: &mpi::topology::Simp
         kept.reuse = shift - searched_at <= kept.margin;
         let before = kept.searches;
         let (a, _) = MortarInterface::build_timed(
-            world, &mesh, &part, &slave, &master, &x, 0.3, NormalKind::Slave, &mut kept,
+            world, &mesh, &part, &slave, &master, &x, 0.3, NormalKind::Slave, &mut kept, None,
         )
         .unwrap();
         if kept.searches > before {

@@ -136,6 +136,7 @@ impl MortarInterface {
         reach: f64,
         normal: NormalKind,
         search: &mut SearchState,
+        only: Option<&[bool]>,
     ) -> Result<(MortarInterface, f64)> {
         let err = |e: GeomError| Error::Solver(format!("mortar: {e}"));
         let dim = mesh.dim;
@@ -219,7 +220,10 @@ impl MortarInterface {
         pairs.retain(|&(s, m)| sboxes[s].intersects(&mboxes[m]));
         search_seconds += t_search.elapsed().as_secs_f64();
 
-        // D per owned slave facet, M and the weighted gaps per overlapping pair.
+        // D per owned slave facet, M and the weighted gaps per overlapping pair (`only`: of
+        // the slave facets it marks; the others' nodes then have partial sums).
+        let index_of: HashMap<*const SurfaceFacet, usize> =
+            slave_facets.iter().enumerate().map(|(i, f)| (f as *const _, i)).collect();
         let mut d = vec![0.0; ns];
         let mut gap = vec![0.0; ns];
         let mut m: HashMap<(u32, u32), f64> = HashMap::new();
@@ -230,6 +234,9 @@ impl MortarInterface {
             while k < pairs.len() && pairs[k].0 == si {
                 candidates.push(masters[pairs[k].1]);
                 k += 1;
+            }
+            if only.is_some_and(|o| !o[index_of[&(*f as *const _)]]) {
+                continue;
             }
             let nrm: Vec<Vec3> = qs.iter().map(|&q| normals[q]).collect();
             let Some((d_e, found)) =
