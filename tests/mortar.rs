@@ -33,9 +33,18 @@ fn build(
 ) -> massfree::Result<MortarInterface> {
     let mut search = SearchState::default();
     MortarInterface::build_timed(
-        world, mesh, part, slave, master, x, reach, NormalKind::Slave, &mut search, None,
+        world,
+        mesh,
+        part,
+        slave,
+        master,
+        x,
+        reach,
+        NormalKind::Slave,
+        &mut search,
+        None,
     )
-        .map(|r| r.0)
+    .map(|r| r.0)
 }
 
 fn check(world: &mpi::topology::SimpleCommunicator, name: &str, dim: usize, kind: f64, gap: f64) {
@@ -152,7 +161,16 @@ fn kept_search_pairs_give_the_fresh_search_interface(world: &mpi::topology::Simp
         kept.reuse = shift - searched_at <= kept.margin;
         let before = kept.searches;
         let (a, _) = MortarInterface::build_timed(
-            world, &mesh, &part, &slave, &master, &x, 0.3, NormalKind::Slave, &mut kept, None,
+            world,
+            &mesh,
+            &part,
+            &slave,
+            &master,
+            &x,
+            0.3,
+            NormalKind::Slave,
+            &mut kept,
+            None,
         )
         .unwrap();
         if kept.searches > before {

@@ -15,6 +15,19 @@ fn contact_steps(h5: &std::path::Path) -> (Vec<usize>, Vec<f64>) {
     ((0..active.len()).filter(|&i| active[i]).collect(), force)
 }
 
+/// The contact half-width of a run of the discs: the largest |x| of a node active at any step.
+fn half_width(h5: &std::path::Path) -> f64 {
+    let r = reader(h5);
+    let x = r.coordinates().unwrap();
+    let nodes = r.series(massfree::io::layout::CONTACT_NODES).unwrap();
+    let active = r.series(&massfree::io::layout::contact("active")).unwrap();
+    let nc = nodes.len();
+    (0..active.len())
+        .filter(|&i| active[i] != 0.0)
+        .map(|i| x[nodes[i % nc] as usize][0].abs())
+        .fold(0.0, f64::max)
+}
+
 /// `scenes/slide_off.toml` (tau = 0.01, v = 1, g = 1): the block's centre passes the end of
 /// the lower block at t = 3.3 (step 330) and its contact boundary leaves it at t = 3.8 (step
 /// 380). Asserted from that geometry: contact cannot end before step 330 (the block rests on
@@ -53,7 +66,10 @@ fn slides_off_and_lets_go(extra: &[&str], name: &str) {
     assert!(contact(&s).mortar.expect("mortar cost").following_steps > 0);
     let history = values(&h5, &massfree::io::layout::energy("contact_work"));
     let flat = history[280] / s.energy_initial;
-    assert!((-1e-3..=1e-6).contains(&flat), "{name}: contact work {flat:e} of the energy by step 280");
+    assert!(
+        (-1e-3..=1e-6).contains(&flat),
+        "{name}: contact work {flat:e} of the energy by step 280"
+    );
     let work = contact(&s).contact_work / s.energy_initial;
     assert!(work.abs() <= 1e-3, "{name}: contact work {work:e} of the energy");
     let upper = s.bodies.iter().find(|b| b.group == "upper").expect("body upper");
@@ -138,27 +154,26 @@ fn two_discs_with_the_mass_free_layer_and_the_interface_following() {
     assert!(contact(&u).mortar.unwrap().following_steps > 0);
     assert_eq!(contact(&f).mortar.unwrap().following_steps, 0);
     let (f_frozen, f_follow) = (force_history(&frozen).0, force_history(&follow).0);
-    let r = reader(&follow);
-    let x = r.coordinates().unwrap();
-    let nodes = r.series(massfree::io::layout::CONTACT_NODES).unwrap();
-    let active = r.series(&massfree::io::layout::contact("active")).unwrap();
-    let nc = nodes.len();
-    let a = (0..active.len())
-        .filter(|&i| active[i] != 0.0)
-        .map(|i| x[nodes[i % nc] as usize][0].abs())
-        .fold(0.0, f64::max);
+    let a = half_width(&follow);
     let bound = (a / 8.0f64).powi(2);
     // Averaged over the time a P-wave (c_p = 82041 of E = 100, nu = 0.3, rho = 2e-8) needs to
     // cross the contact zone, as tests/two_body.rs does.
     let w = ((2.0 * a / (82_041.265 * 1e-6)).round() as usize).max(1);
-    let avg = |f: &[f64]| -> Vec<f64> { f.windows(w).map(|s| s.iter().sum::<f64>() / w as f64).collect() };
+    let avg = |f: &[f64]| -> Vec<f64> {
+        f.windows(w).map(|s| s.iter().sum::<f64>() / w as f64).collect()
+    };
     let peak = f_frozen.iter().cloned().fold(0.0, f64::max);
-    let d = avg(&f_frozen).iter().zip(avg(&f_follow)).fold(0.0f64, |m, (p, q)| m.max((p - q).abs()));
+    let d =
+        avg(&f_frozen).iter().zip(avg(&f_follow)).fold(0.0f64, |m, (p, q)| m.max((p - q).abs()));
     eprintln!(
         "following interface: energy loss {change:.2e}; averaged total force within {:.2e} of the peak (bound {bound:.2e})",
         d / peak
     );
-    assert!(d <= bound * peak, "averaged forces differ by {:e} of the peak, beyond {bound:e}", d / peak);
+    assert!(
+        d <= bound * peak,
+        "averaged forces differ by {:e} of the peak, beyond {bound:e}",
+        d / peak
+    );
 }
 
 /// `scenes/slide_off_3d.toml` (tau = 0.01, v = 1, g = 1 in -z; cut at step 210): the cube's
@@ -227,7 +242,19 @@ fn the_consistent_force_is_the_same_from_differences_and_closed_forms() {
         let out = out.to_str().unwrap().to_string();
         let o = massfree(
             2,
-            &["run", scene.to_str().unwrap(), "--quiet", "--overwrite", "--output", &out, "--", "-ksp_rtol", "1e-12", "-mortar_jacobian", how],
+            &[
+                "run",
+                scene.to_str().unwrap(),
+                "--quiet",
+                "--overwrite",
+                "--output",
+                &out,
+                "--",
+                "-ksp_rtol",
+                "1e-12",
+                "-mortar_jacobian",
+                how,
+            ],
         );
         assert!(o.status.success(), "{how}: {}", String::from_utf8_lossy(&o.stderr));
         let r = reader(std::path::Path::new(&out));
@@ -267,7 +294,8 @@ fn the_patch_test_holds_while_the_blocks_move_sideways() {
     let confined = E * (1.0 - NU) / ((1.0 + NU) * (1.0 - 2.0 * NU));
     for (dim, n) in [(2usize, (4u32, 5u32)), (3, (3, 4))] {
         let dir = scratch(&format!("patch-moving-{dim}d"));
-        let (geo, normal) = if dim == 2 { ("two_blocks_2d.geo", "y") } else { ("two_blocks_3d.geo", "z") };
+        let (geo, normal) =
+            if dim == 2 { ("two_blocks_2d.geo", "y") } else { ("two_blocks_3d.geo", "z") };
         let zeros = |k: usize| vec!["\"0\""; k].join(", ");
         let exact = format!("\"-{P} * ({normal} + 1) / {confined}\"");
         let disp = format!("\"0\", {}{exact}", if dim == 3 { "\"0\", " } else { "" });
@@ -327,10 +355,16 @@ every = 1
         let active = run.table(&massfree::io::layout::contact("active")).unwrap();
         let weights = values(&h5, massfree::io::layout::CONTACT_WEIGHTS);
         for k in 1..force.nrows() {
-            assert!(active.row(k).iter().all(|&a| a == 1.0), "{label}: step {k}: a slave node is off");
+            assert!(
+                active.row(k).iter().all(|&a| a == 1.0),
+                "{label}: step {k}: a slave node is off"
+            );
             for (q, (f, w)) in force.row(k).iter().zip(&weights).enumerate() {
                 let p = f / w;
-                assert!((p - P).abs() < 1e-9 * P, "{label}: step {k}, slave node {q}: pressure {p}");
+                assert!(
+                    (p - P).abs() < 1e-9 * P,
+                    "{label}: step {k}, slave node {q}: pressure {p}"
+                );
             }
         }
         let x = run.coordinates().unwrap();
@@ -346,11 +380,17 @@ every = 1
                     _ => 0.0,
                 };
                 let got = u[k * comps + i];
-                assert!((got - want).abs() < 1e-9 * scale, "{label}: node {k} at {xk:?}, component {i}: {got} vs {want}");
+                assert!(
+                    (got - want).abs() < 1e-9 * scale,
+                    "{label}: node {k} at {xk:?}, component {i}: {got} vs {want}"
+                );
             }
         }
         assert!(s.energy_balance < 1e-8, "{label}: energy balance {}", s.energy_balance);
-        assert!(contact(&s).mortar.unwrap().following_steps > 0, "{label}: the interface did not follow");
+        assert!(
+            contact(&s).mortar.unwrap().following_steps > 0,
+            "{label}: the interface did not follow"
+        );
     }
 }
 
@@ -380,23 +420,22 @@ fn discs_sliding_past_each_other_push_along_the_line_of_centres() {
     let lower = s.bodies.iter().find(|b| b.group == "lower").expect("body lower");
     let jx = upper.contact_impulse[0];
     let p0 = upper.momentum_initial[0];
-    let r = reader(&h5);
-    let x = r.coordinates().unwrap();
-    let nodes = r.series(massfree::io::layout::CONTACT_NODES).unwrap();
-    let active = r.series(&massfree::io::layout::contact("active")).unwrap();
-    let nc = nodes.len();
-    let a = (0..active.len())
-        .filter(|&i| active[i] != 0.0)
-        .map(|i| x[nodes[i % nc] as usize][0].abs())
-        .fold(0.0, f64::max);
+    let a = half_width(&h5);
     let bound = jx.abs() / p0 + (a / 8.0f64).powi(2);
     let miss = (jx - estimate).abs() / estimate;
     eprintln!("sliding discs: J_x {jx:.4e}, rigid-kinematics estimate {estimate:.4e}: {miss:.2e} off (bound {bound:.2e})");
-    assert!(estimate > 0.0 && miss <= bound, "J_x {jx:e} against {estimate:e}: {miss:e} > {bound:e}");
+    assert!(
+        estimate > 0.0 && miss <= bound,
+        "J_x {jx:e} against {estimate:e}: {miss:e} > {bound:e}"
+    );
     for b in [upper, lower] {
         for c in 0..2 {
             let dp = b.momentum_final[c] - b.momentum_initial[c];
-            assert!((dp - b.contact_impulse[c]).abs() < 1e-8 * p0.abs().max(1e-3), "{}: momentum", b.group);
+            assert!(
+                (dp - b.contact_impulse[c]).abs() < 1e-8 * p0.abs().max(1e-3),
+                "{}: momentum",
+                b.group
+            );
         }
     }
     for c in 0..2 {

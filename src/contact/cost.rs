@@ -61,7 +61,10 @@ impl MortarCost {
             self.operator_seconds,
             self.step_seconds,
             self.gradient_seconds,
-            self.evaluation_seconds + self.operator_seconds + self.step_seconds + self.gradient_seconds,
+            self.evaluation_seconds
+                + self.operator_seconds
+                + self.step_seconds
+                + self.gradient_seconds,
         ];
         let mut all = [0.0; 6];
         world.all_reduce_into(&local[..], &mut all[..], mpi::collective::SystemOperation::max());

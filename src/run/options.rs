@@ -113,7 +113,10 @@ impl AppOptions {
                 normal: mortar_normal(Petsc::options_get_string("-mortar_normal")?)?,
                 mode: follow,
                 closed_form: mortar_jacobian(Petsc::options_get_string("-mortar_jacobian")?)?,
-                geometry_tol: positive("-mortar_geometry_tol", Petsc::options_get_real("-mortar_geometry_tol")?)?,
+                geometry_tol: positive(
+                    "-mortar_geometry_tol",
+                    Petsc::options_get_real("-mortar_geometry_tol")?,
+                )?,
             },
             massless_energy_correction: massless_energy_correction(
                 Petsc::options_get_string("-massless_energy_correction")?.as_deref(),

@@ -19,13 +19,13 @@
 
 use std::collections::HashMap;
 
-use super::geom::*;
-use super::interface::{covered_part, facet_integrals, facet_normal, facet_pairs, SurfaceFacet};
-use super::search::{candidate_pairs, facet_aabb_2d, facet_aabb_3d, Aabb};
 use super::dual::{dual_basis_2d, dual_basis_3d};
 use super::facet::{Facet2, Facet3};
+use super::geom::*;
+use super::interface::{covered_part, facet_integrals, facet_normal, facet_pairs, SurfaceFacet};
 use super::linearize::{mortar_pair_lin_2d, nodal_normals_lin_2d, Lin, PairIds2};
 use super::linearize3d::{mortar_pair_lin_3d, nodal_normals_lin_3d, PairIds3};
+use super::search::{candidate_pairs, facet_aabb_2d, facet_aabb_3d, Aabb};
 use crate::error::{Error, Result};
 
 /// The slave side's facets around each slave node (for the nodal normals).
@@ -161,17 +161,18 @@ pub fn facet_jacobians(
                 .collect::<std::result::Result<_, GeomError>>()
                 .map_err(err)
         };
-        let sum_gaps = |found: Option<([f64; 4], Vec<(&SurfaceFacet, super::segment::PairIntegrals)>)>| {
-            let mut g = [0.0; 4];
-            if let Some((_, pairs)) = found {
-                for (_, pi) in &pairs {
-                    for j in 0..nj {
-                        g[j] += pi.weighted_gap[j];
+        let sum_gaps =
+            |found: Option<([f64; 4], Vec<(&SurfaceFacet, super::segment::PairIntegrals)>)>| {
+                let mut g = [0.0; 4];
+                if let Some((_, pairs)) = found {
+                    for (_, pi) in &pairs {
+                        for j in 0..nj {
+                            g[j] += pi.weighted_gap[j];
+                        }
                     }
                 }
-            }
-            g
-        };
+                g
+            };
         // The facet's raw pairs at the base configuration: a master node moved changes only
         // the pairs of its facets.
         let (dual0, raw0) =

@@ -518,7 +518,9 @@ impl MortarActiveSet<'_> {
             // Only the nodes in contact or within the update distance of it can miss their
             // plane by anything that matters in this step: the others keep the prediction.
             let near: Vec<bool> = (predicted.iter().zip(&out.row.active))
-                .map(|(g, &a)| a || g.is_some_and(|g| g < self.update_distance.min(self.pair.reach)))
+                .map(|(g, &a)| {
+                    a || g.is_some_and(|g| g < self.update_distance.min(self.pair.reach))
+                })
                 .collect();
             let truth = self.end_gaps(&end, &near)?;
             let truth: Vec<Option<f64>> = (truth.into_iter().zip(&predicted).zip(&near))
@@ -762,7 +764,10 @@ impl MortarActiveSet<'_> {
         }
         (0..nodes.len())
             .map(|p| match planes[p] {
-                Some((c, n)) if c < f64::MAX / 2.0 && self.base_planes[p].is_some_and(|b| b.0 < f64::MAX) => {
+                Some((c, n))
+                    if c < f64::MAX / 2.0
+                        && self.base_planes[p].is_some_and(|b| b.0 < f64::MAX) =>
+                {
                     let x = self.pair.mesh.coords[nodes.boundary.nodes[p]];
                     Some(c - (0..dim).map(|i| n[i] * (x[i] + ut[p][i])).sum::<f64>())
                 }
@@ -800,7 +805,9 @@ impl MortarActiveSet<'_> {
     /// The evaluated planes moved by `shift`.
     fn shifted_planes(&self) -> Vec<Option<NodePlane>> {
         (self.base_planes.iter().zip(&self.shift))
-            .map(|(b, s)| b.map(|(c, n)| if c < f64::MAX { ((c + s).min(f64::MAX), n) } else { (c, n) }))
+            .map(|(b, s)| {
+                b.map(|(c, n)| if c < f64::MAX { ((c + s).min(f64::MAX), n) } else { (c, n) })
+            })
             .collect()
     }
 
@@ -1098,11 +1105,5 @@ pub fn pair_solver<'w>(
         search,
         searched_at: Vec::new(),
     };
-    Ok(Box::new(MortarActiveSet::new(
-        contact_nodes,
-        pair,
-        update_distance,
-        settings,
-        factor,
-    )?))
+    Ok(Box::new(MortarActiveSet::new(contact_nodes, pair, update_distance, settings, factor)?))
 }
