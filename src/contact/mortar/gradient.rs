@@ -1,6 +1,9 @@
 //! The consistent contact force of an interface that follows the bodies: the gradient of
-//! `Phi(x) = sum_q lambda_q g~_q(x)` with respect to every interface node's position, by
-//! central differences of each slave facet's weighted gaps.
+//! `Phi(x) = sum_q lambda_q g~_q(x)` with respect to every interface node's position, from the
+//! Jacobian of each loaded slave facet's weighted gaps ([`facet_jacobians`]), by central
+//! differences or, for fully covered facets, in closed form (`linearize.rs`,
+//! `linearize3d.rs`). The solver keeps the Jacobians until the interface is evaluated again
+//! and combines them with each round's multipliers.
 //!
 //! The weighted gap `g~_q = int psi_q n_q . (x_m(projection) - x_s)` depends on the positions
 //! through `D`, `M`, the dual functions (on the covered part of a facet), the projections, the
@@ -13,9 +16,11 @@
 //! gradient at the step's midpoint, the work of a step in closed contact is
 //! `lambda (g~(u^{n+1}) - g~(u^n)) + O(du^3) = O(du^3)`.
 //!
-//! Cost: per slave facet with a nonzero multiplier, `2 dim` evaluations of its integrals per
-//! node that moves them (its nodes, their neighbours through the normals, the master facets
-//! under it): surface-sized and only where the contact is.
+//! Cost, by differences: per slave facet with a nonzero multiplier, `2 dim` evaluations of its
+//! integrals per node that moves them (its nodes, their neighbours through the normals, the
+//! master facets under it), of only the pairs a master node moves, and in 3D none for a
+//! neighbour (the normals enter the gaps linearly there): surface-sized and only where the
+//! contact is.
 
 use std::collections::HashMap;
 
