@@ -37,12 +37,13 @@ fn half_width(h5: &std::path::Path) -> f64 {
 /// freely to the end at step 500). The gaps in the file (the end-of-step weighted gaps the
 /// planes reach) stay above -1e-8 of the block's size (1), and the energy balance holds to
 /// 1e-8. Frictionless contact only takes energy, at activation (METHOD.md 7), and the
-/// energy correction puts that back: up to step 280, before the block's leading end reaches
-/// the end of the lower block, the contact creates no energy beyond 1e-6 of the initial and
-/// takes less than 1e-3 (without the consistent force it gained 1.1e-4 there; measured now:
-/// losses of 6e-6 on quads and 1.1e-5 on triangles, above the aim of 1e-6); over the
-/// whole run, with the releases at the edge, within 1e-3 of it either way (without: +1.2e-2).
-/// The
+/// energy correction puts that back; with the geometry following the bodies a step that keeps
+/// its active set does work too (the midpoint rule's O(tau^2) error where a slave node crosses
+/// a master node's kink: 6e-6 of the energy lost by step 280 on quads, 1.1e-5 on triangles,
+/// before the correction took these steps too), collected up to 1e-7 of the energy and then
+/// put back. So up to step 280, before the block's leading end reaches the end of the lower
+/// block, the total energy moves by less than 1e-6 of the initial (the bound), and over
+/// the whole run, with the releases at the edge, too. The
 /// upper block is free: its momentum change is the contact
 /// impulse plus gravity's, `-m g T` in y (m = 0.5, T = 5), to 1e-8 of its initial momentum,
 /// the consistent force's tangential part included. The frozen interface, asked for on the
@@ -66,12 +67,9 @@ fn slides_off_and_lets_go(extra: &[&str], name: &str) {
     assert!(contact(&s).mortar.expect("mortar cost").following_steps > 0);
     let history = values(&h5, &massfree::io::layout::energy("contact_work"));
     let flat = history[280] / s.energy_initial;
-    assert!(
-        (-1e-3..=1e-6).contains(&flat),
-        "{name}: contact work {flat:e} of the energy by step 280"
-    );
+    assert!(flat.abs() <= 1e-6, "{name}: contact work {flat:e} of the energy by step 280");
     let work = contact(&s).contact_work / s.energy_initial;
-    assert!(work.abs() <= 1e-3, "{name}: contact work {work:e} of the energy");
+    assert!(work.abs() <= 1e-6, "{name}: contact work {work:e} of the energy");
     let upper = s.bodies.iter().find(|b| b.group == "upper").expect("body upper");
     let p0 = upper.momentum_initial[0];
     let gravity = [0.0, -0.5 * 1.0 * 5.0];
@@ -103,30 +101,65 @@ fn a_block_sliding_off_the_end_lets_go_triangles() {
 
 /// 1, 2 and 3 ranks (x-slabs: the partition cuts the sliding zone, slave and master nodes of a
 /// mortar row on different ranks) give the same contact histories over the whole run, the
-/// release included: the same active sets, and forces to the interface's own tolerance. A
-/// step ends when the midpoint has moved less than 1e5 geometry tolerances (1e-4 of the
-/// smallest slave facet) since `D`, `M`, the normals and the consistent force were evaluated,
-/// and round-off decides where within that the ranks stop: the forces may differ by that
-/// fraction, 1e-4 of the peak (measured: 4e-8).
+/// release included: the same active sets, and forces to 1e-8 of the peak while the block
+/// slides on the flat (steps up to 300; measured 5e-11, with a direct solver and the geometry
+/// to 1e-12 of a facet). Tipping over the edge (steps 330-385: the block turns about its
+/// corner on the master's end) amplifies round-off of any kind: there the ranks may differ by
+/// ten times what one rank gives with another solver (Cholesky against CG to 1e-14, measured
+/// 1e-7 of the peak), and the active sets must still agree.
 #[test]
 fn sliding_does_not_depend_on_the_number_of_ranks() {
     let dir = scratch("slide-off-ranks");
     let scene = scene_variant("slide_off.toml", &dir, &[]);
-    let mut runs = vec![];
-    for ranks in [1, 2, 3] {
-        run_scene(ranks, &scene, &["--partition", "x-slabs", "--", "-ksp_rtol", "1e-13"]);
+    let direct =
+        ["-ksp_type", "preonly", "-pc_type", "cholesky", "-pc_factor_mat_solver_type", "mumps"];
+    let series = |ranks: usize, solver: &[&str]| {
+        let mut args = vec!["--partition", "x-slabs", "--"];
+        args.extend(solver);
+        args.extend(["-mortar_geometry_tol", "1e-12"]);
+        run_scene(ranks, &scene, &args);
         let r = reader(&dir.join(format!("slide_off-{ranks}.h5")));
-        let f = r.series(&massfree::io::layout::contact("force")).unwrap();
+        let f = r.table(&massfree::io::layout::contact("force")).unwrap();
         let a = r.series(&massfree::io::layout::contact("active")).unwrap();
-        runs.push((f, a));
-    }
+        (f, a)
+    };
+    // Per stored step (every step), the largest difference over the contact nodes.
+    let step_differences = |f: &ndarray::Array2<f64>, g: &ndarray::Array2<f64>| -> Vec<f64> {
+        (f.rows().into_iter().zip(g.rows()))
+            .map(|(x, y)| x.iter().zip(y).fold(0.0f64, |m, (a, b)| m.max((a - b).abs())))
+            .collect()
+    };
+    // How much the run moves with the solver's round-off alone, on one rank.
+    let (f_cg, _) = series(1, &["-ksp_rtol", "1e-14"]);
+    let runs: Vec<_> = [1, 2, 3].iter().map(|&r| series(r, &direct)).collect();
     let (f1, a1) = &runs[0];
     let fmax = f1.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+    let sensitivity = step_differences(f1, &f_cg).into_iter().fold(0.0f64, f64::max);
+    eprintln!(
+        "one rank, Cholesky against CG: forces differ by {:.2e} of the peak",
+        sensitivity / fmax
+    );
     for (k, (f, a)) in runs[1..].iter().enumerate() {
         assert_eq!(a1, a, "{} ranks: active sets differ", k + 2);
-        let d = f1.iter().zip(f).fold(0.0f64, |m, (x, y)| m.max((x - y).abs()));
-        eprintln!("{} ranks: forces differ by {:.2e} of the peak", k + 2, d / fmax);
-        assert!(d <= 1e-4 * fmax, "{} ranks: forces differ by {d:e} of {fmax:e}", k + 2);
+        let d = step_differences(f1, f);
+        let flat = d[..=300].iter().fold(0.0f64, |m, &x| m.max(x));
+        let all = d.iter().fold(0.0f64, |m, &x| m.max(x));
+        eprintln!(
+            "{} ranks: forces differ by {:.2e} of the peak on the flat, {:.2e} over the run",
+            k + 2,
+            flat / fmax,
+            all / fmax
+        );
+        assert!(
+            flat <= 1e-8 * fmax,
+            "{} ranks: forces differ by {flat:e} of {fmax:e} on the flat",
+            k + 2
+        );
+        assert!(
+            all <= (10.0 * sensitivity).max(1e-8 * fmax),
+            "{} ranks: forces differ by {all:e}, one rank with another solver by {sensitivity:e}",
+            k + 2
+        );
     }
 }
 
@@ -181,8 +214,9 @@ fn two_discs_with_the_mass_free_layer_and_the_interface_following() {
 /// t = 1.9 (step 190). Asserted from that geometry and from theory, as for the 2D block:
 /// contact ends between steps 165 and 200 and no force acts after; the gaps stay above -1e-8
 /// of the cube's size (0.5); the energy balance holds to 1e-8; up to step 140 (before the
-/// cube's leading face reaches the plate's end) the contact creates no energy beyond 1e-6 of
-/// the initial and takes less than 1e-3, and over the run it moves less than 1e-3 either way;
+/// cube's leading face reaches the plate's end) and over the whole run the contact's work is
+/// below 1e-6 of the initial energy either way (the steady steps' midpoint error put back as
+/// for the block);
 /// the cube is free: its momentum change is the contact impulse plus gravity's
 /// (m = 0.125, T = 2.1: -0.2625 in z) to 1e-8 of its initial momentum.
 fn cube_slides_off_and_lets_go(extra: &[&str], name: &str) {
@@ -203,9 +237,9 @@ fn cube_slides_off_and_lets_go(extra: &[&str], name: &str) {
     assert!(s.energy_balance < 1e-8, "{name}: energy balance {}", s.energy_balance);
     let history = values(&h5, &massfree::io::layout::energy("contact_work"));
     let flat = history[140] / s.energy_initial;
-    assert!((-1e-3..=1e-6).contains(&flat), "{name}: contact work {flat:e} by step 140");
+    assert!(flat.abs() <= 1e-6, "{name}: contact work {flat:e} by step 140");
     let work = contact(&s).contact_work / s.energy_initial;
-    assert!(work.abs() <= 1e-3, "{name}: contact work {work:e} of the energy");
+    assert!(work.abs() <= 1e-6, "{name}: contact work {work:e} of the energy");
     let cube = s.bodies.iter().find(|b| b.group == "upper").expect("body upper");
     let p0 = cube.momentum_initial[0];
     let gravity = [0.0, 0.0, -0.125 * 2.1];

@@ -64,4 +64,10 @@ pub trait ContactSolver {
     fn mortar_cost(&self) -> Option<MortarCost> {
         None
     }
+    /// Whether the geometry follows the bodies inside the step: then a step whose active set
+    /// stays also does contact work (the midpoint rule's error on the moving geometry), which
+    /// the integrator's energy correction puts back too.
+    fn geometry_follows(&self) -> bool {
+        false
+    }
 }

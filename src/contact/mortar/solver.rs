@@ -75,6 +75,9 @@ pub struct MortarActiveSet<'w> {
     /// shift per contact node that moves them onto the end-of-step weighted gap.
     base_planes: Vec<Option<NodePlane>>,
     shift: Vec<f64>,
+    /// The step the shifts belong to: a step solved again (the energy correction) starts
+    /// from them.
+    shift_step: usize,
     /// The contact node of every slave node (the slave nodes never change).
     slots: Vec<usize>,
     /// Solves beyond one per round of the active set, and rounds beyond one per step.
@@ -225,6 +228,7 @@ impl<'w> MortarActiveSet<'w> {
             geometry_tol: options.geometry_tol,
             base_planes,
             shift: vec![0.0; nodes_len],
+            shift_step: usize::MAX,
             slots: slots.clone(),
             extra_rounds: 0,
             rest: vec![0.0; pair.dofs.len()],
@@ -571,6 +575,9 @@ impl ContactSolver for MortarActiveSet<'_> {
     }
     fn mortar_cost(&self) -> Option<MortarCost> {
         Some(self.cost)
+    }
+    fn geometry_follows(&self) -> bool {
+        self.mode == InterfaceMode::Follow
     }
     fn penetrating(&self, u: &Vector, time: f64) -> Result<Vec<(usize, usize)>> {
         // The planes hold for u~ = T^{-1} u.

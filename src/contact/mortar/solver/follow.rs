@@ -28,7 +28,12 @@ impl MortarActiveSet<'_> {
     pub(super) fn solve_following(&mut self, sys: StepSystem<'_>) -> Result<(StepContact, usize)> {
         let StepSystem { k, ksp, rhs, u, du, step, time } = sys;
         const MAX_ROUNDS: usize = 100;
-        self.shift.iter_mut().for_each(|x| *x = 0.0);
+        // A step solved again (the energy correction) starts from its shifts, unless a node
+        // lost its master (its plane is gone: the step starts afresh).
+        if self.shift_step != step || self.shift.iter().any(|x| !x.is_finite()) {
+            self.shift.iter_mut().for_each(|x| *x = 0.0);
+            self.shift_step = step;
+        }
         let mut its = 0;
         let mut rounds = 0;
         loop {
