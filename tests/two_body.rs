@@ -171,7 +171,10 @@ fn half_model(
 /// (measured 5e-11; `-ksp_rtol 1e-12`). With the slave normals (the default, Popp et al.) the
 /// two differ by up to 10% per node and 1% in the total force (the gap measured along the
 /// tilted slave normals, O((a/R)^2)): asserted above 1e-3, so that the test sees which normal
-/// it ran.
+/// it ran. On the interface as it stands (`-mortar_interface frozen`): following the bodies,
+/// the consistent force adds `lambda_q grad g~_q`'s tangential terms where an active node's
+/// dual function reaches an open facet at the edge of the contact zone, which the plane's
+/// nodal constraint does not have (measured: 1.2e-3 of the peak).
 #[test]
 fn two_discs_with_averaged_normals_are_the_half_model_to_solver_tolerance() {
     let dir = scratch("two-discs-average");
@@ -182,7 +185,8 @@ fn two_discs_with_averaged_normals_are_the_half_model_to_solver_tolerance() {
     let args =
         ["--steps", "870", "--", "-ksp_rtol", "1e-12", "-massless_energy_correction", "false"];
     run_scene(2, &half, &args);
-    run_scene(2, &two, &[&args[..], &["-mortar_normal", "average"]].concat());
+    let frozen = ["-mortar_normal", "average", "-mortar_interface", "frozen"];
+    run_scene(2, &two, &[&args[..], &frozen].concat());
     let per_node = |h5: &str| {
         let r = reader(&dir.join(h5));
         let f = r.series(&layout::contact("force")).unwrap();
@@ -438,9 +442,18 @@ fn two_bars_are_one_bar_against_a_wall() {
     eprintln!("two bars against the wall: forces differ by {dmax:.2e} (peak {fmax})");
     assert!(dmax < 1e-8 * fmax, "forces differ by {dmax} (peak {fmax})");
     // Both bars carry the energy in both runs; the pair does the contact work of two walls.
+    // The interface follows the bars: its planes meet the end-of-step weighted gaps to the
+    // geometry tolerance (1e-9 of the end face, H = 0.1), so the activation work
+    // `-lambda g^n` of each of the three end nodes may differ by its force times that.
     assert!(rel_diff(b.energy_initial, w.energy_initial) < 1e-12);
     let (cb, cw) = (contact(&b), contact(&w));
-    assert!(rel_diff(cb.contact_work, 2.0 * cw.contact_work) < 1e-6, "contact work");
+    let bound = 1e-6 * (2.0 * cw.contact_work).abs() + 3.0 * fmax * 1e-10;
+    assert!(
+        (cb.contact_work - 2.0 * cw.contact_work).abs() <= bound,
+        "contact work {} against twice {} (bound {bound:e})",
+        cb.contact_work,
+        cw.contact_work
+    );
 }
 
 /// Two identical balls (`scenes/two_spheres.toml`: R = 1, E = 100, nu = 0.3, rho = 1, each at
@@ -634,7 +647,7 @@ fn two_discs_with_the_interface_updated_at_every_step() {
         args.extend(extra);
         (run_scene(2, &two, &args), dir.join("two_discs-2.h5"))
     };
-    let (f, frozen) = run("two-discs-frozen", &[]);
+    let (f, frozen) = run("two-discs-frozen", &["-mortar_interface", "frozen"]);
     let (u, updated) =
         run("two-discs-updated", &["-mortar_update_in_contact", "-mortar_update_distance", "0"]);
     let mu = contact(&u).mortar.expect("mortar cost");

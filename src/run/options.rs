@@ -95,8 +95,15 @@ impl AppOptions {
     /// `[solver] options` where the command line did not set the same name
     /// ([`apply_scene_options`], called first). A bad value is an error naming the option.
     pub fn read() -> Result<AppOptions> {
-        let follow = mortar_interface(Petsc::options_get_string("-mortar_interface")?)?;
-        if follow == InterfaceMode::Follow && Petsc::options_has("-mortar_update_in_contact")? {
+        // `-mortar_update_in_contact` updates the frozen interface explicitly: alone it asks
+        // for that interface; with `-mortar_interface follow` it makes no sense.
+        let asked = Petsc::options_get_string("-mortar_interface")?;
+        let update_in_contact = Petsc::options_has("-mortar_update_in_contact")?;
+        let follow = match (asked.is_none(), update_in_contact) {
+            (true, true) => InterfaceMode::Frozen,
+            _ => mortar_interface(asked)?,
+        };
+        if follow == InterfaceMode::Follow && update_in_contact {
             return Err(Error::Scene(
                 "-mortar_update_in_contact is an update of the frozen interface: -mortar_interface follow evaluates it in contact already".into(),
             ));
@@ -109,7 +116,7 @@ impl AppOptions {
             },
             mortar: MortarOptions {
                 update_distance: Petsc::options_get_real("-mortar_update_distance")?,
-                update_in_contact: Petsc::options_has("-mortar_update_in_contact")?,
+                update_in_contact,
                 normal: mortar_normal(Petsc::options_get_string("-mortar_normal")?)?,
                 mode: follow,
                 closed_form: mortar_jacobian(Petsc::options_get_string("-mortar_jacobian")?)?,
@@ -139,10 +146,10 @@ fn contact_solver(value: Option<&str>) -> Result<ContactSolverKind> {
 
 fn mortar_interface(value: Option<String>) -> Result<InterfaceMode> {
     match value.as_deref() {
-        Some("follow") => Ok(InterfaceMode::Follow),
-        None | Some("frozen") => Ok(InterfaceMode::Frozen),
+        None | Some("follow") => Ok(InterfaceMode::Follow),
+        Some("frozen") => Ok(InterfaceMode::Frozen),
         Some(s) => Err(Error::Scene(format!(
-            "-mortar_interface {s}: give frozen (the default: small sliding) or follow (finite sliding)"
+            "-mortar_interface {s}: give follow (the default: finite sliding) or frozen (small sliding, faster)"
         ))),
     }
 }

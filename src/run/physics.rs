@@ -56,7 +56,7 @@ impl<'a> Physics<'a> {
         if contact.as_ref().is_some_and(|c| c.is_pair()) {
             console.say(match app.mortar.mode {
                 InterfaceMode::Follow => "mortar interface: follows the bodies inside every contact step (finite sliding; -mortar_interface follow)",
-                InterfaceMode::Frozen => "mortar interface: kept from the touch-down (small sliding; -mortar_interface follow for finite sliding)",
+                InterfaceMode::Frozen => "mortar interface: kept from the touch-down (small sliding only; -mortar_interface frozen)",
             }.to_string());
         }
         let loads = LoadsAt::new(

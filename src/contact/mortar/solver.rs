@@ -71,6 +71,9 @@ pub struct MortarActiveSet<'w> {
     /// since the interface was evaluated on it, and every active slave node's gap at the end
     /// of the step is this close to the planes' prediction (`-mortar_geometry_tol`).
     geometry_tol: f64,
+    /// Following: how far the midpoint may move before `D`, `M` and the normals are evaluated
+    /// again inside a step (1e-4 of the smallest slave facet, or 1e5 `-mortar_geometry_tol`).
+    move_tol: f64,
     /// The slave nodes' planes as evaluated (linearized from the evaluation point), and the
     /// shift per contact node that moves them onto the end-of-step weighted gap.
     base_planes: Vec<Option<NodePlane>>,
@@ -226,6 +229,7 @@ impl<'w> MortarActiveSet<'w> {
         Ok(MortarActiveSet {
             mode: options.mode,
             geometry_tol: options.geometry_tol,
+            move_tol: options.move_tol,
             base_planes,
             shift: vec![0.0; nodes_len],
             shift_step: usize::MAX,
@@ -610,13 +614,13 @@ pub struct MortarOptions {
     /// projections, the slave side's averaged nodal normals or, in 2D, halfway between them
     /// and the master's across.
     pub normal: NormalKind,
-    /// `-mortar_interface follow|frozen` (default `frozen` until its cost is brought down,
-    /// issue 24): the interface follows the bodies inside every contact step (finite
-    /// sliding), or is kept from the touch-down (small sliding).
+    /// `-mortar_interface follow|frozen` (default `follow`): the interface follows the bodies
+    /// inside every contact step (finite sliding), or is kept from the touch-down (small
+    /// sliding: valid while the bodies slide less than a contact cell, and faster).
     pub mode: InterfaceMode,
-    /// `-mortar_geometry_tol L` (default 1e-9 of the smallest slave facet): following, the
-    /// distance the interface may still move, and the gap the planes may still miss, when a
-    /// step is done.
+    /// `-mortar_geometry_tol L` (default 1e-9 of the slave surface's extent): following, the
+    /// gap the planes may still miss when a step is done; the interface may still move 1e5 L
+    /// (default 1e-4 of the smallest slave facet).
     pub geometry_tol: Option<f64>,
     /// `-mortar_jacobian differences|closed_form` (default `differences`): the derivatives of
     /// the weighted gaps in the consistent force, by central differences of each facet's
@@ -631,7 +635,7 @@ impl Default for MortarOptions {
             update_distance: None,
             update_in_contact: false,
             normal: NormalKind::Slave,
-            mode: InterfaceMode::Frozen,
+            mode: InterfaceMode::Follow,
             geometry_tol: None,
             closed_form: false,
         }
@@ -643,6 +647,7 @@ struct Settings {
     closed_form: bool,
     mode: InterfaceMode,
     geometry_tol: f64,
+    move_tol: f64,
     update_in_contact: bool,
 }
 
@@ -697,11 +702,26 @@ pub fn pair_solver<'w>(
     };
     let reach = sf.iter().map(size).fold(0.0, f64::max);
     let smallest = sf.iter().map(size).fold(f64::MAX, f64::min);
+    // The slave surface's extent: the largest side of its bounding box.
+    let extent = {
+        let (mut lo, mut hi) = ([f64::MAX; 3], [f64::MIN; 3]);
+        for &v in sf.iter().flat_map(|f| f.nodes.iter()) {
+            for c in 0..3 {
+                lo[c] = lo[c].min(mesh.coords[v][c]);
+                hi[c] = hi[c].max(mesh.coords[v][c]);
+            }
+        }
+        (0..3).map(|c| hi[c] - lo[c]).fold(smallest, f64::max)
+    };
     let update_distance = options.update_distance.unwrap_or(0.1 * smallest);
     let settings = Settings {
         closed_form: options.closed_form,
         mode: options.mode,
-        geometry_tol: options.geometry_tol.unwrap_or(1e-9 * smallest),
+        // The gaps to 1e-9 of the slave surface's extent (penetration far below 1e-8 of the
+        // body); D, M and the normals to 1e-4 of a facet (their lag tilts the forces by that
+        // fraction, the planes' shift keeps the gaps exact).
+        geometry_tol: options.geometry_tol.unwrap_or(1e-9 * extent),
+        move_tol: options.geometry_tol.map_or(1e-4 * smallest, |t| 1e5 * t),
         update_in_contact: options.update_in_contact,
     };
     let normal = options.normal;

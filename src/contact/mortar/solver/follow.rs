@@ -15,9 +15,6 @@ use crate::petsc::Vector;
 /// fraction of the largest nodal contact force in its last round.
 const REST_RTOL: f64 = 1e-6;
 
-/// How far, in geometry tolerances, the midpoint may move before `D`, `M` and the normals are
-/// evaluated again inside a step.
-const MOVE_FACTOR: f64 = 1e5;
 
 impl MortarActiveSet<'_> {
     /// Finite sliding: rounds of the active set, each on the interface evaluated at the
@@ -46,7 +43,7 @@ impl MortarActiveSet<'_> {
             // D, M and the normals need not follow to the last digit: lagging by 1e3 geometry
             // tolerances (1e-6 of a facet by default) changes the forces' direction and share
             // by that fraction of a facet, while the planes' shift keeps the gaps exact.
-            let move_tol = MOVE_FACTOR * self.geometry_tol;
+            let move_tol = self.move_tol;
             let limit = if near { move_tol } else { self.update_distance };
             if moved > limit {
                 self.update(k, mid)?;
@@ -114,7 +111,7 @@ impl MortarActiveSet<'_> {
             let fmax = out.row.force.iter().fold(0.0f64, |a, f| a.max(f.abs()));
             let changed = largest_difference(&self.rest, &applied);
             let largest = (moved, off, changed);
-            if moved <= MOVE_FACTOR * self.geometry_tol
+            if moved <= self.move_tol
                 && off <= self.geometry_tol
                 && changed <= REST_RTOL * fmax
             {
