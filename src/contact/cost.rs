@@ -36,12 +36,19 @@ pub struct MortarCost {
     /// Wall time of the per-step check whether the interface moved (one reduction of the
     /// interface nodes' displacements), and of the basis changes `T^T rhs`, `T u~`.
     pub step_seconds: f64,
-    /// With the interface following the bodies: the steps that ended in contact, and the
-    /// rounds (solves of the active set with one geometry) they took in all.
+    /// With the interface following the bodies: the steps that ended in contact, their solves
+    /// (a step the energy correction solves again counts each), and the rounds (solves of the
+    /// active set with one geometry) those took in all.
     #[serde(default)]
     pub following_steps: usize,
     #[serde(default)]
+    pub following_solves: usize,
+    #[serde(default)]
     pub rounds: usize,
+    /// Steps whose rounds with the whole gap linearization in the basis change did not settle
+    /// and went on without it.
+    #[serde(default)]
+    pub rows_dropped: usize,
     /// Wall time of the consistent force's rest (finite differences of the weighted gaps).
     #[serde(default)]
     pub gradient_seconds: f64,
@@ -76,7 +83,9 @@ impl MortarCost {
             operator_seconds: all[2],
             step_seconds: all[3],
             following_steps: self.following_steps,
+            following_solves: self.following_solves,
             rounds: self.rounds,
+            rows_dropped: self.rows_dropped,
             gradient_seconds: all[4],
             total_seconds: all[5],
         }

@@ -447,7 +447,10 @@ fn sorted_nodes(facets: &[SurfaceFacet]) -> Vec<usize> {
 }
 
 /// Every rank's `(q, l, value)` entries, in rank order.
-fn gather(world: &SimpleCommunicator, local: &[(u32, u32, f64)]) -> Vec<(u32, u32, f64)> {
+pub(crate) fn gather(
+    world: &SimpleCommunicator,
+    local: &[(u32, u32, f64)],
+) -> Vec<(u32, u32, f64)> {
     let keys: Vec<u64> = local.iter().map(|e| (u64::from(e.0) << 32) | u64::from(e.1)).collect();
     let vals: Vec<f64> = local.iter().map(|e| e.2).collect();
     let n = world.size() as usize;
@@ -470,7 +473,7 @@ fn gather(world: &SimpleCommunicator, local: &[(u32, u32, f64)]) -> Vec<(u32, u3
 }
 
 /// Entries sorted by (q, l), duplicates (the same pair from two ranks) summed.
-fn merge(entries: &[(u32, u32, f64)]) -> Vec<(u32, u32, f64)> {
+pub(crate) fn merge(entries: &[(u32, u32, f64)]) -> Vec<(u32, u32, f64)> {
     let mut e = entries.to_vec();
     e.sort_by(|a, b| (a.0, a.1).cmp(&(b.0, b.1)));
     let mut out: Vec<(u32, u32, f64)> = Vec::with_capacity(e.len());

@@ -39,6 +39,7 @@ use crate::partition::Partition;
 use crate::petsc::{Ksp, Matrix, Vector};
 
 mod follow;
+mod rows;
 
 pub struct MortarActiveSet<'w> {
     inner: ActiveSet<'w>,
@@ -81,6 +82,13 @@ pub struct MortarActiveSet<'w> {
     /// The step the shifts belong to: a step solved again (the energy correction) starts
     /// from them.
     shift_step: usize,
+    /// The last step counted as a following contact step (its solves are counted each).
+    counted_step: usize,
+    /// Following: the active slave nodes' gap linearization beyond the main terms, in the
+    /// basis change (`rows.rs`).
+    gap_rows: Vec<rows::GapRow>,
+    /// This step goes on without the rows (they cycled).
+    rows_off: bool,
     /// The contact node of every slave node (the slave nodes never change).
     slots: Vec<usize>,
     /// Solves beyond one per round of the active set, and rounds beyond one per step.
@@ -233,6 +241,9 @@ impl<'w> MortarActiveSet<'w> {
             base_planes,
             shift: vec![0.0; nodes_len],
             shift_step: usize::MAX,
+            counted_step: usize::MAX,
+            gap_rows: Vec::new(),
+            rows_off: false,
             slots: slots.clone(),
             extra_rounds: 0,
             rest: vec![0.0; pair.dofs.len()],
@@ -404,8 +415,26 @@ impl MortarActiveSet<'_> {
         let iface = self.pair.evaluate(world, &trace, &mut self.cost, None)?;
         let t0 = std::time::Instant::now();
         let dim = self.pair.part.dim;
+        let slots = slave_slots(self.inner.nodes(), &iface)?;
+        self.evaluated_at = trace;
+        self.jacobians.clear();
+        // Following: the active nodes' whole gap linearization joins the basis change (its
+        // differences counted with the consistent force's, not with the rebuild).
+        let mut rows_seconds = 0.0;
+        self.gap_rows = match self.mode {
+            InterfaceMode::Follow if !self.rows_off => {
+                let t1 = std::time::Instant::now();
+                let rows = self.gap_rows(&iface, &slots)?;
+                rows_seconds = t1.elapsed().as_secs_f64();
+                self.cost.gradient_seconds += rows_seconds;
+                rows
+            }
+            _ => Vec::new(),
+        };
+        let trace = &self.evaluated_at;
         let at = self.pair.slots();
-        // u~ of the slave nodes at the evaluation: u_q - sum_l (M_ql / D_qq) u_l.
+        // u~ of the slave nodes at the evaluation: u_q - sum_l (M_ql / D_qq) u_l, and along
+        // the normal the rows' `- sum_k w_qk . u_k`.
         let mut ut = vec![0.0; iface.slave.len() * dim];
         for (q, &v) in iface.slave.iter().enumerate() {
             for c in 0..dim {
@@ -418,20 +447,31 @@ impl MortarActiveSet<'_> {
                 ut[q * dim + c] -= m / iface.d[q] * trace[l * dim + c];
             }
         }
-        let slots = slave_slots(self.inner.nodes(), &iface)?;
+        for r in &self.gap_rows {
+            let wu: f64 = (0..dim).map(|c| r.w[c] * trace[r.k * dim + c]).sum();
+            for c in 0..dim {
+                ut[r.q * dim + c] -= wu * iface.normals[r.q][c];
+            }
+        }
         let n_nodes = self.inner.nodes().len();
         self.base_planes = planes(&iface, &self.pair, &ut, &slots, n_nodes);
         self.inner.nodes_mut().node_planes = Some(self.shifted_planes());
-        self.e = transfer(&self.pair.part, &iface, false)?;
-        self.t = transfer(&self.pair.part, &iface, true)?;
+        (self.e, self.t) = match self.mode {
+            InterfaceMode::Follow => (
+                rows::transfer_following(&self.pair.part, &iface, &self.gap_rows, false)?,
+                rows::transfer_following(&self.pair.part, &iface, &self.gap_rows, true)?,
+            ),
+            InterfaceMode::Frozen => (
+                transfer(&self.pair.part, &iface, false)?,
+                transfer(&self.pair.part, &iface, true)?,
+            ),
+        };
         self.coverage = coverage(&iface, &slots, n_nodes);
         self.d_evaluated = d_at_contact_nodes(&iface, &slots, n_nodes);
-        self.jacobians.clear();
         self.couplings = couplings(&iface, &slots);
         self.master = iface.master;
         self.rebuild(k)?;
-        self.evaluated_at = trace;
-        self.cost.operator_seconds += t0.elapsed().as_secs_f64();
+        self.cost.operator_seconds += t0.elapsed().as_secs_f64() - rows_seconds;
         Ok(())
     }
 
