@@ -407,8 +407,14 @@ fn two_bars_impact_follows_1d_wave_theory() {
 /// Two bars with matching, straight contact ends are by symmetry one bar against a rigid wall
 /// at the middle plane: the dual mortar then has `M = D`, the slave normals are exact and the
 /// weighted gap is the nodal one, so the discrete problems coincide and the contact force
-/// histories must agree to the solver tolerance (the mortar path against the obstacle path).
-/// The impact transient (the first 300 steps) is the demanding part; the other bar moves away.
+/// histories must agree to the solver tolerance (the mortar path against the obstacle path),
+/// with the interface as it stands (`-mortar_interface frozen`): 1e-8 of the peak. Following
+/// the bars (the default), the weighted gap of an arriving node also moves with the sideways
+/// position of the end nodes (the covered part of a facet changes with it while the gap at the
+/// midpoint is open), so the consistent force has small sideways terms and the rounds end on
+/// the rest force's tolerance, 1e-6 of the largest nodal force: asserted within that
+/// (measured 3.8e-8). The impact transient (the first 300 steps) is the demanding part; the
+/// other bar moves away.
 #[test]
 fn two_bars_are_one_bar_against_a_wall() {
     let dir = scratch("two-bars-wall");
@@ -431,29 +437,34 @@ fn two_bars_are_one_bar_against_a_wall() {
     // by that after the first release.
     let args =
         ["--steps", "300", "--", "-ksp_rtol", "1e-13", "-massless_energy_correction", "false"];
-    let b = run_scene(2, &two, &args);
     let w = run_scene(2, &wall, &args);
-    let (fb, ab) = force_history(&dir.join("two_bars-2.h5"));
     let (fw, aw) = force_history(&dir.join("wall-2.h5"));
-    assert!(ab.iter().any(|&a| a), "no contact");
-    assert_eq!(ab, aw, "the contact periods differ");
     let fmax = peak(&fw);
-    let dmax = fb.iter().zip(&fw).map(|(x, y)| (x - y).abs()).fold(0.0, f64::max);
-    eprintln!("two bars against the wall: forces differ by {dmax:.2e} (peak {fmax})");
-    assert!(dmax < 1e-8 * fmax, "forces differ by {dmax} (peak {fmax})");
-    // Both bars carry the energy in both runs; the pair does the contact work of two walls.
-    // The interface follows the bars: its planes meet the end-of-step weighted gaps to the
-    // geometry tolerance (1e-9 of the end face, H = 0.1), so the activation work
-    // `-lambda g^n` of each of the three end nodes may differ by its force times that.
-    assert!(rel_diff(b.energy_initial, w.energy_initial) < 1e-12);
-    let (cb, cw) = (contact(&b), contact(&w));
-    let bound = 1e-6 * (2.0 * cw.contact_work).abs() + 3.0 * fmax * 1e-10;
-    assert!(
-        (cb.contact_work - 2.0 * cw.contact_work).abs() <= bound,
-        "contact work {} against twice {} (bound {bound:e})",
-        cb.contact_work,
-        cw.contact_work
-    );
+    let two_follow = renamed_variant("two_bars.toml", &dir, "follow", &[]);
+    let f = run_scene(2, &two_follow, &args);
+    let b = run_scene(2, &two, &[&args[..], &["-mortar_interface", "frozen"]].concat());
+    for (name, s, tol) in [("frozen", &b, 1e-8), ("following", &f, 1e-6)] {
+        let h5 = if name == "frozen" { "two_bars-2.h5" } else { "follow-2.h5" };
+        let (fb, ab) = force_history(&dir.join(h5));
+        assert!(ab.iter().any(|&a| a), "no contact");
+        assert_eq!(ab, aw, "{name}: the contact periods differ");
+        let dmax = fb.iter().zip(&fw).map(|(x, y)| (x - y).abs()).fold(0.0, f64::max);
+        eprintln!("two bars against the wall, {name}: forces differ by {dmax:.2e} (peak {fmax})");
+        assert!(dmax < tol * fmax, "{name}: forces differ by {dmax} (peak {fmax})");
+        // Both bars carry the energy in both runs; the pair does the contact work of two
+        // walls. Following, the planes meet the end-of-step weighted gaps to the geometry
+        // tolerance (1e-9 of the end face, H = 0.1), so the activation work `-lambda g^n` of
+        // each of the three end nodes may differ by its force times that.
+        assert!(rel_diff(s.energy_initial, w.energy_initial) < 1e-12);
+        let (cb, cw) = (contact(s), contact(&w));
+        let bound = 1e-6 * (2.0 * cw.contact_work).abs() + 3.0 * fmax * 1e-10;
+        assert!(
+            (cb.contact_work - 2.0 * cw.contact_work).abs() <= bound,
+            "{name}: contact work {} against twice {} (bound {bound:e})",
+            cb.contact_work,
+            cw.contact_work
+        );
+    }
 }
 
 /// Two identical balls (`scenes/two_spheres.toml`: R = 1, E = 100, nu = 0.3, rho = 1, each at

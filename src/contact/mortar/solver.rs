@@ -456,12 +456,14 @@ impl MortarActiveSet<'_> {
         let n_nodes = self.inner.nodes().len();
         self.base_planes = planes(&iface, &self.pair, &ut, &slots, n_nodes);
         self.inner.nodes_mut().node_planes = Some(self.shifted_planes());
-        (self.e, self.t) = match self.mode {
-            InterfaceMode::Follow => (
+        // Without rows (frozen, or no active node) the main terms in every component, as the
+        // frozen interface has them.
+        (self.e, self.t) = match self.gap_rows.is_empty() {
+            false => (
                 rows::transfer_following(&self.pair.part, &iface, &self.gap_rows, false)?,
                 rows::transfer_following(&self.pair.part, &iface, &self.gap_rows, true)?,
             ),
-            InterfaceMode::Frozen => (
+            true => (
                 transfer(&self.pair.part, &iface, false)?,
                 transfer(&self.pair.part, &iface, true)?,
             ),

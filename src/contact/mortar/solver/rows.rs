@@ -33,6 +33,10 @@ use crate::error::Result;
 use crate::partition::Partition;
 use crate::petsc::Matrix;
 
+/// Entries of `w` below this (dimensionless: the main terms are of order one) are the
+/// differences' noise: aligned surfaces have none.
+const ROW_FLOOR: f64 = 1e-6;
+
 /// One entry of an active slave node's linearized gap beyond the main terms.
 #[derive(Debug, Clone, Copy)]
 pub(super) struct GapRow {
@@ -143,11 +147,13 @@ impl MortarActiveSet<'_> {
             main.insert((q as usize, iface.master[l as usize]), m);
         }
         let at = self.pair.slots();
-        let mut rows: Vec<GapRow> = Vec::new();
         let mut keys: Vec<(usize, usize)> = grad.keys().copied().collect();
         keys.sort_unstable();
+        let mut w_of: Vec<((usize, usize), [f64; 3])> = Vec::new();
         for (q, v) in keys {
-            let Some(&k) = at.get(&v) else { continue };
+            if !at.contains_key(&v) {
+                continue;
+            }
             let (n, d) = (iface.normals[q], iface.d[q]);
             let g = grad[&(q, v)];
             let mut w = [0.0; 3];
@@ -164,10 +170,48 @@ impl MortarActiveSet<'_> {
                     w[c] -= along * nv[c];
                 }
             }
-            if w.iter().any(|&x| x != 0.0) {
-                rows.push(GapRow { q, p: slots[q], node: v, k, w });
+            // The differences' noise (aligned surfaces have none of these terms): left out.
+            if w.iter().any(|&x| x.abs() > ROW_FLOOR) {
+                w_of.push(((q, v), w));
             }
         }
+        // A rigid translation leaves the gap as it is: the slave columns' normal parts left
+        // out are given back on the node's master columns (in proportion to `M_ql`), so that
+        // every row sums to zero and the forces it applies have no resultant in any round.
+        let mut lost: HashMap<usize, [f64; 3]> = HashMap::new();
+        for ((q, _), w) in &w_of {
+            let e = lost.entry(*q).or_insert([0.0; 3]);
+            for c in 0..3 {
+                e[c] += w[c];
+            }
+        }
+        let mut masters: HashMap<usize, Vec<(usize, f64)>> = HashMap::new();
+        for &(q, l, m) in &iface.m {
+            masters.entry(q as usize).or_default().push((iface.master[l as usize], m));
+        }
+        let mut all: HashMap<(usize, usize), [f64; 3]> = w_of.into_iter().collect();
+        for (q, s) in lost {
+            let Some(ms) = masters.get(&q) else { continue };
+            let total: f64 = ms.iter().map(|&(_, m)| m).sum();
+            if total <= 0.0 {
+                continue;
+            }
+            for &(v, m) in ms {
+                if !at.contains_key(&v) {
+                    continue;
+                }
+                let e = all.entry((q, v)).or_insert([0.0; 3]);
+                for c in 0..3 {
+                    e[c] -= s[c] * m / total;
+                }
+            }
+        }
+        let mut keys: Vec<(usize, usize)> = all.keys().copied().collect();
+        keys.sort_unstable();
+        let rows = keys
+            .into_iter()
+            .map(|(q, v)| GapRow { q, p: slots[q], node: v, k: at[&v], w: all[&(q, v)] })
+            .collect();
         Ok(rows)
     }
 
