@@ -49,6 +49,10 @@ pub struct MortarCost {
     /// and went on without it.
     #[serde(default)]
     pub rows_dropped: usize,
+    /// Slave facets left out of the consistent force's derivatives at an evaluation (their
+    /// perturbed geometry could not be integrated).
+    #[serde(default)]
+    pub jacobians_skipped: usize,
     /// Wall time of the consistent force's rest (finite differences of the weighted gaps).
     #[serde(default)]
     pub gradient_seconds: f64,
@@ -86,6 +90,7 @@ impl MortarCost {
             following_solves: self.following_solves,
             rounds: self.rounds,
             rows_dropped: self.rows_dropped,
+            jacobians_skipped: self.jacobians_skipped,
             gradient_seconds: all[4],
             total_seconds: all[5],
         }

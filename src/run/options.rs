@@ -120,6 +120,7 @@ impl AppOptions {
                 normal: mortar_normal(Petsc::options_get_string("-mortar_normal")?)?,
                 mode: follow,
                 closed_form: mortar_jacobian(Petsc::options_get_string("-mortar_jacobian")?)?,
+                gap_rows: Petsc::options_has("-mortar_gap_rows")?,
                 geometry_tol: positive(
                     "-mortar_geometry_tol",
                     Petsc::options_get_real("-mortar_geometry_tol")?,

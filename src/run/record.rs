@@ -412,10 +412,11 @@ pub fn summary_lines(d: &Domain, layer: Option<(usize, usize)>, s: &RunSummary) 
         if let Some(m) = &c.mortar {
             let rounds = if m.following_steps > 0 {
                 format!(
-                    "; interface following the bodies: {:.2} rounds per contact step ({:.2} solves; {} steps without the gap rows), consistent force {:.3} s",
+                    "; interface following the bodies: {:.2} rounds per contact step ({:.2} solves; {} steps without the gap rows, {} facets left out of the derivatives), consistent force {:.3} s",
                     m.rounds as f64 / m.following_steps as f64,
                     m.following_solves as f64 / m.following_steps as f64,
                     m.rows_dropped,
+                    m.jacobians_skipped,
                     m.gradient_seconds
                 )
             } else {

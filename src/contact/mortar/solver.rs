@@ -104,6 +104,8 @@ pub struct MortarActiveSet<'w> {
     jacobians: HashMap<usize, super::gradient::FacetJacobian>,
     /// `-mortar_jacobian closed_form`: fully covered facets' Jacobians from linearize.rs.
     closed_form: bool,
+    /// `-mortar_gap_rows`: the active nodes' whole gap linearization in the basis change.
+    rows_enabled: bool,
     d_evaluated: Vec<f64>,
     factor: f64,
 }
@@ -250,6 +252,7 @@ impl<'w> MortarActiveSet<'w> {
             adjacency: super::gradient::SlaveAdjacency::new(&pair.slave),
             jacobians: HashMap::new(),
             closed_form: options.closed_form,
+            rows_enabled: options.gap_rows,
             d_evaluated: d_at_contact_nodes(&iface, &slots, nodes_len),
             factor,
             inner: ActiveSet::new(nodes, factor),
@@ -422,7 +425,7 @@ impl MortarActiveSet<'_> {
         // differences counted with the consistent force's, not with the rebuild).
         let mut rows_seconds = 0.0;
         self.gap_rows = match self.mode {
-            InterfaceMode::Follow if !self.rows_off => {
+            InterfaceMode::Follow if self.rows_enabled && !self.rows_off => {
                 let t1 = std::time::Instant::now();
                 let rows = self.gap_rows(&iface, &slots)?;
                 rows_seconds = t1.elapsed().as_secs_f64();
@@ -458,7 +461,7 @@ impl MortarActiveSet<'_> {
         self.inner.nodes_mut().node_planes = Some(self.shifted_planes());
         // Without rows (frozen, or no active node) the main terms in every component, as the
         // frozen interface has them.
-        (self.e, self.t) = match self.gap_rows.is_empty() {
+        (self.e, self.t) = match !self.rows_enabled || self.mode == InterfaceMode::Frozen {
             false => (
                 rows::transfer_following(&self.pair.part, &iface, &self.gap_rows, false)?,
                 rows::transfer_following(&self.pair.part, &iface, &self.gap_rows, true)?,
@@ -669,6 +672,11 @@ pub struct MortarOptions {
     /// integrals, or in closed form (`linearize.rs`, `linearize3d.rs`; partly covered facets by
     /// differences either way). The two agree (tested); differences are faster here.
     pub closed_form: bool,
+    /// `-mortar_gap_rows` (default off): following, the active slave nodes' whole gap
+    /// linearization in the basis change, a Newton step of the geometry per round
+    /// (`solver/rows.rs`): fewer rounds, but not yet safe where a slave face tips over a
+    /// master edge (README "Finite sliding").
+    pub gap_rows: bool,
 }
 
 impl Default for MortarOptions {
@@ -680,6 +688,7 @@ impl Default for MortarOptions {
             mode: InterfaceMode::Follow,
             geometry_tol: None,
             closed_form: false,
+            gap_rows: false,
         }
     }
 }
@@ -687,6 +696,7 @@ impl Default for MortarOptions {
 /// The options of one pair solver with their defaults resolved.
 struct Settings {
     closed_form: bool,
+    gap_rows: bool,
     mode: InterfaceMode,
     geometry_tol: f64,
     move_tol: f64,
@@ -758,6 +768,7 @@ pub fn pair_solver<'w>(
     let update_distance = options.update_distance.unwrap_or(0.1 * smallest);
     let settings = Settings {
         closed_form: options.closed_form,
+        gap_rows: options.gap_rows,
         mode: options.mode,
         // The gaps to 1e-9 of the slave surface's extent (penetration far below 1e-8 of the
         // body); D, M and the normals to 1e-4 of a facet (their lag tilts the forces by that

@@ -71,16 +71,34 @@ impl MortarActiveSet<'_> {
             }
             p
         };
-        let jac = gradient::facet_jacobians(
-            dim,
-            &self.pair.slave,
-            &missing,
-            &self.pair.master,
-            &self.adjacency,
-            &x,
-            self.pair.reach,
-            !self.closed_form,
-        )?;
+        let jacobians = |which: &[usize]| {
+            gradient::facet_jacobians(
+                dim,
+                &self.pair.slave,
+                which,
+                &self.pair.master,
+                &self.adjacency,
+                &x,
+                self.pair.reach,
+                !self.closed_form,
+            )
+        };
+        // A facet whose perturbed geometry cannot be integrated (a warped face tipping over
+        // an edge projects to a non-convex polygon) is left out of the derivatives at this
+        // evaluation, and counted.
+        let jac = match jacobians(&missing) {
+            Ok(j) => j,
+            Err(_) => {
+                let mut out = Vec::with_capacity(missing.len());
+                for &i in &missing {
+                    out.push(jacobians(&[i]).map(|mut j| j.remove(0)).unwrap_or_else(|_| {
+                        self.cost.jacobians_skipped += 1;
+                        gradient::FacetJacobian::default()
+                    }));
+                }
+                out
+            }
+        };
         self.jacobians.extend(missing.into_iter().zip(jac));
         Ok(())
     }
@@ -106,8 +124,13 @@ impl MortarActiveSet<'_> {
         let dim = self.pair.part.dim;
         let active = &self.inner.nodes().active;
         let covered = iface.m_row_sums();
+        // Only nodes whose support the master covers whole: at a master edge the gap is only
+        // piecewise smooth (the covered part ends there), and a Newton step on it overshoots
+        // (a cube tipping over a plate's edge was driven into faces that cannot be projected).
         let asked: HashSet<usize> = (0..iface.slave.len())
-            .filter(|&q| active[slots[q]] && iface.d[q] > 0.0 && covered[q] > 0.0)
+            .filter(|&q| {
+                active[slots[q]] && iface.d[q] > 0.0 && covered[q] >= (1.0 - 1e-6) * iface.d[q]
+            })
             .map(|q| iface.slave[q])
             .collect();
         let any = crate::comm::max_over_ranks(self.inner.nodes().world, asked.len() as f64);
