@@ -476,16 +476,27 @@ fn main() {
             }
         }
         for (label, scene, args) in runs {
-            for mode in ["frozen", "follow"] {
+            // The oblique balls also with the gap rows (`-mortar_gap_rows`, opt-in).
+            let oblique = label.contains("oblique");
+            let modes: &[&str] = if oblique {
+                &["frozen", "follow", "follow + gap rows"]
+            } else {
+                &["frozen", "follow"]
+            };
+            for &mode in modes {
                 let large = label.contains("h = 0.07");
-                if large && mode == "follow" && !label.contains("oblique") {
+                if large && mode != "frozen" && !oblique {
                     continue; // head-on at 10^5 DOFs: the frozen interface is valid there
                 }
                 let mut args = args.clone();
-                if large && mode == "follow" {
+                if large && mode != "frozen" {
                     args.extend(["--steps", "20"].map(String::from));
                 }
-                args.extend(["--", "-mortar_interface", mode].map(String::from));
+                let interface = if mode == "frozen" { "frozen" } else { "follow" };
+                args.extend(["--", "-mortar_interface", interface].map(String::from));
+                if mode.contains("rows") {
+                    args.push("-mortar_gap_rows".into());
+                }
                 eprintln!("bench: {label}, {mode}");
                 let summary = bench_dir().join("two-body.toml");
                 let Some(t) = run_scene(2, scene, &args, &summary) else {
