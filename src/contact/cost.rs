@@ -66,6 +66,9 @@ impl MortarCost {
     /// The largest of every entry over the ranks (collective).
     pub fn max_over_ranks(&self, world: &mpi::topology::SimpleCommunicator) -> MortarCost {
         use mpi::traits::*;
+        // The counters too: most are the same on every rank (collective decisions), but a
+        // facet left out of the derivatives is a rank's own, and the summary written to the
+        // run file must be the same on every rank.
         let local = [
             self.evaluation_seconds,
             self.search_seconds,
@@ -76,23 +79,30 @@ impl MortarCost {
                 + self.operator_seconds
                 + self.step_seconds
                 + self.gradient_seconds,
+            self.evaluations as f64,
+            self.searches as f64,
+            self.following_steps as f64,
+            self.following_solves as f64,
+            self.rounds as f64,
+            self.rows_dropped as f64,
+            self.jacobians_skipped as f64,
         ];
-        let mut all = [0.0; 6];
+        let mut all = [0.0; 13];
         world.all_reduce_into(&local[..], &mut all[..], mpi::collective::SystemOperation::max());
         MortarCost {
-            evaluations: self.evaluations,
-            searches: self.searches,
             evaluation_seconds: all[0],
             search_seconds: all[1],
             operator_seconds: all[2],
             step_seconds: all[3],
-            following_steps: self.following_steps,
-            following_solves: self.following_solves,
-            rounds: self.rounds,
-            rows_dropped: self.rows_dropped,
-            jacobians_skipped: self.jacobians_skipped,
             gradient_seconds: all[4],
             total_seconds: all[5],
+            evaluations: all[6] as usize,
+            searches: all[7] as usize,
+            following_steps: all[8] as usize,
+            following_solves: all[9] as usize,
+            rounds: all[10] as usize,
+            rows_dropped: all[11] as usize,
+            jacobians_skipped: all[12] as usize,
         }
     }
 }
