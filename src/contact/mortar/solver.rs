@@ -63,8 +63,11 @@ pub struct MortarActiveSet<'w> {
     /// D_qq)` per entry of `M`: where each slave node's force goes on the master side.
     master: Vec<usize>,
     couplings: Vec<(usize, usize, f64)>,
-    /// The interface nodes' displacements at the last evaluation.
+    /// The interface nodes' displacements at the last evaluation (of `T`, the planes and the
+    /// rows), and where the Jacobians of the consistent force were computed (following: the
+    /// midpoint of the round, while `T` may lag behind by `operator_lag`).
     evaluated_at: Vec<f64>,
+    jacobians_at: Vec<f64>,
     cost: MortarCost,
     /// Whether the interface follows the bodies inside the step (`-mortar_interface`).
     mode: InterfaceMode,
@@ -75,6 +78,11 @@ pub struct MortarActiveSet<'w> {
     /// Following: how far the midpoint may move before `D`, `M` and the normals are evaluated
     /// again inside a step (1e-4 of the smallest slave facet, or 1e5 `-mortar_geometry_tol`).
     move_tol: f64,
+    /// Following, in contact: how far the midpoint may move before `T`, the planes and `T^T K
+    /// T` are built again (100 `move_tol`). Their lag changes only how fast the rounds
+    /// converge: the rest of the consistent force is taken against the main terms `T` applied,
+    /// and the planes' shifts against fresh end-of-step gaps.
+    operator_lag: f64,
     /// The slave nodes' planes as evaluated (linearized from the evaluation point), and the
     /// shift per contact node that moves them onto the end-of-step weighted gap.
     base_planes: Vec<Option<NodePlane>>,
@@ -240,6 +248,7 @@ impl<'w> MortarActiveSet<'w> {
             mode: options.mode,
             geometry_tol: options.geometry_tol,
             move_tol: options.move_tol,
+            operator_lag: 100.0 * options.move_tol,
             base_planes,
             shift: vec![0.0; nodes_len],
             shift_step: usize::MAX,
@@ -265,6 +274,7 @@ impl<'w> MortarActiveSet<'w> {
             master: iface.master,
             update_distance,
             update_in_contact: options.update_in_contact,
+            jacobians_at: zero.clone(),
             evaluated_at: zero,
             cost,
         })
@@ -419,6 +429,7 @@ impl MortarActiveSet<'_> {
         let t0 = std::time::Instant::now();
         let dim = self.pair.part.dim;
         let slots = slave_slots(self.inner.nodes(), &iface)?;
+        self.jacobians_at = trace.clone();
         self.evaluated_at = trace;
         self.jacobians.clear();
         // Following: the active nodes' whole gap linearization joins the basis change (its

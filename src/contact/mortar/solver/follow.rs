@@ -43,11 +43,12 @@ impl MortarActiveSet<'_> {
             let moved = largest_difference(&mid, &self.evaluated_at);
             let near = self.inner.nodes().active.iter().any(|&a| a) || rounds > 1;
             self.cost.step_seconds += t0.elapsed().as_secs_f64();
-            // D, M and the normals need not follow to the last digit: lagging by 1e3 geometry
-            // tolerances (1e-6 of a facet by default) changes the forces' direction and share
-            // by that fraction of a facet, while the planes' shift keeps the gaps exact.
-            let move_tol = self.move_tol;
-            let limit = if near { move_tol } else { self.update_distance };
+            // In contact T, D, M, the normals and T^T K T may lag behind the midpoint by
+            // `operator_lag` (1e-2 of a facet): the planes' shifts keep the gaps exact and the
+            // rest is taken against the main terms T applied, so the lag changes only how fast
+            // the rounds converge. The Jacobians of the consistent force follow the midpoint to
+            // `move_tol` (1e-4 of a facet: the forces' direction and share to that fraction).
+            let limit = if near { self.operator_lag } else { self.update_distance };
             // Newton with the rows where the gaps are smooth; where a node crosses a kink (a
             // master edge, a node whose partners change) it may cycle: after ROWS_ROUNDS
             // rounds the step goes on with the main terms only and the lagged rest (the
@@ -59,8 +60,14 @@ impl MortarActiveSet<'_> {
             }
             if moved > limit || drop_rows {
                 self.update(k, mid)?;
-            } else if rounds > 1 {
-                self.inner.nodes_mut().node_planes = Some(self.shifted_planes());
+            } else {
+                if near && largest_difference(&mid, &self.jacobians_at) > self.move_tol {
+                    self.jacobians.clear();
+                    self.jacobians_at = mid;
+                }
+                if rounds > 1 {
+                    self.inner.nodes_mut().node_planes = Some(self.shifted_planes());
+                }
             }
             let applied = self.rest.clone();
             self.load_rest()?;
@@ -115,7 +122,7 @@ impl MortarActiveSet<'_> {
                 self.shift[p] += delta;
             }
             let mid = self.midpoint_trace(u, du)?;
-            let moved = largest_difference(&mid, &self.evaluated_at);
+            let moved = largest_difference(&mid, &self.jacobians_at);
             // The rest of the consistent force at this midpoint, with this round's forces.
             let t2 = std::time::Instant::now();
             self.rest = self.consistent_rest(&out)?;
@@ -134,6 +141,9 @@ impl MortarActiveSet<'_> {
                 }
                 self.extra_rounds += rounds - 1;
                 self.rest_into(&applied, &mut out, du)?;
+                if largest_difference(&mid, &self.evaluated_at) > self.move_tol {
+                    self.forces_at_midpoint(&mid, &mut out)?;
+                }
                 return Ok((out, its));
             }
             if rounds == MAX_ROUNDS {
@@ -365,6 +375,28 @@ impl MortarActiveSet<'_> {
             }
         }
         Ok(out)
+    }
+
+    /// The slave nodes' forces `f_q = lambda_q D_qq` with `D` at the midpoint `mid` rather than
+    /// where `T` was evaluated (it may lag by `operator_lag`): the multipliers `lambda_q = f_q /
+    /// D_qq(T)` are the step's solution, `D` only how a node's force is stated (collective: an
+    /// evaluation of the slave facets around the active nodes).
+    fn forces_at_midpoint(&mut self, mid: &[f64], out: &mut StepContact) -> Result<()> {
+        let world = self.inner.nodes().world;
+        let only = self.facets_around(&out.row.active);
+        let iface = self.pair.evaluate(world, mid, &mut self.cost, Some(&only))?;
+        // The force applied stays: what the main term no longer states joins the rest's share.
+        out.contact_nodal.resize(out.row.force.len(), [0.0; 3]);
+        for (q, &p) in self.slots.iter().enumerate() {
+            if out.row.active[p] && self.d_evaluated[p] > 0.0 && iface.d[q] > 0.0 {
+                let f = out.row.force[p] * iface.d[q] / self.d_evaluated[p];
+                for c in 0..3 {
+                    out.contact_nodal[p][c] += (f - out.row.force[p]) * out.normals[p][c];
+                }
+                out.row.force[p] = f;
+            }
+        }
+        Ok(())
     }
 
     /// The evaluated planes moved by `shift`.

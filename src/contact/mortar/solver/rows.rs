@@ -61,7 +61,7 @@ impl MortarActiveSet<'_> {
         }
         let dim = self.pair.part.dim;
         let at = self.pair.slots();
-        let at_eval = &self.evaluated_at;
+        let at_eval = &self.jacobians_at;
         let x = |v: usize| {
             let mut p = self.pair.mesh.coords[v];
             if let Some(&k) = at.get(&v) {
