@@ -17,6 +17,9 @@ pub enum Error {
     Petsc { call: String, code: i32, location: String, message: String },
     /// A solver did not converge or a numerical invariant broke.
     Solver(String),
+    /// A contact interface cannot be evaluated at a configuration (a slave facet that does not
+    /// project onto the master any more); the same on every rank, so a solver may go back.
+    Geometry(String),
     /// Reading or writing files (HDF5, PNG, CSV, ...).
     Io(String),
     /// An MPI-level failure.
@@ -42,6 +45,7 @@ impl fmt::Display for Error {
                 Ok(())
             }
             Error::Solver(m) => write!(f, "solver error: {m}"),
+            Error::Geometry(m) => write!(f, "solver error: {m}"),
             Error::Io(m) => write!(f, "I/O error: {m}"),
             Error::Mpi(m) => write!(f, "MPI error: {m}"),
             Error::Interrupted(m) => write!(f, "interrupted: {m}"),

@@ -151,11 +151,24 @@ impl MortarInterface {
         let pos = |f: &SurfaceFacet| -> Vec<[f64; 3]> { f.nodes.iter().map(|&v| x(v)).collect() };
         let ns = slave.len();
 
+        // A facet that cannot be evaluated on one rank fails the evaluation on every rank
+        // (a flag in the next reduction, then the message): the caller may go back.
+        let mut failed: Option<String> = None;
+        let fail = |failed: Option<String>| -> Error {
+            Error::Geometry(crate::comm::first_failure(world, failed).unwrap_or_default())
+        };
+
         // Averaged nodal normals: sum of the adjacent facets' unit normals.
-        let mut nsum = vec![0.0; 3 * ns];
+        let mut nsum = vec![0.0; 3 * ns + 1];
         for f in &mine {
-            let n = facet_normal(dim, &pos(f)).map_err(err)?;
-            let n = scale3(1.0 / norm3(n), n);
+            let n = match facet_normal(dim, &pos(f)) {
+                Ok(n) => scale3(1.0 / norm3(n), n),
+                Err(e) => {
+                    failed = Some(format!("mortar: {e}"));
+                    nsum[3 * ns] = 1.0;
+                    break;
+                }
+            };
             for &v in &f.nodes {
                 let q = s_of[&v] as usize;
                 for c in 0..3 {
@@ -163,8 +176,11 @@ impl MortarInterface {
                 }
             }
         }
-        let mut total = vec![0.0; 3 * ns];
+        let mut total = vec![0.0; 3 * ns + 1];
         world.all_reduce_into(&nsum[..], &mut total[..], SystemOperation::sum());
+        if total[3 * ns] > 0.0 {
+            return Err(fail(failed));
+        }
         let normals: Vec<[f64; 3]> = (0..ns)
             .map(|q| {
                 let n = [total[3 * q], total[3 * q + 1], total[3 * q + 2]];
@@ -205,19 +221,33 @@ impl MortarInterface {
         };
         let t_search = std::time::Instant::now();
         let masters: Vec<&SurfaceFacet> = master_facets.iter().collect();
-        let (sboxes, mboxes) = (boxes(&mine, reach)?, boxes(&masters, reach)?);
-        if !search.reuse || search.pairs.is_none() {
-            // Search with the boxes inflated by the margin too: the pairs found hold every
-            // pair within reach until a node has moved farther than the margin.
-            let wide = reach + search.margin;
-            let mut found = candidate_pairs(&boxes(&mine, wide)?, &boxes(&masters, wide)?);
-            found.retain(|&(s, m)| mine[s].pairs & masters[m].pairs != 0);
-            search.pairs = Some(found);
-            search.searches += 1;
-        }
-        // Those within reach now: the pairs a fresh search would find.
-        let mut pairs = search.pairs.clone().expect("searched above");
-        pairs.retain(|&(s, m)| sboxes[s].intersects(&mboxes[m]));
+        // (The master side's boxes are the same on every rank, and so is their error.)
+        let mboxes = boxes(&masters, reach)?;
+        let pairs = match boxes(&mine, reach) {
+            Ok(sboxes) => {
+                if !search.reuse || search.pairs.is_none() {
+                    // Search with the boxes inflated by the margin too: the pairs found hold
+                    // every pair within reach until a node has moved farther than the margin.
+                    let wide = reach + search.margin;
+                    let mine_wide = boxes(&mine, wide)?;
+                    let mut found = candidate_pairs(&mine_wide, &boxes(&masters, wide)?);
+                    found.retain(|&(s, m)| mine[s].pairs & masters[m].pairs != 0);
+                    search.pairs = Some(found);
+                    search.searches += 1;
+                }
+                // Those within reach now: the pairs a fresh search would find.
+                let mut pairs = search.pairs.clone().expect("searched above");
+                pairs.retain(|&(s, m)| sboxes[s].intersects(&mboxes[m]));
+                pairs
+            }
+            Err(e) => {
+                failed = Some(match e {
+                    Error::Solver(m) => m,
+                    other => other.to_string(),
+                });
+                Vec::new()
+            }
+        };
         search_seconds += t_search.elapsed().as_secs_f64();
 
         // D per owned slave facet, M and the weighted gaps per overlapping pair (`only`: of
@@ -229,6 +259,9 @@ impl MortarInterface {
         let mut m: HashMap<(u32, u32), f64> = HashMap::new();
         let mut k = 0;
         for (si, f) in mine.iter().enumerate() {
+            if failed.is_some() {
+                break;
+            }
             let qs: Vec<usize> = f.nodes.iter().map(|v| s_of[v] as usize).collect();
             let mut candidates = Vec::new();
             while k < pairs.len() && pairs[k].0 == si {
@@ -239,10 +272,13 @@ impl MortarInterface {
                 continue;
             }
             let nrm: Vec<Vec3> = qs.iter().map(|&q| normals[q]).collect();
-            let Some((d_e, found)) =
-                facet_integrals(dim, &pos(f), &nrm, &candidates, &pos).map_err(err)?
-            else {
-                continue;
+            let (d_e, found) = match facet_integrals(dim, &pos(f), &nrm, &candidates, &pos) {
+                Ok(Some(x)) => x,
+                Ok(None) => continue,
+                Err(e) => {
+                    failed = Some(format!("mortar: {e}"));
+                    break;
+                }
             };
             for (j, &q) in qs.iter().enumerate() {
                 d[q] += d_e[j];
@@ -260,9 +296,13 @@ impl MortarInterface {
         // Sum the ranks' parts: D and the gaps by reduction, M's entries gathered and merged.
         let mut dg = d;
         dg.extend_from_slice(&gap);
+        dg.push(if failed.is_some() { 1.0 } else { 0.0 });
         let mut dg_all = vec![0.0; dg.len()];
         world.all_reduce_into(&dg[..], &mut dg_all[..], SystemOperation::sum());
-        let (d, gap) = (dg_all[..ns].to_vec(), dg_all[ns..].to_vec());
+        if dg_all[2 * ns] > 0.0 {
+            return Err(fail(failed));
+        }
+        let (d, gap) = (dg_all[..ns].to_vec(), dg_all[ns..2 * ns].to_vec());
         let mut local: Vec<(u32, u32, f64)> = m.into_iter().map(|((q, l), v)| (q, l, v)).collect();
         local.sort_by(|a, b| (a.0, a.1).cmp(&(b.0, b.1)));
         let m = merge(&gather(world, &local));

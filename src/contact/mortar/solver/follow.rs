@@ -34,6 +34,17 @@ impl MortarActiveSet<'_> {
             self.shift_step = step;
             self.rows_off = false;
         }
+        // With the gap rows a round may overshoot into a configuration whose interface cannot
+        // be evaluated (a slave face tipping over a master edge): the step then starts again
+        // from here without them.
+        let start = match self.rows_enabled && !self.rows_off {
+            true => {
+                let mut v = du.duplicate()?;
+                v.copy_from(du)?;
+                Some((v, self.rest.clone(), self.inner.nodes().active.clone()))
+            }
+            false => None,
+        };
         let mut its = 0;
         let mut rounds = 0;
         loop {
@@ -48,7 +59,10 @@ impl MortarActiveSet<'_> {
             // rest is taken against the main terms T applied, so the lag changes only how fast
             // the rounds converge. The Jacobians of the consistent force follow the midpoint to
             // `move_tol` (1e-4 of a facet: the forces' direction and share to that fraction).
-            let limit = if near { self.operator_lag } else { self.update_distance };
+            // With the gap rows the basis change is Newton's operator: it follows to `move_tol`.
+            let lag =
+                if self.rows_enabled && !self.rows_off { self.move_tol } else { self.operator_lag };
+            let limit = if near { lag } else { self.update_distance };
             // Newton with the rows where the gaps are smooth; where a node crosses a kink (a
             // master edge, a node whose partners change) it may cycle: after ROWS_ROUNDS
             // rounds the step goes on with the main terms only and the lagged rest (the
@@ -59,7 +73,13 @@ impl MortarActiveSet<'_> {
                 self.cost.rows_dropped += 1;
             }
             if moved > limit || drop_rows {
-                self.update(k, mid)?;
+                match self.update(k, mid) {
+                    Err(Error::Geometry(_)) if start.is_some() && !self.rows_off => {
+                        self.go_back(du, start.as_ref().expect("matched"))?;
+                        continue;
+                    }
+                    r => r?,
+                }
             } else {
                 if near && largest_difference(&mid, &self.jacobians_at) > self.move_tol {
                     self.jacobians.clear();
@@ -98,7 +118,13 @@ impl MortarActiveSet<'_> {
                     a || g.is_some_and(|g| g < self.update_distance.min(self.pair.reach))
                 })
                 .collect();
-            let truth = self.end_gaps(&end, &near)?;
+            let truth = match self.end_gaps(&end, &near) {
+                Err(Error::Geometry(_)) if start.is_some() && !self.rows_off => {
+                    self.go_back(du, start.as_ref().expect("matched"))?;
+                    continue;
+                }
+                r => r?,
+            };
             let truth: Vec<Option<f64>> = (truth.into_iter().zip(&predicted).zip(&near))
                 .map(|((t, &pr), &n)| if n { t } else { pr })
                 .collect();
@@ -142,7 +168,11 @@ impl MortarActiveSet<'_> {
                 self.extra_rounds += rounds - 1;
                 self.rest_into(&applied, &mut out, du)?;
                 if largest_difference(&mid, &self.evaluated_at) > self.move_tol {
-                    self.forces_at_midpoint(&mid, &mut out)?;
+                    // (Where D cannot be had at the midpoint, the forces stay stated with T's.)
+                    match self.forces_at_midpoint(&mid, &mut out) {
+                        Err(Error::Geometry(_)) => {}
+                        r => r?,
+                    }
                 }
                 return Ok((out, its));
             }
@@ -375,6 +405,19 @@ impl MortarActiveSet<'_> {
             }
         }
         Ok(out)
+    }
+
+    /// Back to the step's start (`du`, the rest, the active set) without the gap rows, the
+    /// interface evaluated afresh in the next round.
+    fn go_back(&mut self, du: &mut Vector, start: &(Vector, Vec<f64>, Vec<bool>)) -> Result<()> {
+        du.copy_from(&start.0)?;
+        self.rest.clone_from(&start.1);
+        self.inner.nodes_mut().active.clone_from(&start.2);
+        self.shift.iter_mut().for_each(|x| *x = 0.0);
+        self.rows_off = true;
+        self.cost.rows_dropped += 1;
+        self.evaluated_at.iter_mut().for_each(|x| *x = f64::INFINITY);
+        Ok(())
     }
 
     /// The slave nodes' forces `f_q = lambda_q D_qq` with `D` at the midpoint `mid` rather than
