@@ -508,7 +508,7 @@ fn discs_sliding_past_each_other_push_along_the_line_of_centres() {
 /// `-mortar_geometry_tol 1e-11` the consistent force's derivatives are taken within 1e-6 (1e-5
 /// of a contact facet, hc = 0.1) of the midpoint, and the two ways stop at different places
 /// within that, so the forces may differ by that fraction, 1e-5 of the peak (measured 2.2e-6;
-/// at the default tolerances, where also `T` lags by up to 1e-2 of a facet and the rounds stop
+/// at the default tolerances, where also `T` lags by up to 1e-3 of a facet and the rounds stop
 /// sooner, 1.3e-4); with fewer rounds per contact step (printed: 3.9 against 6.3).
 #[test]
 fn the_gap_rows_reach_the_same_solution_in_fewer_rounds() {

@@ -55,7 +55,7 @@ impl MortarActiveSet<'_> {
             let near = self.inner.nodes().active.iter().any(|&a| a) || rounds > 1;
             self.cost.step_seconds += t0.elapsed().as_secs_f64();
             // In contact T, D, M, the normals and T^T K T may lag behind the midpoint by
-            // `operator_lag` (1e-2 of a facet): the planes' shifts keep the gaps exact and the
+            // `operator_lag` (1e-3 of a facet): the planes' shifts keep the gaps exact and the
             // rest is taken against the main terms T applied, so the lag changes only how fast
             // the rounds converge. The Jacobians of the consistent force follow the midpoint to
             // `move_tol` (1e-4 of a facet: the forces' direction and share to that fraction).
