@@ -487,7 +487,9 @@ impl Midpoint {
     /// solved again until the two works cancel (a fixed point; the force changes `du` by
     /// O(xi tau^2): two or three solves). Only losses are put back (a gain an unsettled fixed
     /// point leaves is taken back by the next steps), so the energy never exceeds
-    /// `E^0 + W_loads` beyond the step tolerance. A step whose motion is too small to carry the correction
+    /// `E^0 + W_loads` beyond the step tolerance (following the bodies, beyond the work collected
+    /// while it stays below [`Midpoint::DRIFT_RTOL`]: a remainder within `slack` joins it
+    /// instead of another solve). A step whose motion is too small to carry the correction
     /// (`|xi| tau^2 > 1/2`, e.g. a body arriving in pure translation, or tau far beyond the
     /// contact time) hands the work on to the next steps (`Corrections::pending`), which
     /// put it back when they can; so does the energy a release projection removes. The
