@@ -22,7 +22,9 @@
 //! Files: `interface.rs` the interface between the integrator and a contact solver
 //! ([`ContactSolver`]), `step.rs` what crosses it in a step ([`StepSystem`], [`StepContact`]);
 //! `nodes.rs` the contact boundary and nodes ([`ContactBoundary`], [`ContactNodes`], [`trace`]);
-//! `active_set.rs` the active-set loop's bookkeeping ([`ActiveSetLoop`]); `cost.rs` what
+//! `active_set.rs` the active-set loop's bookkeeping ([`ActiveSetLoop`]); `friction.rs` the
+//! friction law at one node (Coulomb and Tresca: the sets stick and slip, the complementarity
+//! function and the slip direction's derivative; not yet used by a solver); `cost.rs` what
 //! contact costs; this one the factory [`solver`] and its options. The files import each
 //! other, never this one (no import circle).
 
@@ -30,6 +32,7 @@ mod active_set;
 pub mod columns;
 pub mod constraint;
 pub mod cost;
+pub mod friction;
 pub mod history;
 mod interface;
 pub mod metrics;
