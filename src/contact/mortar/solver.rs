@@ -80,9 +80,10 @@ pub struct MortarActiveSet<'w> {
     move_tol: f64,
     /// Following, in contact: how far the midpoint may move before `T`, the planes and `T^T K
     /// T` are built again (10 `move_tol`: 1e-3 of a facet; with 100 the two bars' total force
-    /// ended 2e-6 of its peak away from the wall's, with 1000 the rounds were 40% more). Their lag changes only how fast the rounds
-    /// converge: the rest of the consistent force is taken against the main terms `T` applied,
-    /// and the planes' shifts against fresh end-of-step gaps.
+    /// ended 2e-6 of its peak away from the wall's, with 1000 the rounds were 40% more). Their
+    /// lag changes only how fast the rounds converge: the rest of the consistent force is taken
+    /// against the main terms `T` applied, and the planes' shifts against fresh end-of-step
+    /// gaps.
     operator_lag: f64,
     /// The slave nodes' planes as evaluated (linearized from the evaluation point), and the
     /// shift per contact node that moves them onto the end-of-step weighted gap.
@@ -357,48 +358,56 @@ fn slave_slots(nodes: &ContactNodes<'_>, iface: &MortarInterface) -> Result<Vec<
 /// `K du = rhs` itself, the step operator's Dirichlet rows included (the mortar patch test
 /// has Dirichlet DOFs on both sides of the interface).
 fn transfer(part: &Partition, iface: &MortarInterface, identity: bool) -> Result<Matrix> {
-    let dim = part.dim;
-    let n_local = part.n_owned_dofs();
-    let lo = part.first_dof();
-    let mut rows: Vec<Vec<(i32, f64)>> = vec![Vec::new(); iface.slave.len()];
+    let mut per: Vec<Vec<(usize, f64)>> = vec![Vec::new(); iface.slave.len()];
     for &(q, l, v) in &iface.m {
-        rows[q as usize].push((iface.master[l as usize] as i32, v / iface.d[q as usize]));
+        per[q as usize].push((iface.master[l as usize], v / iface.d[q as usize]));
     }
-    let local = |dof: usize| (lo..lo + n_local).contains(&dof);
-    let (mut d_nnz, mut o_nnz) = (vec![i32::from(identity); n_local], vec![0i32; n_local]);
-    for (q, row) in rows.iter().enumerate() {
-        let v = iface.slave[q];
-        if !part.owns(v) {
-            continue;
-        }
-        for c in 0..dim {
-            let i = part.dof(v, c) - lo;
-            for &(l, _) in row {
-                if local(part.dof(l as usize, c)) {
-                    d_nnz[i] += 1;
-                } else {
-                    o_nnz[i] += 1;
-                }
-            }
-        }
-    }
-    let n = part.n_global_dofs();
-    let mut m = Matrix::new_aij(n_local, n, dim, &d_nnz, &o_nnz)?;
-    if identity {
-        for i in lo..lo + n_local {
-            m.set_values(&[i as i32], &[i as i32], &[1.0], false)?;
-        }
-    }
-    for (q, row) in rows.iter().enumerate() {
+    let mut rows: Vec<(usize, Vec<(usize, f64)>)> = Vec::new();
+    for (q, row) in per.iter().enumerate() {
         let v = iface.slave[q];
         if !part.owns(v) || row.is_empty() {
             continue;
         }
-        for c in 0..dim {
-            let cols: Vec<i32> = row.iter().map(|&(l, _)| part.dof(l as usize, c) as i32).collect();
-            let vals: Vec<f64> = row.iter().map(|&(_, x)| x).collect();
-            m.set_values(&[part.dof(v, c) as i32], &cols, &vals, false)?;
+        for c in 0..part.dim {
+            rows.push((part.dof(v, c), row.iter().map(|&(l, x)| (part.dof(l, c), x)).collect()));
         }
+    }
+    basis_change(part, &rows, identity)
+}
+
+/// `E` (or `T = I + E` with `identity`) from its owned rows: per owned slave DOF, its columns
+/// (global DOFs, each once) and values.
+fn basis_change(
+    part: &Partition,
+    rows: &[(usize, Vec<(usize, f64)>)],
+    identity: bool,
+) -> Result<Matrix> {
+    let n_local = part.n_owned_dofs();
+    let lo = part.first_dof();
+    let local = |dof: usize| (lo..lo + n_local).contains(&dof);
+    let (mut d_nnz, mut o_nnz) = (vec![i32::from(identity); n_local], vec![0i32; n_local]);
+    for (row, cols) in rows {
+        for &(col, _) in cols {
+            if identity && col == *row {
+                continue; // the identity's diagonal, counted already
+            }
+            match local(col) {
+                true => d_nnz[row - lo] += 1,
+                false => o_nnz[row - lo] += 1,
+            }
+        }
+    }
+    let mut m = Matrix::new_aij(n_local, part.n_global_dofs(), part.dim, &d_nnz, &o_nnz)?;
+    if identity {
+        for i in lo..lo + n_local {
+            m.set_values(&[i as i32], &[i as i32], &[1.0], true)?;
+        }
+    }
+    for (row, cols) in rows {
+        let idx: Vec<i32> = cols.iter().map(|&(col, _)| col as i32).collect();
+        let vals: Vec<f64> = cols.iter().map(|&(_, x)| x).collect();
+        // Added: the identity's diagonal may be among the columns.
+        m.set_values(&[*row as i32], &idx, &vals, true)?;
     }
     m.assemble()?;
     Ok(m)
@@ -686,8 +695,9 @@ pub struct MortarOptions {
     pub closed_form: bool,
     /// `-mortar_gap_rows` (default off): following, the active slave nodes' whole gap
     /// linearization in the basis change, a Newton step of the geometry per round
-    /// (`solver/rows.rs`): fewer rounds, but not yet safe where a slave face tips over a
-    /// master edge (README "Finite sliding").
+    /// (`solver/rows.rs`): fewer rounds where the surfaces are curved; a step whose Newton step
+    /// overshoots into a configuration the interface cannot be evaluated on starts again
+    /// without them (README "Finite sliding").
     pub gap_rows: bool,
 }
 

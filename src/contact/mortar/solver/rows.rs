@@ -264,8 +264,6 @@ pub(super) fn transfer_following(
     identity: bool,
 ) -> Result<Matrix> {
     let dim = part.dim;
-    let n_local = part.n_owned_dofs();
-    let lo = part.first_dof();
     // Per slave node: column node -> the 3-vector `w` with `E[(q,c),(k,c')] = n_q[c] w[c']`.
     let mut per: Vec<HashMap<usize, [f64; 3]>> = vec![HashMap::new(); iface.slave.len()];
     for &(q, l, m) in &iface.m {
@@ -281,35 +279,7 @@ pub(super) fn transfer_following(
             e[c] += r.w[c];
         }
     }
-    let local = |dof: usize| (lo..lo + n_local).contains(&dof);
-    let (mut d_nnz, mut o_nnz) = (vec![i32::from(identity); n_local], vec![0i32; n_local]);
-    for (q, cols) in per.iter().enumerate() {
-        let v = iface.slave[q];
-        if !part.owns(v) {
-            continue;
-        }
-        for c in 0..dim {
-            let i = part.dof(v, c) - lo;
-            for &k in cols.keys() {
-                for cc in 0..dim {
-                    if local(part.dof(k, cc)) {
-                        d_nnz[i] += 1;
-                    } else {
-                        o_nnz[i] += 1;
-                    }
-                }
-            }
-            // The diagonal may be among the columns (the slave node's own tangential part).
-            d_nnz[i] = d_nnz[i].min(n_local as i32);
-        }
-    }
-    let n = part.n_global_dofs();
-    let mut m = Matrix::new_aij(n_local, n, dim, &d_nnz, &o_nnz)?;
-    if identity {
-        for i in lo..lo + n_local {
-            m.set_values(&[i as i32], &[i as i32], &[1.0], true)?;
-        }
-    }
+    let mut out: Vec<(usize, Vec<(usize, f64)>)> = Vec::new();
     for (q, cols) in per.iter().enumerate() {
         let v = iface.slave[q];
         if !part.owns(v) || cols.is_empty() {
@@ -319,19 +289,11 @@ pub(super) fn transfer_following(
         let mut keys: Vec<usize> = cols.keys().copied().collect();
         keys.sort_unstable();
         for c in 0..dim {
-            let mut idx: Vec<i32> = Vec::new();
-            let mut vals: Vec<f64> = Vec::new();
-            for &k in &keys {
-                let w = cols[&k];
-                for cc in 0..dim {
-                    idx.push(part.dof(k, cc) as i32);
-                    vals.push(n[c] * w[cc]);
-                }
-            }
-            // Added: the identity's diagonal may be among them.
-            m.set_values(&[part.dof(v, c) as i32], &idx, &vals, true)?;
+            let entries = (keys.iter())
+                .flat_map(|k| (0..dim).map(move |cc| (part.dof(*k, cc), n[c] * cols[k][cc])))
+                .collect();
+            out.push((part.dof(v, c), entries));
         }
     }
-    m.assemble()?;
-    Ok(m)
+    super::basis_change(part, &out, identity)
 }
