@@ -127,6 +127,10 @@ enum Command {
         /// Override the scene's mass treatment: consistent, lumped, modified0, modified1.
         #[arg(long, value_name = "KIND")]
         mass: Option<String>,
+        /// Override the friction of every obstacle and pair: Coulomb's coefficient (0:
+        /// frictionless).
+        #[arg(long, value_name = "MU")]
+        friction: Option<f64>,
         /// How cells are split over ranks: metis (default), x-slabs or y-slabs (equal-count
         /// slabs along x or y, a predictable cut through the median).
         #[arg(long, default_value = "metis", value_parser = ["metis", "x-slabs", "y-slabs"])]
@@ -246,6 +250,7 @@ fn run(
             verbose,
             params,
             mass,
+            friction,
             partition,
             restart,
             summary: summary_file,
@@ -265,6 +270,9 @@ fn run(
             }
             if let Some(kind) = &mass {
                 scene.set_mass_kind(kind)?;
+            }
+            if let Some(mu) = friction {
+                scene.set_friction(mu)?;
             }
             if let Some(k) = every {
                 if k == 0 {

@@ -71,6 +71,13 @@ pub struct RunSummary {
     /// Total momentum `1^T M v` at the start and the end, per component.
     pub momentum_initial: Vec<f64>,
     pub momentum_final: Vec<f64>,
+    /// The angular momentum about the centre of mass, `sum_v (x_v - x_c) x (M v)_v` (current
+    /// positions `x = X + u`, three components), at the start (a restart: at the restart) and
+    /// the end.
+    #[serde(default)]
+    pub angular_momentum_initial: Vec<f64>,
+    #[serde(default)]
+    pub angular_momentum_final: Vec<f64>,
     pub contact: Option<ContactSummary>,
     /// PNG pictures written (rank 0's list).
     pub pictures: Vec<PathBuf>,
@@ -131,6 +138,9 @@ pub struct BodySummary {
     /// other load it equals the momentum change.
     #[serde(default)]
     pub contact_impulse: Vec<f64>,
+    /// Friction's part of `contact_impulse` (zero without friction).
+    #[serde(default)]
+    pub friction_impulse: Vec<f64>,
 }
 
 /// Mass-matrix diagnostics (see `check_mass`), per displacement component.
@@ -195,7 +205,12 @@ pub fn stability_from_file(path: &std::path::Path) -> crate::Result<Stability> {
         total: series("total")?,
         external_work: series("external_work")?,
         dirichlet_work: series("dirichlet_work")?,
-        contact_work: series("contact_work")?,
+        // The work of all contact forces: friction's dissipation taken off (a file from before
+        // friction has no dissipation series).
+        contact_work: match series("friction_dissipation") {
+            Ok(fd) => series("contact_work")?.iter().zip(&fd).map(|(w, d)| w - d).collect(),
+            Err(_) => series("contact_work")?,
+        },
         contact,
         body_size: body_size(&run.coordinates()?),
         ksp_iterations: summary.ksp_iterations,

@@ -3,8 +3,8 @@
 //! both, so that `io` needs none of the solver's modules (and `scene` none of `io`).
 
 /// The energies of the current state and the works done since the start: the midpoint rule
-/// keeps `kinetic + potential - E^0 = external_work + contact_work + dirichlet_work` to solver
-/// tolerance.
+/// keeps `kinetic + potential - E^0 = external_work + contact_work + dirichlet_work -
+/// friction_dissipation` to solver tolerance.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct Energy {
     /// `1/2 v.Mv`
@@ -17,11 +17,21 @@ pub struct Energy {
     pub contact_work: f64,
     /// Work of the reactions at non-zero Dirichlet boundaries.
     pub dirichlet_work: f64,
+    /// `sum_k sum_q t_q^{k+1/2} . s_q^k >= 0`: what friction dissipated (the tangential
+    /// forces' work against the slip); a moving obstacle's tangential work is in
+    /// `contact_work`.
+    pub friction_dissipation: f64,
 }
 
 impl Energy {
     pub fn total(&self) -> f64 {
         self.kinetic + self.potential
+    }
+
+    /// The work of all contact forces, friction's included: `contact_work -
+    /// friction_dissipation`.
+    pub fn contact_work_with_friction(&self) -> f64 {
+        self.contact_work - self.friction_dissipation
     }
 }
 
@@ -37,7 +47,22 @@ pub struct ContactRow {
     pub active: Vec<bool>,
     /// Active-set iterations of the step.
     pub iterations: usize,
+    /// With friction (empty without): per contact node the tangential force `t_q` of the
+    /// midpoint equation, on the obstacle or master side (the body gets `-t_q`), in the
+    /// tangent plane; it points along the slip.
+    pub tangential: Vec<[f64; 3]>,
+    /// With friction: per contact node its set, [`STATE_INACTIVE`], [`STATE_STICK`] or
+    /// [`STATE_SLIP`].
+    pub state: Vec<u8>,
+    /// With friction: per contact node the slip increment of the step, the tangential
+    /// displacement relative to the obstacle (zero off contact and where it sticks).
+    pub slip: Vec<[f64; 3]>,
 }
+
+/// A contact node's set in [`ContactRow::state`].
+pub const STATE_INACTIVE: u8 = 0;
+pub const STATE_STICK: u8 = 1;
+pub const STATE_SLIP: u8 = 2;
 
 impl ContactRow {
     /// Pressure `lambda_q / D_qq` with the boundary weights `D_qq`.
@@ -45,8 +70,8 @@ impl ContactRow {
         self.force.iter().zip(weights).map(|(f, w)| f / w).collect()
     }
 
-    /// The traction on the body at each contact node, `-p_q n_q`, `dim` components per node
-    /// (zero for a node without a normal yet: before its first step).
+    /// The traction on the body at each contact node, `-p_q n_q - t_q / D_qq`, `dim`
+    /// components per node (zero for a node without a normal yet: before its first step).
     pub fn traction(&self, weights: &[f64], normals: &[[f64; 3]], dim: usize) -> Vec<f64> {
         let pressure = self.pressure(weights);
         let nc = self.force.len();
@@ -56,7 +81,22 @@ impl ContactRow {
                 traction[q * dim + i] = -pressure[q] * normals[q][i];
             }
         }
+        for (q, t) in self.tangential.iter().enumerate().take(nc) {
+            for i in 0..dim {
+                traction[q * dim + i] -= t[i] / weights[q];
+            }
+        }
         traction
+    }
+
+    /// The tangential traction on the body, `-t_q / D_qq`, `dim` components per node (empty
+    /// without friction).
+    pub fn tangential_traction(&self, weights: &[f64], dim: usize) -> Vec<f64> {
+        let mut out = Vec::with_capacity(self.tangential.len() * dim);
+        for (t, w) in self.tangential.iter().zip(weights) {
+            out.extend((0..dim).map(|i| -t[i] / w));
+        }
+        out
     }
 }
 

@@ -140,7 +140,8 @@ impl<'w> ColumnActiveSet<'w> {
             }
         }
         let lambda: Vec<f64> = mu.iter().map(|m| m / self.factor).collect();
-        let out = self.nodes.step_contact(&frames, active.clone(), &lambda, &tr, lp.iterations);
+        let out =
+            self.nodes.step_contact(&frames, active.clone(), &lambda, &tr, lp.iterations, None);
         self.nodes.active = active;
         Ok((out, info.iterations))
     }

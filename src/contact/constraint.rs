@@ -15,6 +15,20 @@
 //! `d_q = n_q^T K_qq n_q` keeps its diagonal on `K`'s scale, so Jacobi (or any PETSc
 //! preconditioner, or a direct solver) applies unchanged.
 //!
+//! With friction (METHOD.md 5c, Hueber, Stadler and Wohlmuth 2008) a node's rows are one of
+//! three [`Condition`]s, each `L_q (rhs - K du)_q + D_q (y_q - du_q) + h_q = 0` with the
+//! directions `C_q` of `y_q` prescribed (the columns along them move to the right-hand side):
+//! - normal (frictionless, or Tresca/Coulomb slip's normal part): `C = n n^T`, `L = I - n n^T`,
+//!   `D = d n n^T`, `y = g n`: the tangential residual vanishes;
+//! - stick: `C = I`, `L = 0`, `D = d I`, `y = g n + w_t` (no slip relative to the obstacle,
+//!   which moves by `w` in the step);
+//! - slip along `z^` with slip bound `b`: `C = n n^T`, `L = z^ (z^ - mu n)^T + (1 - r) Q`,
+//!   `D = d n n^T + r c_t factor Q`, `Q = I - n n^T - z^ z^T` (3D only), `r = b^0 / |z^0|`; the row along
+//!   `z^` says `t . z^ = mu lambda` (Coulomb; Tresca: `t . z^ = s`, `h = -factor s z^`), the
+//!   rows across it are the semi-smooth Newton step of `t = b z / |z|` in the slip direction.
+//!   Coulomb's row couples the normal residual into the tangential one: the operator is then
+//!   not symmetric (friction is not associative), so the step solver is GMRES.
+//!
 //! Memory O(contact nodes): the original rows of the owned nodes that share a cell with a
 //! contact node (to restore and to transform them) and `K`'s rows at the owned contact DOFs
 //! as a small distributed matrix (for the forces). Changing the active set rewrites only the
@@ -28,6 +42,121 @@ use mpi::traits::*;
 use super::nodes::ContactNodes;
 use crate::error::{Error, Result};
 use crate::petsc::{Matrix, Vector};
+
+/// What the constrained operator imposes at one contact node (see the module's doc).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Condition {
+    /// Not in contact: the node's rows are `K`'s.
+    Free,
+    /// `n . du = g`, no tangential force (frictionless contact).
+    Normal { n: [f64; 3], g: f64 },
+    /// `du = g n + w_t`: `w_t` the obstacle's tangential displacement over the step (zero
+    /// against a resting obstacle).
+    Stick { n: [f64; 3], g: f64, w_t: [f64; 3] },
+    /// `n . du = g` and the tangential traction `b z^` (`b = mu lambda`, or given in `h`).
+    Slip {
+        n: [f64; 3],
+        g: f64,
+        w_t: [f64; 3],
+        /// The slip direction `z^` (unit, in the tangent plane).
+        dir: [f64; 3],
+        /// Coulomb's coefficient (0 with a given bound).
+        mu: f64,
+        /// `-factor s z^` for Tresca's bound `s` (zero for Coulomb).
+        h: [f64; 3],
+        /// `b^0 / |z^0|` of the last iterate, in [0, 1]: the weight of the slip-direction
+        /// rows' constraint part (3D).
+        ratio: f64,
+        /// `c_t factor`: the complementarity parameter on the operator's scale.
+        c_f: f64,
+    },
+}
+
+impl Condition {
+    pub fn is_active(&self) -> bool {
+        !matches!(self, Condition::Free)
+    }
+
+    /// The normal and gap of an active node.
+    pub fn normal(&self) -> Option<([f64; 3], f64)> {
+        match *self {
+            Condition::Free => None,
+            Condition::Normal { n, g }
+            | Condition::Stick { n, g, .. }
+            | Condition::Slip { n, g, .. } => Some((n, g)),
+        }
+    }
+
+    /// The prescribed displacement `y_q` and the constrained directions `C_q` (`dim x dim`).
+    fn target(&self, dim: usize) -> ([f64; 3], [[f64; 3]; 3]) {
+        let nn = |n: &[f64; 3]| outer(n, n, dim);
+        match *self {
+            Condition::Free => ([0.0; 3], [[0.0; 3]; 3]),
+            Condition::Normal { n, g } => (n.map(|x| g * x), nn(&n)),
+            Condition::Stick { n, g, w_t } => {
+                let mut c = [[0.0; 3]; 3];
+                for (i, row) in c.iter_mut().enumerate().take(dim) {
+                    row[i] = 1.0;
+                }
+                ([0, 1, 2].map(|i| g * n[i] + w_t[i]), c)
+            }
+            Condition::Slip { n, g, w_t, .. } => ([0, 1, 2].map(|i| g * n[i] + w_t[i]), nn(&n)),
+        }
+    }
+
+    /// The left factor `L_q`, the added diagonal block `D_q` (with the node's stiffness scale
+    /// `d`) and the constant `h_q` of a stick or slip node.
+    fn rows(&self, dim: usize, d: f64) -> ([[f64; 3]; 3], [[f64; 3]; 3], [f64; 3]) {
+        let mut l = [[0.0; 3]; 3];
+        let mut dm = [[0.0; 3]; 3];
+        match *self {
+            Condition::Free | Condition::Normal { .. } => {
+                unreachable!("the frictionless rows are built apart")
+            }
+            Condition::Stick { .. } => {
+                for (i, row) in dm.iter_mut().enumerate().take(dim) {
+                    row[i] = d;
+                }
+                (l, dm, [0.0; 3])
+            }
+            Condition::Slip { n, dir, mu, h, ratio, c_f, .. } => {
+                for i in 0..dim {
+                    for j in 0..dim {
+                        let id = if i == j { 1.0 } else { 0.0 };
+                        let q = id - n[i] * n[j] - dir[i] * dir[j];
+                        l[i][j] = dir[i] * (dir[j] - mu * n[j]) + (1.0 - ratio) * q;
+                        dm[i][j] = d * n[i] * n[j] + ratio * c_f * q;
+                    }
+                }
+                (l, dm, h)
+            }
+        }
+    }
+}
+
+/// What of a condition the operator depends on (not the gap or the obstacle's motion,
+/// which enter the right-hand side only).
+fn operator_part(c: &Condition) -> Condition {
+    match *c {
+        Condition::Free => Condition::Free,
+        Condition::Normal { n, .. } => Condition::Normal { n, g: 0.0 },
+        Condition::Stick { n, .. } => Condition::Stick { n, g: 0.0, w_t: [0.0; 3] },
+        Condition::Slip { n, dir, mu, ratio, c_f, .. } => {
+            Condition::Slip { n, g: 0.0, w_t: [0.0; 3], dir, mu, h: [0.0; 3], ratio, c_f }
+        }
+    }
+}
+
+/// `a b^T` on the first `dim` components.
+fn outer(a: &[f64; 3], b: &[f64; 3], dim: usize) -> [[f64; 3]; 3] {
+    let mut m = [[0.0; 3]; 3];
+    for i in 0..dim {
+        for j in 0..dim {
+            m[i][j] = a[i] * b[j];
+        }
+    }
+    m
+}
 
 /// The original rows of one owned node (all `dim` components share the columns).
 struct NodeRows {
@@ -68,8 +197,8 @@ pub struct NormalConstraints {
     /// `K`'s rows at the owned contact DOFs (other rows empty), for the forces.
     k_c: Matrix,
     k_c_du: Vector,
-    /// The active set and normals the operator holds now.
-    applied: (Vec<bool>, Vec<[f64; 3]>),
+    /// The conditions the operator holds now (their operator parts, [`operator_part`]).
+    applied: Vec<Condition>,
     /// Rows currently differing from the original.
     dirty: Vec<u32>,
 }
@@ -157,26 +286,20 @@ impl NormalConstraints {
             own,
             k_c,
             k_c_du,
-            applied: (vec![false; nc], vec![[0.0; 3]; nc]),
+            applied: vec![Condition::Free; nc],
             dirty: Vec::new(),
         })
     }
 
-    /// Makes `k` the constrained operator `K~` for the active set and normals (collective;
-    /// every rank passes the same arguments). Returns whether `k` changed.
-    pub fn impose(
-        &mut self,
-        k: &mut Matrix,
-        active: &[bool],
-        normals: &[[f64; 3]],
-    ) -> Result<bool> {
-        let (was, held) = &self.applied;
-        let same = was == active && (0..active.len()).all(|q| !active[q] || held[q] == normals[q]);
-        if same {
+    /// Makes `k` the constrained operator `K~` for the nodes' conditions (collective; every
+    /// rank passes the same conditions). Returns whether `k` changed.
+    pub fn impose(&mut self, k: &mut Matrix, conds: &[Condition]) -> Result<bool> {
+        let key: Vec<Condition> = conds.iter().map(operator_part).collect();
+        if self.applied == key {
             return Ok(false);
         }
-        let mut now: Vec<u32> = (0..active.len())
-            .filter(|&q| active[q])
+        let mut now: Vec<u32> = (0..conds.len())
+            .filter(|&q| conds[q].is_active())
             .flat_map(|q| self.near[q].iter().copied())
             .collect();
         now.sort_unstable();
@@ -188,48 +311,68 @@ impl NormalConstraints {
         for &r in &touched {
             let row = &self.rows[r as usize];
             let ids: Vec<i32> = (0..di).map(|c| row.dof0 + c).collect();
-            let vals = self.transformed(row, active, normals);
+            let vals = self.transformed(row, conds);
             k.set_values(&ids, &row.cols, &vals, false)?;
         }
         k.assemble()?;
         self.dirty = now;
-        self.applied = (active.to_vec(), normals.to_vec());
+        self.applied = key;
         Ok(true)
     }
 
-    /// One node's rows of `K~ = P K P + sum_q d_q N_q`.
-    fn transformed(&self, row: &NodeRows, active: &[bool], normals: &[[f64; 3]]) -> Vec<f64> {
+    /// One node's rows of `K~ = L K P + sum_q D_q` (the frictionless rows:
+    /// `P K P + sum_q d_q N_q`).
+    fn transformed(&self, row: &NodeRows, conds: &[Condition]) -> Vec<f64> {
         let d = self.dim;
         let nc = row.cols.len();
         let mut v = row.vals.clone();
-        // Right factor P: every active column block b becomes b (I - n n^T).
+        // Right factor P: every active column block b becomes b (I - n n^T), or 0 (stick).
         for &(pos, q) in &row.blocks {
-            if !active[q as usize] {
-                continue;
-            }
-            let n = &normals[q as usize];
+            let cond = &conds[q as usize];
+            let Some((n, _)) = cond.normal() else { continue };
+            let stick = matches!(cond, Condition::Stick { .. });
             for c in 0..d {
                 let b = &mut v[c * nc + pos as usize..c * nc + pos as usize + d];
+                if stick {
+                    b.iter_mut().for_each(|x| *x = 0.0);
+                    continue;
+                }
                 let s: f64 = (0..d).map(|i| b[i] * n[i]).sum();
                 for i in 0..d {
                     b[i] -= s * n[i];
                 }
             }
         }
-        // Left factor P and the normal diagonal, for an active node's own rows.
-        if let Some((q, pos)) = row.contact {
-            if active[q as usize] {
-                let n = &normals[q as usize];
+        // Left factor and the prescribed rows, for an active node's own rows.
+        let Some((q, pos)) = row.contact else { return v };
+        let cond = &conds[q as usize];
+        match *cond {
+            Condition::Free => {}
+            Condition::Normal { n, .. } => {
                 for col in 0..nc {
                     let s: f64 = (0..d).map(|c| v[c * nc + col] * n[c]).sum();
                     for c in 0..d {
                         v[c * nc + col] -= s * n[c];
                     }
                 }
-                let dq = row.normal_stiffness(d, n);
+                let dq = row.normal_stiffness(d, &n);
                 for a in 0..d {
                     for b in 0..d {
                         v[a * nc + pos as usize + b] += dq * n[a] * n[b];
+                    }
+                }
+            }
+            Condition::Stick { n, .. } | Condition::Slip { n, .. } => {
+                let (l, dm, _) = cond.rows(d, row.normal_stiffness(d, &n));
+                let old = v.clone();
+                for col in 0..nc {
+                    for a in 0..d {
+                        v[a * nc + col] = (0..d).map(|c| l[a][c] * old[c * nc + col]).sum();
+                    }
+                }
+                for a in 0..d {
+                    for b in 0..d {
+                        v[a * nc + pos as usize + b] += dm[a][b];
                     }
                 }
             }
@@ -237,15 +380,9 @@ impl NormalConstraints {
         v
     }
 
-    /// The constrained right-hand side `b = P (rhs - K du_p) + sum_q d_q g_q n_q e_q`, with
-    /// the gaps and normals `frames` of the contact nodes.
-    pub fn rhs(
-        &self,
-        rhs: &Vector,
-        active: &[bool],
-        frames: &[(f64, [f64; 3])],
-        b: &mut Vector,
-    ) -> Result<()> {
+    /// The constrained right-hand side `b = L (rhs - K du_p) + sum_q (D_q y_q + h_q)` for the
+    /// nodes' conditions (`du_p`: the prescribed parts `C_q y_q`).
+    pub fn rhs(&self, rhs: &Vector, conds: &[Condition], b: &mut Vector) -> Result<()> {
         b.copy_from(rhs)?;
         let (d, lo) = (self.dim, self.first_dof);
         b.with_local_slice_mut(|x| {
@@ -254,59 +391,113 @@ impl NormalConstraints {
                 let nc = row.cols.len();
                 let base = row.dof0 as usize - lo;
                 for &(pos, q) in &row.blocks {
-                    let (g, n) = frames[q as usize];
-                    if !active[q as usize] || g == 0.0 {
-                        continue;
-                    }
-                    for c in 0..d {
-                        let kb = &row.vals[c * nc + pos as usize..c * nc + pos as usize + d];
-                        x[base + c] -= g * (0..d).map(|i| kb[i] * n[i]).sum::<f64>();
+                    let cond = &conds[q as usize];
+                    match *cond {
+                        Condition::Free => {}
+                        Condition::Normal { n, g } | Condition::Slip { n, g, .. } => {
+                            if g == 0.0 {
+                                continue;
+                            }
+                            for c in 0..d {
+                                let kb =
+                                    &row.vals[c * nc + pos as usize..c * nc + pos as usize + d];
+                                x[base + c] -= g * (0..d).map(|i| kb[i] * n[i]).sum::<f64>();
+                            }
+                        }
+                        Condition::Stick { .. } => {
+                            let (y, _) = cond.target(d);
+                            for c in 0..d {
+                                let kb =
+                                    &row.vals[c * nc + pos as usize..c * nc + pos as usize + d];
+                                x[base + c] -= (0..d).map(|i| kb[i] * y[i]).sum::<f64>();
+                            }
+                        }
                     }
                 }
             }
-            // P, and the prescribed normal part, on the active nodes this rank owns.
+            // L, and the prescribed rows, on the active nodes this rank owns.
             for (q, r) in self.own.iter().enumerate() {
-                let (Some(r), true) = (r, active[q]) else { continue };
+                let Some(r) = r else { continue };
+                let cond = &conds[q];
+                let Some((n, g)) = cond.normal() else { continue };
                 let row = &self.rows[*r as usize];
-                let (g, n) = frames[q];
                 let base = row.dof0 as usize - lo;
-                let s: f64 = (0..d).map(|c| x[base + c] * n[c]).sum();
                 let dq = row.normal_stiffness(d, &n);
-                for c in 0..d {
-                    x[base + c] += (dq * g - s) * n[c];
+                if let Condition::Normal { .. } = cond {
+                    let s: f64 = (0..d).map(|c| x[base + c] * n[c]).sum();
+                    for c in 0..d {
+                        x[base + c] += (dq * g - s) * n[c];
+                    }
+                    continue;
+                }
+                let (l, dm, h) = cond.rows(d, dq);
+                let (y, _) = cond.target(d);
+                let old: Vec<f64> = (0..d).map(|c| x[base + c]).collect();
+                for a in 0..d {
+                    x[base + a] =
+                        (0..d).map(|c| l[a][c] * old[c] + dm[a][c] * y[c]).sum::<f64>() + h[a];
                 }
             }
         })
     }
 
-    /// The contact forces `lambda_q = n_q . (rhs - K du)_q / factor` of the active nodes
-    /// (zero elsewhere), on every rank.
-    pub fn forces(
+    /// The residual `(rhs - K du)_q` of every active node (zero elsewhere), on every rank:
+    /// `factor` times the force the node exerts on the obstacle (`lambda_q n_q` plus the
+    /// tangential traction).
+    pub fn residuals(
         &mut self,
         nodes: &ContactNodes,
         rhs: &Vector,
         du: &Vector,
-        active: &[bool],
-        normals: &[[f64; 3]],
-        factor: f64,
-    ) -> Result<Vec<f64>> {
+        conds: &[Condition],
+    ) -> Result<Vec<[f64; 3]>> {
         self.k_c.mult(du, &mut self.k_c_du)?;
         let (d, lo) = (self.dim, self.first_dof);
-        let mut local = vec![0.0; active.len()];
+        let mut local = vec![0.0; conds.len() * 3];
         rhs.with_local_slice(|f| {
             self.k_c_du.with_local_slice(|y| {
                 for (q, r) in self.own.iter().enumerate() {
-                    let (Some(r), true) = (r, active[q]) else { continue };
+                    let (Some(r), true) = (r, conds[q].is_active()) else { continue };
                     let base = self.rows[*r as usize].dof0 as usize - lo;
-                    let n = normals[q];
-                    local[q] =
-                        (0..d).map(|c| n[c] * (f[base + c] - y[base + c])).sum::<f64>() / factor;
+                    for c in 0..d {
+                        local[q * 3 + c] = f[base + c] - y[base + c];
+                    }
                 }
             })
         })??;
         let mut global = vec![0.0; local.len()];
         nodes.world.all_reduce_into(&local[..], &mut global[..], SystemOperation::sum());
-        Ok(global)
+        Ok(global.chunks(3).map(|c| [c[0], c[1], c[2]]).collect())
+    }
+
+    /// The contact forces `lambda_q = n_q . (rhs - K du)_q / factor` of the active nodes (zero
+    /// elsewhere) from their residuals.
+    pub fn normal_forces(
+        residuals: &[[f64; 3]],
+        conds: &[Condition],
+        dim: usize,
+        factor: f64,
+    ) -> Vec<f64> {
+        (0..conds.len())
+            .map(|q| match conds[q].normal() {
+                Some((n, _)) => (0..dim).map(|c| n[c] * residuals[q][c]).sum::<f64>() / factor,
+                None => 0.0,
+            })
+            .collect()
+    }
+
+    /// Every contact node's stiffness scale `n^T K_qq n` along `normal(q)` (on every rank;
+    /// collective), the `d_q` of the prescribed rows.
+    pub fn normal_stiffness(&self, nodes: &ContactNodes, normals: &[[f64; 3]]) -> Vec<f64> {
+        let mut local = vec![0.0; normals.len()];
+        for (q, r) in self.own.iter().enumerate() {
+            if let Some(r) = r {
+                local[q] = self.rows[*r as usize].normal_stiffness(self.dim, &normals[q]);
+            }
+        }
+        let mut global = vec![0.0; local.len()];
+        nodes.world.all_reduce_into(&local[..], &mut global[..], SystemOperation::sum());
+        global
     }
 
     /// Original rows kept next to the contact boundary (for the memory report).

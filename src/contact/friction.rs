@@ -1,7 +1,7 @@
 //! Coulomb and Tresca friction at one contact node: the pointwise kernels of the primal-dual
 //! active set with three sets per node (Hueber, Stadler and Wohlmuth, SIAM J. Sci. Comput. 30,
-//! 2008; METHOD.md 5c). Pure functions of one node's data; the solver that uses them (the sets
-//! inside the active-set loop, the constraints, the energy account) is issue 25's next step.
+//! 2008; METHOD.md 5c). Pure functions of one node's data; [`super::pdas`] uses them inside its
+//! active-set loop, [`super::constraint::Condition`] holds the rows they lead to.
 //!
 //! Per node: the normal multiplier `lambda_n` and weighted gap `g` of the normal condition, the
 //! tangential multiplier `lambda_t` and the weighted slip increment `u_t` (both in the node's
@@ -30,6 +30,15 @@ pub enum FrictionLaw {
     Coulomb { mu: f64 },
     /// Tresca: bounded by a given `bound` wherever the node is in contact (verification).
     Tresca { bound: f64 },
+}
+
+impl FrictionLaw {
+    pub fn from_scene(f: crate::scene::FrictionSpec) -> FrictionLaw {
+        match f {
+            crate::scene::FrictionSpec::Coulomb(mu) => FrictionLaw::Coulomb { mu },
+            crate::scene::FrictionSpec::Tresca(bound) => FrictionLaw::Tresca { bound },
+        }
+    }
 }
 
 /// A node's set in an active-set iteration.

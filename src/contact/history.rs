@@ -20,6 +20,10 @@ pub struct History {
     obstacle_impulse: [f64; 3],
     /// Per contact node, the impulse its body got there: `-tau sum_n lambda_q n_q`.
     node_impulse: Vec<[f64; 3]>,
+    /// Per contact node, the friction's share of `node_impulse`: `-tau sum_n t_q`.
+    node_friction_impulse: Vec<[f64; 3]>,
+    /// Node-steps in stick and in slip (friction), and the nodes of the last step in each.
+    stick_slip: [usize; 4],
     /// Per master node, `tau sum_n (M^T lambda)_l n` (pairs).
     master_node_impulse: Vec<[f64; 3]>,
     weights: Vec<f64>,
@@ -54,6 +58,34 @@ pub struct ContactSummary {
     pub episodes_max: usize,
     pub episodes_mean: f64,
     pub contact_work: f64,
+    /// With friction: what it dissipated, `sum_n sum_q t_q . s_q >= 0`.
+    #[serde(default)]
+    pub friction_dissipation: f64,
+    /// With friction: node-steps in stick and in slip over the run, and nodes in stick and in
+    /// slip at the last step.
+    #[serde(default)]
+    pub stick_node_steps: usize,
+    #[serde(default)]
+    pub slip_node_steps: usize,
+    #[serde(default)]
+    pub stick_nodes_last: usize,
+    #[serde(default)]
+    pub slip_nodes_last: usize,
+    /// With friction: the friction's part of `impulse`, `-tau sum_n sum_q t_q` (empty
+    /// without friction).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub friction_impulse: Vec<f64>,
+    /// With friction: the chatter of the tangential traction, as of the pressure: the lowest
+    /// node's `|t_q| / D_qq` (period-2 amplitude, total-variation index) and the total
+    /// tangential force `|sum_q t_q|` (total-variation index, period-2 amplitude).
+    #[serde(default)]
+    pub lowest_tangential_osc2: f64,
+    #[serde(default)]
+    pub lowest_tangential_tv_index: f64,
+    #[serde(default)]
+    pub total_tangential_tv_index: f64,
+    #[serde(default)]
+    pub total_tangential_osc2: f64,
     /// Impulse the contact gave the body (the slave body of a pair),
     /// `-tau sum_n sum_q lambda_q n_q`, per component.
     pub impulse: Vec<f64>,
@@ -92,6 +124,7 @@ impl History {
             gap: vec![f64::NAN; nc],
             active: c.active().to_vec(),
             iterations: 0,
+            ..ContactRow::default()
         });
     }
 
@@ -109,6 +142,17 @@ impl History {
             for i in 0..3 {
                 imp[i] += tau * f[i];
             }
+        }
+        if !c.row.tangential.is_empty() {
+            self.node_friction_impulse.resize(n, [0.0; 3]);
+            for (imp, t) in self.node_friction_impulse.iter_mut().zip(&c.row.tangential) {
+                for i in 0..3 {
+                    imp[i] -= tau * t[i];
+                }
+            }
+            let count = |s: u8| c.row.state.iter().filter(|&&x| x == s).count();
+            let (stick, slip) = (count(crate::rows::STATE_STICK), count(crate::rows::STATE_SLIP));
+            self.stick_slip = [self.stick_slip[0] + stick, self.stick_slip[1] + slip, stick, slip];
         }
         self.master_node_impulse.resize(c.master_nodal.len(), [0.0; 3]);
         for (imp, f) in self.master_node_impulse.iter_mut().zip(&c.master_nodal) {
@@ -135,6 +179,19 @@ impl History {
         let all = (nodes.iter().zip(&self.node_impulse))
             .chain(master.iter().zip(&self.master_node_impulse));
         for (&v, imp) in all {
+            if holds(v) {
+                for i in 0..3 {
+                    out[i] += imp[i];
+                }
+            }
+        }
+        out
+    }
+
+    /// The friction's impulse on the contact nodes `holds` accepts (zero without friction).
+    pub fn friction_impulse_on(&self, nodes: &[usize], holds: impl Fn(usize) -> bool) -> [f64; 3] {
+        let mut out = [0.0; 3];
+        for (&v, imp) in nodes.iter().zip(&self.node_friction_impulse) {
             if holds(v) {
                 for i in 0..3 {
                     out[i] += imp[i];
@@ -174,6 +231,7 @@ impl History {
         c: &dyn ContactSolver,
         mesh: &Mesh,
         contact_work: f64,
+        friction_dissipation: f64,
         contact_steps_seconds: f64,
     ) -> ContactSummary {
         let nc = c.n_nodes();
@@ -199,6 +257,35 @@ impl History {
         };
         let eps: Vec<usize> = (0..nc).map(|k| episodes(&active_of(k))).filter(|&e| e > 0).collect();
         let max_pressure = (0..nc).flat_map(pressure_of).fold(0.0f64, |a, b| a.max(b));
+        // The tangential traction's chatter (rows without friction data count as zero).
+        let norm = |t: &[f64; 3]| (t[0] * t[0] + t[1] * t[1] + t[2] * t[2]).sqrt();
+        let t_low: Vec<f64> = (self.rows.iter())
+            .map(|r| r.tangential.get(lowest).map_or(0.0, |t| norm(t) / self.weights[lowest]))
+            .collect();
+        let (lowest_tangential_osc2, lowest_tangential_tv_index) =
+            match contact_period(&active_of(lowest)) {
+                Some(per) if t_low.iter().any(|&x| x > 0.0) => {
+                    (osc2(&t_low, per), tv_index(&t_low, per))
+                }
+                _ => (0.0, 0.0),
+            };
+        let t_total: Vec<f64> = (self.rows.iter())
+            .map(|r| {
+                let mut s = [0.0; 3];
+                for t in &r.tangential {
+                    for i in 0..3 {
+                        s[i] += t[i];
+                    }
+                }
+                norm(&s)
+            })
+            .collect();
+        let (total_tangential_tv_index, total_tangential_osc2) = match period {
+            Some(per) if t_total.iter().any(|&x| x > 0.0) => {
+                (tv_index(&t_total, per), osc2(&t_total, per))
+            }
+            _ => (0.0, 0.0),
+        };
         ContactSummary {
             nodes: nc,
             first_contact_step: first,
@@ -230,6 +317,21 @@ impl History {
                 eps.iter().sum::<usize>() as f64 / eps.len() as f64
             },
             contact_work,
+            friction_dissipation,
+            stick_node_steps: self.stick_slip[0],
+            slip_node_steps: self.stick_slip[1],
+            stick_nodes_last: self.stick_slip[2],
+            slip_nodes_last: self.stick_slip[3],
+            friction_impulse: if self.node_friction_impulse.is_empty() {
+                vec![]
+            } else {
+                let all = self.friction_impulse_on(&self.nodes, |_| true);
+                all[..dim].to_vec()
+            },
+            lowest_tangential_osc2,
+            lowest_tangential_tv_index,
+            total_tangential_tv_index,
+            total_tangential_osc2,
             impulse: (0..dim).map(|i| -self.impulse[i]).collect(),
             master_impulse: if c.is_pair() {
                 (0..dim).map(|i| self.master_impulse[i]).collect()

@@ -51,7 +51,7 @@ use crate::partition::Partition;
 pub use crate::rows::ContactRow;
 pub use active_set::ActiveSetLoop;
 pub use interface::ContactSolver;
-pub use nodes::{trace, ContactBoundary, ContactNodes};
+pub use nodes::{trace, ContactBoundary, ContactNodes, NodeFriction, StepFriction};
 pub use obstacle::{Obstacle, Obstacles, Shape};
 pub use step::{NodePlane, StepContact, StepSystem};
 
@@ -98,6 +98,12 @@ pub fn solver<'w>(
     options: &ContactOptions,
 ) -> Result<Box<dyn ContactSolver + 'w>> {
     let nodes = ContactNodes::new(world, mesh, part, boundary, obstacles);
+    if options.solver == ContactSolverKind::Columns && nodes.has_friction() {
+        return Err(crate::error::Error::Usage(
+            "-contact_solver columns has no friction: drop the option (the default pdas has)"
+                .into(),
+        ));
+    }
     match options.solver {
         ContactSolverKind::Pdas => {
             let mut s = pdas::ActiveSet::new(nodes, factor);

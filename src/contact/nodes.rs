@@ -7,6 +7,7 @@ use mpi::collective::SystemOperation;
 use mpi::topology::SimpleCommunicator;
 use mpi::traits::*;
 
+use super::friction::FrictionLaw;
 use super::obstacle::{self, Obstacles};
 use super::step::{NodePlane, StepContact};
 use crate::error::{Error, Result};
@@ -131,6 +132,17 @@ pub struct ContactNodes<'w> {
     /// [`super::mortar::MortarActiveSet`]). `None` for the nodes that meet the obstacles beside
     /// a pair (`u~ = u` there).
     pub node_planes: Option<Vec<Option<NodePlane>>>,
+    /// The friction law per obstacle, and last the pair's planes' (`None`: frictionless).
+    pub friction: Vec<Option<FrictionLaw>>,
+}
+
+/// One contact node's friction in a step: the law of what it meets (Tresca's bound as the
+/// node's force, the traction bound times its weight `D_qq`) and that side's displacement over
+/// the step (an obstacle's translation; zero for a pair's plane).
+#[derive(Debug, Clone, Copy)]
+pub struct NodeFriction {
+    pub law: FrictionLaw,
+    pub motion: [f64; 3],
 }
 
 impl<'w> ContactNodes<'w> {
@@ -163,14 +175,52 @@ impl<'w> ContactNodes<'w> {
             tags: boundary.nodes.iter().map(|&v| mesh.node_tags[v]).collect(),
             coords,
             boundary,
-            obstacles,
             dim,
             dofs,
             first_dof: part.first_dof(),
             gap_tol: 1e-12 * diag.max(f64::MIN_POSITIVE),
             active: vec![false; n],
             node_planes: None,
+            friction: obstacles.0.iter().map(|o| o.friction).collect(),
+            obstacles,
         }
+    }
+
+    /// Whether any contact node has friction.
+    pub fn has_friction(&self) -> bool {
+        self.friction.iter().any(Option::is_some)
+    }
+
+    /// Per contact node with friction: its law and the displacement of what it meets over
+    /// the step `time - tau .. time` (`closest`: each node's obstacle index, from
+    /// [`ContactNodes::closest`]).
+    pub fn node_friction(
+        &self,
+        closest: &[(usize, f64, [f64; 3])],
+        time: f64,
+        tau: f64,
+    ) -> Vec<Option<NodeFriction>> {
+        let motions: Vec<[f64; 3]> = (self.obstacles.0.iter())
+            .map(|o| match &o.motion {
+                None => [0.0; 3],
+                Some(d) => {
+                    let (a, b) = (d.eval([0.0; 3], time - tau), d.eval([0.0; 3], time));
+                    [0, 1, 2].map(|i| b[i] - a[i])
+                }
+            })
+            .collect();
+        closest
+            .iter()
+            .zip(&self.boundary.weights)
+            .map(|(&(o, _, _), &w)| {
+                // Tresca's bound is a traction: the node's share is `s D_qq`.
+                let law = match self.friction.get(o).copied().flatten()? {
+                    FrictionLaw::Tresca { bound } => FrictionLaw::Tresca { bound: bound * w },
+                    coulomb => coulomb,
+                };
+                Some(NodeFriction { law, motion: motions.get(o).copied().unwrap_or([0.0; 3]) })
+            })
+            .collect()
     }
 
     pub fn len(&self) -> usize {
@@ -189,7 +239,7 @@ impl<'w> ContactNodes<'w> {
 
     /// For every contact node at displacement `u` (trace given), with the obstacles placed at
     /// `time`: the obstacle with the smallest gap (its index), that gap and its normal.
-    fn closest(&self, u_trace: &[f64], time: f64) -> Vec<(usize, f64, [f64; 3])> {
+    pub fn closest(&self, u_trace: &[f64], time: f64) -> Vec<(usize, f64, [f64; 3])> {
         let d = self.dim;
         let placed = self.obstacles.at(time);
         self.coords
@@ -259,7 +309,8 @@ impl<'w> ContactNodes<'w> {
     }
 
     /// The step's contact data from the converged iteration: forces `lambda` (of the
-    /// midpoint equation; zero off the active set), the increment's trace, the frames at `t_n`.
+    /// midpoint equation; zero off the active set), the increment's trace, the frames at `t_n`,
+    /// and with friction the nodes' tangential data.
     pub fn step_contact(
         &self,
         frames: &[(f64, [f64; 3])],
@@ -267,6 +318,7 @@ impl<'w> ContactNodes<'w> {
         lambda: &[f64],
         du_trace: &[f64],
         iterations: usize,
+        friction: Option<StepFriction>,
     ) -> StepContact {
         let nc = self.len();
         let ndu = self.normal_parts(frames, du_trace);
@@ -276,9 +328,12 @@ impl<'w> ContactNodes<'w> {
                 gap: (0..nc).map(|p| frames[p].0 - ndu[p]).collect(),
                 active,
                 iterations,
+                ..ContactRow::default()
             },
             normals: frames.iter().map(|f| f.1).collect(),
             work: 0.0,
+            dissipation: 0.0,
+            tangential_work: 0.0,
             resultant: [0.0; 3],
             obstacle_force: [0.0; 3],
             master_force: [0.0; 3],
@@ -298,6 +353,34 @@ impl<'w> ContactNodes<'w> {
                 }
             }
         }
+        if let Some(f) = friction {
+            for p in (0..nc).filter(|&p| out.row.active[p]) {
+                let (t, s, w) = (f.tangential[p], f.slip[p], f.motion_t[p]);
+                out.dissipation += (0..3).map(|i| t[i] * s[i]).sum::<f64>();
+                out.tangential_work -= (0..3).map(|i| t[i] * w[i]).sum::<f64>();
+                let on_obstacle = self.node_planes.as_ref().is_some_and(|pl| pl[p].is_none());
+                let sum = if on_obstacle { &mut out.obstacle_force } else { &mut out.resultant };
+                for (c, x) in sum.iter_mut().enumerate() {
+                    *x += t[c];
+                }
+            }
+            out.contact_nodal = f.tangential.iter().map(|t| t.map(|x| -x)).collect();
+            out.row.tangential = f.tangential;
+            out.row.state = f.state;
+            out.row.slip = f.slip;
+        }
         out
     }
+}
+
+/// A step's friction data per contact node, from the converged iteration (zero off
+/// contact): the tangential force on the obstacle side `t_q`, the set
+/// ([`crate::rows::STATE_SLIP`], ...), the slip increment `s_q` and the tangential
+/// displacement `w_q` of the obstacle side over the step.
+#[derive(Debug, Clone, Default)]
+pub struct StepFriction {
+    pub tangential: Vec<[f64; 3]>,
+    pub state: Vec<u8>,
+    pub slip: Vec<[f64; 3]>,
+    pub motion_t: Vec<[f64; 3]>,
 }

@@ -8,6 +8,7 @@
 //! among several obstacles a node takes the one with the smallest gap (node-local: right for
 //! obstacles that are apart).
 
+use super::friction::FrictionLaw;
 use crate::scene;
 use crate::scene::expr::VecExpr;
 
@@ -121,11 +122,17 @@ pub struct Obstacle {
     pub shape: Shape,
     /// `d(t)`, expressions in `t` only (the scene checks it).
     pub motion: Option<VecExpr>,
+    /// The friction between the bodies and this obstacle (`None`: frictionless).
+    pub friction: Option<FrictionLaw>,
 }
 
 impl Obstacle {
     pub fn from_scene(o: &scene::Obstacle) -> Obstacle {
-        Obstacle { shape: Shape::from_scene(&o.shape), motion: o.motion.clone() }
+        Obstacle {
+            shape: Shape::from_scene(&o.shape),
+            motion: o.motion.clone(),
+            friction: o.friction.map(FrictionLaw::from_scene),
+        }
     }
 
     /// The obstacle at time `t`: the reference shape translated by `d(t)`.
@@ -219,6 +226,7 @@ mod tests {
         let floor = Obstacle {
             shape: Shape::Plane { point: [0.0; 3], normal: [0.0, 1.0, 0.0] },
             motion: Some(motion),
+            friction: None,
         };
         let (g, n) = floor.at(0.25).gap_normal([4.0, 1.0, 0.0]);
         assert!((g - 0.5).abs() < 1e-15 && n == [0.0, -1.0, 0.0]);

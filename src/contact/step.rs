@@ -17,9 +17,10 @@ pub struct StepSystem<'a> {
     pub u: &'a Vector,
     /// Holds the previous increment (the first guess) and gets the result.
     pub du: &'a mut Vector,
-    /// The step being solved (`n + 1`) and its end time `t_{n+1}`.
+    /// The step being solved (`n + 1`), its end time `t_{n+1}` and length `tau`.
     pub step: usize,
     pub time: f64,
+    pub tau: f64,
 }
 
 /// What the contact solver found in one step (all per contact node, same on every rank).
@@ -29,8 +30,15 @@ pub struct StepContact {
     pub normals: Vec<[f64; 3]>,
     /// Work of the contact forces in this step, `-sum_q lambda_q n_q . du_q` (<= 0).
     pub work: f64,
-    /// `sum_q lambda_q n_q` (the force the obstacle takes; the body gets its negative); of a
-    /// pair with obstacles beside it, over the slave nodes only.
+    /// With friction: the frictional dissipation of the step, `sum_q t_q . s_q >= 0` (the
+    /// tangential force's work against the slip; the body loses it).
+    pub dissipation: f64,
+    /// With friction against a moving obstacle: the work its tangential force does by
+    /// carrying the body along, `-sum_q t_q . w_q` (the body's tangential work is this minus
+    /// the dissipation).
+    pub tangential_work: f64,
+    /// `sum_q lambda_q n_q + t_q` (the force the obstacle takes; the body gets its negative);
+    /// of a pair with obstacles beside it, over the slave nodes only.
     pub resultant: [f64; 3],
     /// Of a pair with obstacles beside it: `sum_q lambda_q n_q` over the nodes that meet the
     /// obstacles (the obstacles' force; that body gets its negative). Zero otherwise.

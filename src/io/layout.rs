@@ -23,7 +23,7 @@ pub const FIELDS: &str = "fields";
 pub const XDMF: &str = "xdmf";
 pub const XDMF_TOPOLOGY: &str = "xdmf/topology";
 /// The per-step energy series, `energy/<name>`, in the order the writer appends them.
-pub const ENERGY_SERIES: [&str; 8] = [
+pub const ENERGY_SERIES: [&str; 9] = [
     "step",
     "time",
     "kinetic",
@@ -32,6 +32,7 @@ pub const ENERGY_SERIES: [&str; 8] = [
     "external_work",
     "contact_work",
     "dirichlet_work",
+    "friction_dissipation",
 ];
 pub const CONTACT: &str = "contact";
 pub const CONTACT_NODES: &str = "contact/nodes";
@@ -53,6 +54,11 @@ pub const CONTACT_PER_NODE: [&str; 4] = ["pressure", "force", "gap", "active"];
 pub const CONTACT_PER_STEP: [&str; 3] = ["active_set_size", "iterations", "area"];
 /// Per contact node and step, `dim` components: the traction `-p_q n_q` on the body.
 pub const CONTACT_TRACTION: &str = "contact/traction";
+/// With friction, per contact node and step: the tangential traction on the body `-t_q / D_qq`
+/// and the slip increment (`dim` components), and the set (0 inactive, 1 stick, 2 slip).
+pub const CONTACT_TANGENTIAL: &str = "tangential_traction";
+pub const CONTACT_SLIP: &str = "slip";
+pub const CONTACT_STATE: &str = "state";
 pub const CHECKPOINT: &str = "checkpoint";
 pub const CHECKPOINT_STATE: [&str; 3] = ["u", "v", "du"];
 pub const CHECKPOINT_SCALARS: &str = "checkpoint/scalars";

@@ -161,6 +161,9 @@ struct ContactDatasets {
     /// `[steps + 1, contact nodes, dim]`: `-p_q n_q`, and `[steps + 1]`: the active weights.
     traction: Dataset,
     area: Dataset,
+    /// With friction: `tangential_traction` and `slip` `[steps + 1, contact nodes, dim]`,
+    /// `state` `[steps + 1, contact nodes]`.
+    friction: Option<[Dataset; 3]>,
     dim: usize,
     /// Boundary weights `D_qq`: the pressure written is `force / weight`.
     weights: Vec<f64>,
@@ -220,7 +223,7 @@ pub struct Output {
     cell_range: (usize, usize),
 }
 
-const CHECKPOINT_SCALARS: usize = 11;
+const CHECKPOINT_SCALARS: usize = 12;
 
 /// The scalars of a checkpoint: the step reached and the running totals of the energy balance.
 #[derive(Debug, Clone, Default)]
@@ -236,6 +239,8 @@ pub struct Checkpoint {
     /// The contact work the massless DOFs' energy correction still has to put back
     /// (`time::Corrections::pending`; 0 in a checkpoint written before it was kept).
     pub pending_correction: f64,
+    /// The frictional dissipation so far (0 in a checkpoint written before it was kept).
+    pub friction_dissipation: f64,
     /// The active set after the step (contact scenes).
     pub active: Vec<bool>,
 }
@@ -254,6 +259,7 @@ impl Checkpoint {
             self.momentum_initial[2],
             self.ksp_iterations as f64,
             self.pending_correction,
+            self.friction_dissipation,
         ]
     }
 }
@@ -317,6 +323,7 @@ pub fn read_checkpoint(
         ksp_iterations: sc[9] as usize,
         // Files written before the pending correction was kept have 10 scalars.
         pending_correction: sc.get(10).copied().unwrap_or(0.0),
+        friction_dissipation: sc.get(11).copied().unwrap_or(0.0),
         active,
     };
     Ok((cp, fields))
@@ -594,6 +601,7 @@ impl Output {
             e.external_work,
             e.contact_work,
             e.dirichlet_work,
+            e.friction_dissipation,
         ];
         for (ds, val) in self.energy.iter().zip(vals) {
             append_replicated(ds, k, val, &self.path, "/energy")?;
@@ -642,8 +650,16 @@ impl Output {
 
     /// Create `/contact`: `nodes` (0-based rows of /mesh/coordinates), `weights` (boundary
     /// weights D_qq), and per step `pressure`, `force`, `gap`, `active` [steps + 1, contact
-    /// nodes], `active_set_size`, `iterations` [steps + 1]. Collective.
-    pub fn create_contact(&mut self, nodes: &[usize], weights: &[f64], dim: usize) -> Result<()> {
+    /// nodes], `active_set_size`, `iterations` [steps + 1]; with `friction` also
+    /// `tangential_traction`, `slip` [steps + 1, contact nodes, dim] and `state` [steps + 1,
+    /// contact nodes] (0 inactive, 1 stick, 2 slip). Collective.
+    pub fn create_contact(
+        &mut self,
+        nodes: &[usize],
+        weights: &[f64],
+        dim: usize,
+        friction: bool,
+    ) -> Result<()> {
         let path = self.path.clone();
         let g = group(&self.file, layout::CONTACT, &path)?;
         let nc = nodes.len();
@@ -676,7 +692,26 @@ impl Output {
                 .create(name)
                 .map_err(|e| h5err(&path, &format!("create /contact/{name}"), e))
         };
+        let vector = |name: &str| -> Result<Dataset> {
+            g.new_dataset::<f64>()
+                .chunk((64, nc.max(1), dim))
+                .shape((0.., nc, dim))
+                .create(name)
+                .map_err(|e| h5err(&path, &format!("create /contact/{name}"), e))
+        };
+        let friction = if friction {
+            let state = g
+                .new_dataset::<u8>()
+                .chunk((64, nc.max(1)))
+                .shape((0.., nc))
+                .create(layout::CONTACT_STATE)
+                .map_err(|e| h5err(&path, "create /contact/state", e))?;
+            Some([vector(layout::CONTACT_TANGENTIAL)?, vector(layout::CONTACT_SLIP)?, state])
+        } else {
+            None
+        };
         self.contact = Some(ContactDatasets {
+            friction,
             pressure: per_node("pressure")?,
             force: per_node("force")?,
             gap: per_node("gap")?,
@@ -763,6 +798,25 @@ impl Output {
         c.traction
             .write_slice(&arr, ndarray::s![k..k + 1, .., ..])
             .map_err(|e| h5err(&path, "write /contact/traction", e))?;
+        if let Some([tangential, slip, state]) = &c.friction {
+            // The first row (the start) has no friction data: zeros.
+            let or_zero = |v: Vec<f64>| if v.is_empty() { vec![0.0; nc * dim] } else { v };
+            let t = or_zero(row.tangential_traction(&c.weights, dim));
+            let s = or_zero(row.slip.iter().flat_map(|s| s[..dim].to_vec()).collect());
+            for (ds, vals, name) in [(tangential, t, "tangential_traction"), (slip, s, "slip")] {
+                ds.resize((k + 1, nc, dim))
+                    .map_err(|e| h5err(&path, &format!("resize /contact/{name}"), e))?;
+                let arr = ndarray::Array3::from_shape_vec((1, nc, dim), vals).expect("shape");
+                ds.write_slice(&arr, ndarray::s![k..k + 1, .., ..])
+                    .map_err(|e| h5err(&path, &format!("write /contact/{name}"), e))?;
+            }
+            let st = if row.state.is_empty() { vec![0u8; nc] } else { row.state.clone() };
+            state.resize((k + 1, nc)).map_err(|e| h5err(&path, "resize /contact/state", e))?;
+            let arr = ndarray::Array2::from_shape_vec((1, nc), st).expect("shape");
+            state
+                .write_slice(&arr, ndarray::s![k..k + 1, ..])
+                .map_err(|e| h5err(&path, "write /contact/state", e))?;
+        }
         let size = row.active.iter().filter(|&&a| a).count() as f64;
         let area: f64 =
             (row.active.iter().zip(&c.weights)).filter(|(a, _)| **a).map(|(_, w)| w).sum();

@@ -208,6 +208,9 @@ pub fn post(path: &Path, opts: &PostOptions) -> Result<Vec<String>> {
     let ext = read(&layout::energy("external_work"))?;
     let cw = read(&layout::energy("contact_work")).unwrap_or_else(|_| vec![0.0; total.len()]);
     let dw = read(&layout::energy("dirichlet_work")).unwrap_or_else(|_| vec![0.0; total.len()]);
+    // Files written before friction have no dissipation series: nothing dissipated.
+    let fd =
+        read(&layout::energy("friction_dissipation")).unwrap_or_else(|_| vec![0.0; total.len()]);
     let mut lines = Vec::new();
     let n = total.len();
     if n == 0 {
@@ -217,7 +220,8 @@ pub fn post(path: &Path, opts: &PostOptions) -> Result<Vec<String>> {
     let emax = total.iter().fold(0.0f64, |a, &b| a.max(b.abs()));
     let drift = total.iter().map(|e| ((e - e0) / e0).abs()).fold(0.0, f64::max);
     let balance =
-        (0..n).map(|i| (total[i] - e0 - ext[i] - cw[i] - dw[i]).abs()).fold(0.0, f64::max) / emax;
+        (0..n).map(|i| (total[i] - e0 - ext[i] - cw[i] - dw[i] + fd[i]).abs()).fold(0.0, f64::max)
+            / emax;
     if status == "running" {
         // Only a run that was killed (SIGKILL, power loss, a watchdog abort) or is still
         // running leaves this status: every other end is written into the file.
@@ -256,6 +260,7 @@ pub fn post(path: &Path, opts: &PostOptions) -> Result<Vec<String>> {
             ext,
             cw,
             dw,
+            fd,
         ],
     )?;
     written.push(energy_csv);

@@ -193,6 +193,57 @@ pub fn momentum(d: &Domain, mv: &Vector) -> Result<[f64; 3]> {
     Ok(out)
 }
 
+/// The angular momentum about the centre of mass, `sum_v (x_v - x_c) x (M v)_v` with the
+/// current positions `x_v = X_v + u_v` and `x_c = sum_v (M 1)_v x_v / sum_v (M 1)_v` (three
+/// components; in 2D only the third is not zero). Collective.
+pub fn angular_momentum(d: &Domain, m: &Matrix, u: &Vector, mv: &Vector) -> Result<[f64; 3]> {
+    let dim = d.part.dim;
+    let first = d.part.first_dof();
+    let disp = u.with_local_slice(|s| s.to_vec())?;
+    let position = |v: usize| {
+        let mut x = d.mesh.coords[v];
+        for c in 0..dim {
+            x[c] += disp[d.part.dof(v, c) - first];
+        }
+        x
+    };
+    // The centre of mass from the lumped masses M 1 (component by component).
+    let mut ones = u.duplicate()?;
+    ones.set(1.0)?;
+    let mut m1 = u.duplicate()?;
+    m.mult(&ones, &mut m1)?;
+    let mut moments = [0.0; 6];
+    m1.with_local_slice(|s| {
+        for &v in &d.part.owned_nodes {
+            let x = position(v);
+            for c in 0..dim {
+                let w = s[d.part.dof(v, c) - first];
+                moments[c] += w * x[c];
+                moments[3 + c] += w;
+            }
+        }
+    })?;
+    let mut sums = [0.0; 6];
+    d.world.all_reduce_into(&moments[..], &mut sums[..], SystemOperation::sum());
+    let centre: [f64; 3] =
+        [0, 1, 2].map(|c| if sums[3 + c] > 0.0 { sums[c] / sums[3 + c] } else { 0.0 });
+    let mut l = [0.0; 3];
+    mv.with_local_slice(|s| {
+        for &v in &d.part.owned_nodes {
+            let p = position(v);
+            let x = [0, 1, 2].map(|c| p[c] - centre[c]);
+            let f: Vec<f64> = (0..dim).map(|c| s[d.part.dof(v, c) - first]).collect();
+            let f3 = [f[0], f[1], if dim == 3 { f[2] } else { 0.0 }];
+            l[0] += x[1] * f3[2] - x[2] * f3[1];
+            l[1] += x[2] * f3[0] - x[0] * f3[2];
+            l[2] += x[0] * f3[1] - x[1] * f3[0];
+        }
+    })?;
+    let mut out = [0.0; 3];
+    d.world.all_reduce_into(&l[..], &mut out[..], SystemOperation::sum());
+    Ok(out)
+}
+
 /// The impulse the contact gave each `[[body]]`: the sum over its contact nodes (slave nodes
 /// and nodes meeting obstacles) and its master nodes of what they received. A node on two
 /// bodies counts for the first.
@@ -209,6 +260,25 @@ pub fn contact_impulses(
         .map(|b| {
             let imp = history
                 .impulse_on(&c.boundary().nodes, c.master_nodes(), |v| first_body(v) == Some(b));
+            imp[..dim].to_vec()
+        })
+        .collect()
+}
+
+/// Per body, the friction's part of [`contact_impulses`].
+pub fn friction_impulses(
+    d: &Domain,
+    contact: Option<&dyn ContactSolver>,
+    history: &ContactHistory,
+) -> Vec<Vec<f64>> {
+    let dim = d.part.dim;
+    let n = d.bodies.n_bodies();
+    let Some(c) = contact else { return vec![vec![0.0; dim]; n] };
+    let first_body = |v: usize| (0..n).find(|&b| d.bodies.body_nodes(b).binary_search(&v).is_ok());
+    (0..n)
+        .map(|b| {
+            let imp =
+                history.friction_impulse_on(&c.boundary().nodes, |v| first_body(v) == Some(b));
             imp[..dim].to_vec()
         })
         .collect()

@@ -328,12 +328,13 @@ impl<'a> Simulation<'a> {
     fn say_energies(&self, n: usize, t: f64, e: &Energy) {
         if self.opts.verbose {
             self.console.say(format!(
-                "step {n}  t = {t:.6e}  kinetic {:.10e}  potential {:.10e}  total {:.10e}  external work {:.10e}  contact work {:.10e}",
+                "step {n}  t = {t:.6e}  kinetic {:.10e}  potential {:.10e}  total {:.10e}  external work {:.10e}  contact work {:.10e}  friction dissipation {:.10e}",
                 e.kinetic,
                 e.potential,
                 e.total(),
                 e.external_work,
-                e.contact_work
+                e.contact_work,
+                e.friction_dissipation
             ));
         }
     }

@@ -158,7 +158,8 @@ impl RunOutput {
         let mc = mass_check;
         out.write_mass_check(&mc.total_mass, &mc.first_moment, &mc.second_moment, &mc.probe)?;
         if let Some(c) = contact {
-            out.create_contact(&c.boundary().nodes, &c.boundary().weights, mesh.dim)?;
+            let friction = d.scene.contact.as_ref().is_some_and(|s| s.has_friction());
+            out.create_contact(&c.boundary().nodes, &c.boundary().weights, mesh.dim, friction)?;
             if let Some(spec) = spec {
                 let mut nodes = Vec::new();
                 for g in spec.master_groups() {

@@ -25,6 +25,8 @@ pub struct Record {
     /// Reference of the energy balance (the initial energy, or the restarted run's).
     pub e0: f64,
     p0: [f64; 3],
+    /// The angular momentum at the start of this run (a restart: at the restart).
+    l0: [f64; 3],
     e_max: f64,
     /// max_n |E^n - E^0 - W^n| / max_n E^n
     pub balance: f64,
@@ -65,6 +67,7 @@ impl Record {
         let mut record = Record {
             e0,
             p0,
+            l0: diagnostics::angular_momentum(d, midpoint.mass(), midpoint.u(), midpoint.mv())?,
             e_max: e0.abs(),
             balance: 0.0,
             drift: 0.0,
@@ -85,7 +88,12 @@ impl Record {
             contact_seconds: 0.0,
             contact_ksp_iterations: 0,
             body_p0: diagnostics::body_momenta(d, midpoint.mv())?,
-            energies: vec![[e.total(), e.external_work, e.dirichlet_work, e.contact_work]],
+            energies: vec![[
+                e.total(),
+                e.external_work,
+                e.dirichlet_work,
+                e.contact_work_with_friction(),
+            ]],
             ksp_step_max: 0,
         };
         if let Some(c) = contact {
@@ -109,12 +117,18 @@ impl Record {
         self.curves.kinetic.push(e.kinetic);
         self.curves.potential.push(e.potential);
         self.e_max = self.e_max.max(total.abs());
-        let residual = total - self.e0 - e.external_work - e.contact_work - e.dirichlet_work;
+        let residual =
+            total - self.e0 - e.external_work - e.contact_work_with_friction() - e.dirichlet_work;
         self.balance = self.balance.max(residual.abs() / self.e_max.max(f64::MIN_POSITIVE));
         if self.e0 != 0.0 {
             self.drift = self.drift.max(((total - self.e0) / self.e0).abs());
         }
-        self.energies.push([total, e.external_work, e.dirichlet_work, e.contact_work]);
+        self.energies.push([
+            total,
+            e.external_work,
+            e.dirichlet_work,
+            e.contact_work_with_friction(),
+        ]);
     }
 
     /// Errors against the exact solution at the scene's error steps.
@@ -152,6 +166,7 @@ impl Record {
             momentum_initial: self.p0,
             ksp_iterations: midpoint.ksp_iterations(),
             pending_correction: midpoint.corrections().pending,
+            friction_dissipation: e.friction_dissipation,
             active: contact.map(|c| c.active().to_vec()).unwrap_or_default(),
         }
     }
@@ -228,6 +243,7 @@ pub fn summarize(
             c,
             &d.mesh,
             e.contact_work,
+            e.friction_dissipation,
             max_over_ranks(d.world, record.contact_seconds),
         );
         s.ksp_iterations_contact_steps = record.contact_ksp_iterations;
@@ -238,6 +254,7 @@ pub fn summarize(
     let contact_summary = contact_summary.map(|s| ContactSummary { mortar, ..s });
     let stability = record.stability(d, midpoint, contact);
     let impulses = diagnostics::contact_impulses(d, contact, &record.history);
+    let friction_impulses = diagnostics::friction_impulses(d, contact, &record.history);
     let ksp = &midpoint.operator().ksp;
     let (layer_contact_nodes, layer_cells) = facts.layer.unwrap_or((0, 0));
     let bodies = (0..d.bodies.n_bodies())
@@ -256,6 +273,7 @@ pub fn summarize(
                 layer_contact_nodes: facts.body_layers[i].0,
                 layer_cells: facts.body_layers[i].1,
                 contact_impulse: impulses[i].clone(),
+                friction_impulse: friction_impulses[i].clone(),
             }
         })
         .collect();
@@ -284,6 +302,14 @@ pub fn summarize(
         mass: facts.mass_check.clone(),
         momentum_initial: record.p0[..d.part.dim].to_vec(),
         momentum_final: p1[..d.part.dim].to_vec(),
+        angular_momentum_initial: record.l0.to_vec(),
+        angular_momentum_final: diagnostics::angular_momentum(
+            d,
+            midpoint.mass(),
+            midpoint.u(),
+            midpoint.mv(),
+        )?
+        .to_vec(),
         contact: contact_summary,
         pictures,
         effects: d.effects(),
@@ -334,7 +360,7 @@ pub fn summary_lines(d: &Domain, layer: Option<(usize, usize)>, s: &RunSummary) 
             t.mesh, t.partition, t.assembly, t.setup, t.output, t.stress
         ),
         format!(
-            "energy: initial {:.10e}, final {:.10e}, external work {:.6e}; balance |E^n - E^0 - W^n|/max E = {:.2e} (W: loads, contact, boundary reactions)",
+            "energy: initial {:.10e}, final {:.10e}, external work {:.6e}; balance |E^n - E^0 - W^n|/max E = {:.2e} (W: loads, contact less friction's dissipation, boundary reactions)",
             s.energy_initial, s.energy_final, s.external_work, s.energy_balance
         ),
     ];
@@ -381,6 +407,10 @@ pub fn summary_lines(d: &Domain, layer: Option<(usize, usize)>, s: &RunSummary) 
                 format!(", contact impulse {}", vec(&b.contact_impulse))
             } else {
                 String::new()
+            } + &if b.friction_impulse.iter().any(|&x| x != 0.0) {
+                format!(" (friction's part {})", vec(&b.friction_impulse))
+            } else {
+                String::new()
             }
         ));
     }
@@ -405,6 +435,19 @@ pub fn summary_lines(d: &Domain, layer: Option<(usize, usize)>, s: &RunSummary) 
             -c.contact_work / s.energy_max.max(f64::MIN_POSITIVE),
             c.contact_work
         ));
+        if !c.friction_impulse.is_empty() {
+            lines.push(format!(
+                "friction: dissipated {:.6e}; node-steps in stick {}, in slip {} (last step: {} stick, {} slip); friction impulse ({}); tangential chatter: lowest node osc2 {:.2e}, total TV index {:.3}",
+                c.friction_dissipation,
+                c.stick_node_steps,
+                c.slip_node_steps,
+                c.stick_nodes_last,
+                c.slip_nodes_last,
+                c.friction_impulse.iter().map(|x| format!("{x:.6e}")).collect::<Vec<_>>().join(", "),
+                c.lowest_tangential_osc2,
+                c.total_tangential_tv_index
+            ));
+        }
         lines.push(format!(
             "chatter: lowest node osc2 {:.2e}, total-force TV index {:.3}, episodes per node max {} (mean {:.2})",
             c.lowest_osc2, c.total_force_tv_index, c.episodes_max, c.episodes_mean

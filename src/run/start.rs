@@ -32,7 +32,14 @@ pub fn step_operator(
     let null_space = physics::near_null_space(d)?;
     let regime = d.bodies.regime(d.scene.tau, &diagnostics::min_edges(d));
     let solver = &d.scene.solver;
-    let (mut defaults, why) = StepSolverDefaults::for_regime(&regime, with_contact);
+    let (mut defaults, mut why) = StepSolverDefaults::for_regime(&regime, with_contact);
+    if d.scene.contact.as_ref().is_some_and(|c| c.has_friction()) {
+        // A slipping node's rows couple its normal residual into the tangential one
+        // (contact::constraint): the constrained operator is not symmetric.
+        defaults.ksp_type = "gmres".into();
+        defaults.symmetric = false;
+        why.push_str("; friction makes the contact rows unsymmetric: GMRES");
+    }
     if let Some(k) = &solver.ksp_type {
         defaults.ksp_type = k.clone();
     }
@@ -127,6 +134,7 @@ pub fn restore(
         external_work: cp.external_work,
         contact_work: cp.contact_work,
         dirichlet_work: cp.dirichlet_work,
+        friction_dissipation: cp.friction_dissipation,
         ..Default::default()
     };
     midpoint.restore(

@@ -118,6 +118,9 @@ pub struct Effects {
     pub contact_pairs: Vec<(String, String)>,
     /// Beside a pair: the group that meets the obstacles of `contact`.
     pub contact_obstacle_boundary: Option<String>,
+    /// The friction laws of the obstacles and pairs that have one (`Coulomb, mu = 0.3`), each
+    /// once in the order of the scene; empty: frictionless (or no contact).
+    pub friction: Vec<String>,
     /// The stress-type output fields asked for (their names, in the scene's order).
     pub stress_fields: Vec<&'static str>,
 }
@@ -168,6 +171,20 @@ impl Scene {
                 .collect(),
             contact_obstacle_boundary: (self.contact.as_ref())
                 .and_then(|c| c.obstacle_boundary().map(String::from)),
+            friction: {
+                let mut laws: Vec<String> = Vec::new();
+                let c = self.contact.as_ref();
+                let all = c.iter().flat_map(|c| {
+                    (c.obstacles.iter().map(|o| o.friction))
+                        .chain(c.pairs.iter().map(|p| p.friction))
+                });
+                for f in all.flatten().map(|f| f.describe()) {
+                    if !laws.contains(&f) {
+                        laws.push(f);
+                    }
+                }
+                laws
+            },
             exact_errors: self.exact.is_some(),
             stress_fields: (self.output.fields.iter())
                 .filter(|f| f.derived().is_some())
@@ -238,10 +255,12 @@ impl Effects {
     ///    OBSTACLE, ...)` with several, each `[moving ](plane | sphere | cylinder)`; a pair:
     ///    `contact (two bodies, slave "S" on master "M", dual mortar)`, with obstacles beside
     ///    it followed by `; "GROUP" on OBSTACLES` (as above);
-    /// 10. `exact errors`, 11. `stress output (FIELD, FIELD, ...)`.
+    /// 10. `friction (Coulomb, mu = MU)` or `friction (Tresca, bound = S)`, several laws
+    ///     joined by `; `;
+    /// 11. `exact errors`, 12. `stress output (FIELD, FIELD, ...)`.
     ///
     /// `not built:` lists, in the same order and by the names before the parentheses, the
-    /// optional items 3 to 10 the scene does not ask for, preceded by `mass-free layer` when
+    /// optional items 3 to 11 the scene does not ask for, preceded by `mass-free layer` when
     /// there is none (`bodies` is never listed there).
     pub fn summary(&self) -> String {
         let with = |name: &str, what: Option<&str>| what.map(|w| format!("{name} ({w})"));
@@ -273,7 +292,8 @@ impl Effects {
         };
         let layer = self.layer.as_ref().map(|(k, g)| format!("{} along {g}", k.name()));
         let stress = (!self.stress_fields.is_empty()).then(|| self.stress_fields.join(", "));
-        let optional: [(&str, Option<String>); 10] = [
+        let friction = (!self.friction.is_empty()).then(|| self.friction.join("; "));
+        let optional: [(&str, Option<String>); 11] = [
             ("mass-free layer", with("mass-free layer", layer.as_deref())),
             ("initial displacement", flag("initial displacement", self.initial_displacement)),
             ("initial velocity", flag("initial velocity", self.initial_velocity)),
@@ -285,6 +305,7 @@ impl Effects {
                 with("Dirichlet lifting", self.dirichlet_lifting.map(Variation::name)),
             ),
             ("contact", with("contact", obstacle.as_deref())),
+            ("friction", with("friction", friction.as_deref())),
             ("exact errors", flag("exact errors", self.exact_errors)),
             ("stress output", with("stress output", stress.as_deref())),
         ];

@@ -66,6 +66,10 @@
 //! # obstacle = { type = "sphere", center = [0.0, 2.0], radius = 1.0, motion = ["0", "-t"] }
 //! # obstacles = [{ type = "plane", ... }, { type = "cylinder", point = [0, 0, -1],
 //! #               axis = [0, 1, 0], radius = 1 }]   # instead of obstacle; cylinders: 3D only
+//! # friction = 0.3               # Coulomb's coefficient (default 0: frictionless), for every
+//! #                              # obstacle and pair without its own `friction`/`tresca`
+//! # tresca = 0.5                 # instead: a given slip bound (verification)
+//! # obstacle = { type = "plane", ..., friction = 0.5 }   # an obstacle's own
 //! # Two deformable bodies instead of boundary + obstacle (dual mortar, non-matching meshes):
 //! # slave = "upper_contact"
 //! # master = "lower_contact"     # the mass-free layer then runs along both
@@ -107,8 +111,8 @@ pub use effects::{Effects, ObstacleEffect, ObstacleKind, Variation};
 
 pub use model::{
     master_groups, slave_groups, steps_to_end, BodySpec, ContactPair, ContactSpec, DirichletSpec,
-    EndSteps, ExactSpec, Field, MassKind, MassSpec, MaterialSpec, MeshSource, NeumannSpec,
-    Obstacle, OutputSpec, Scene, Shape, SolverSpec,
+    EndSteps, ExactSpec, Field, FrictionSpec, MassKind, MassSpec, MaterialSpec, MeshSource,
+    NeumannSpec, Obstacle, OutputSpec, Scene, Shape, SolverSpec,
 };
 
 use crate::error::{Error, Result};

@@ -306,6 +306,33 @@ pub enum Shape {
 pub struct Obstacle {
     pub shape: Shape,
     pub motion: Option<VecExpr>,
+    /// Its friction (its own `friction`/`tresca`, else `contact.friction`/`contact.tresca`);
+    /// `None`: frictionless.
+    pub friction: Option<FrictionSpec>,
+}
+
+/// A friction law as the scene gives it (`friction = MU` or `tresca = S`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum FrictionSpec {
+    /// Coulomb's law with coefficient `mu > 0`.
+    Coulomb(f64),
+    /// Tresca's law: the slip bound `s >= 0` (a traction, like the pressure) wherever the node
+    /// is in contact (verification).
+    Tresca(f64),
+}
+
+impl FrictionSpec {
+    /// `Coulomb, mu = 0.3` / `Tresca, bound = 2`.
+    pub fn describe(&self) -> String {
+        match self {
+            FrictionSpec::Coulomb(mu) => {
+                format!("Coulomb, mu = {}", super::effects::short_number(*mu))
+            }
+            FrictionSpec::Tresca(s) => {
+                format!("Tresca, bound = {}", super::effects::short_number(*s))
+            }
+        }
+    }
 }
 
 impl Obstacle {
@@ -321,6 +348,8 @@ impl Obstacle {
 pub struct ContactPair {
     pub slave: String,
     pub master: String,
+    /// Its friction (its own, else the contact's); `None`: frictionless.
+    pub friction: Option<FrictionSpec>,
 }
 
 #[derive(Debug, Clone, PartialEq)]
@@ -342,6 +371,12 @@ impl ContactSpec {
     /// The scene key of obstacle `i`: `contact.obstacle` or `contact.obstacles[i]`.
     pub fn obstacle_key(&self, i: usize) -> String {
         obstacle_key(self.listed, i)
+    }
+
+    /// Whether some obstacle or pair has friction.
+    pub fn has_friction(&self) -> bool {
+        self.obstacles.iter().any(|o| o.friction.is_some())
+            || self.pairs.iter().any(|p| p.friction.is_some())
     }
 
     /// The groups meeting obstacles beside pairs: `boundary` when there are pairs.
@@ -447,6 +482,25 @@ impl Scene {
             )));
         }
         self.mass.kind = kind;
+        Ok(())
+    }
+
+    /// Give every obstacle and pair Coulomb's friction `mu` (`--friction`; 0: frictionless).
+    pub fn set_friction(&mut self, mu: f64) -> Result<()> {
+        if !(mu >= 0.0 && mu.is_finite()) {
+            return Err(Error::Usage(format!(
+                "--friction {mu}: the friction coefficient must be >= 0 and finite"
+            )));
+        }
+        let Some(c) = self.contact.as_mut() else {
+            return Err(Error::Usage(format!(
+                "--friction {mu}: the scene {} has no [contact]",
+                self.display_name()
+            )));
+        };
+        let law = (mu > 0.0).then_some(FrictionSpec::Coulomb(mu));
+        c.obstacles.iter_mut().for_each(|o| o.friction = law);
+        c.pairs.iter_mut().for_each(|p| p.friction = law);
         Ok(())
     }
 

@@ -222,6 +222,8 @@ pub(super) struct RawContact {
     pub(super) pairs: Option<Vec<RawPair>>,
     pub(super) obstacle: Option<RawObstacle>,
     pub(super) obstacles: Option<Vec<RawObstacle>>,
+    pub(super) friction: Option<f64>,
+    pub(super) tresca: Option<f64>,
 }
 
 #[derive(Deserialize)]
@@ -229,12 +231,33 @@ pub(super) struct RawContact {
 pub(super) struct RawPair {
     pub(super) slave: Option<String>,
     pub(super) master: Option<String>,
+    pub(super) friction: Option<f64>,
+    pub(super) tresca: Option<f64>,
 }
 
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields, tag = "type", rename_all = "lowercase")]
 pub(super) enum RawObstacle {
-    Plane { point: Vec<f64>, normal: Vec<f64>, motion: Option<Vec<ExprSrc>> },
-    Sphere { center: Vec<f64>, radius: f64, motion: Option<Vec<ExprSrc>> },
-    Cylinder { point: Vec<f64>, axis: Vec<f64>, radius: f64, motion: Option<Vec<ExprSrc>> },
+    Plane {
+        point: Vec<f64>,
+        normal: Vec<f64>,
+        motion: Option<Vec<ExprSrc>>,
+        friction: Option<f64>,
+        tresca: Option<f64>,
+    },
+    Sphere {
+        center: Vec<f64>,
+        radius: f64,
+        motion: Option<Vec<ExprSrc>>,
+        friction: Option<f64>,
+        tresca: Option<f64>,
+    },
+    Cylinder {
+        point: Vec<f64>,
+        axis: Vec<f64>,
+        radius: f64,
+        motion: Option<Vec<ExprSrc>>,
+        friction: Option<f64>,
+        tresca: Option<f64>,
+    },
 }

@@ -211,7 +211,7 @@ fn full_scene_round_trips() {
     assert_eq!(c.boundary.as_deref(), Some("contact"));
     assert!(c.pairs.is_empty());
     let plane = Shape::Plane { point: vec![0.0, -1.0], normal: vec![0.0, 1.0] };
-    assert_eq!(c.obstacles, vec![Obstacle { shape: plane, motion: None }]);
+    assert_eq!(c.obstacles, vec![Obstacle { shape: plane, motion: None, friction: None }]);
     assert!(!c.listed);
     s.check_dim(2).unwrap();
 }
@@ -281,7 +281,7 @@ fn minimal_scene_defaults() {
     assert!(s.exact.is_none() && s.contact.is_none());
     assert_eq!(
         s.effects().summary(),
-        "effects: elasticity, consistent mass; not built: mass-free layer, initial displacement, initial velocity, body force, tractions, Dirichlet, Dirichlet lifting, contact, exact errors, stress output"
+        "effects: elasticity, consistent mass; not built: mass-free layer, initial displacement, initial velocity, body force, tractions, Dirichlet, Dirichlet lifting, contact, friction, exact errors, stress output"
     );
     s.check_dim(2).unwrap();
     s.check_dim(3).unwrap();
@@ -720,6 +720,7 @@ fn effects_follow_the_scene() {
             exact_errors: true,
             contact_pairs: Vec::new(),
             contact_obstacle_boundary: None,
+            friction: Vec::new(),
             stress_fields: Vec::new(),
         }
     );
@@ -745,12 +746,13 @@ fn effects_follow_the_scene() {
             exact_errors: false,
             contact_pairs: Vec::new(),
             contact_obstacle_boundary: None,
+            friction: Vec::new(),
             stress_fields: Vec::new(),
         }
     );
     assert_eq!(
         s.effects().summary(),
-        "effects: elasticity, lumped mass, tractions (steady), Dirichlet (non-zero values), Dirichlet lifting (steady); not built: mass-free layer, initial displacement, initial velocity, body force, contact, exact errors, stress output"
+        "effects: elasticity, lumped mass, tractions (steady), Dirichlet (non-zero values), Dirichlet lifting (steady); not built: mass-free layer, initial displacement, initial velocity, body force, contact, friction, exact errors, stress output"
     );
 }
 
@@ -760,21 +762,23 @@ fn effects_summary_lines() {
     let s = parse_in(&dir, FULL).unwrap();
     assert_eq!(
         s.effects().summary(),
-        "effects: elasticity, mass-free layer (modified1 along \"bottom\"), initial velocity, body force (time-dependent), tractions (time-dependent), Dirichlet (non-zero values), Dirichlet lifting (time-dependent), contact (plane obstacle), exact errors; not built: initial displacement, stress output"
+        "effects: elasticity, mass-free layer (modified1 along \"bottom\"), initial velocity, body force (time-dependent), tractions (time-dependent), Dirichlet (non-zero values), Dirichlet lifting (time-dependent), contact (plane obstacle), exact errors; not built: initial displacement, friction, stress output"
     );
     let all = full_with("displacement = [\"0\", \"0\"]", "displacement = [\"0\", \"1e-3*x\"]");
     let line = parse_in(&dir, &all).unwrap().effects().summary();
     assert!(line.starts_with("effects: elasticity, mass-free layer"), "{line}");
     assert!(line.contains(", initial displacement, initial velocity, "), "{line}");
-    assert!(line.ends_with("exact errors; not built: stress output"), "{line}");
-    // Stress-type fields asked for: item 11, with their names in the scene's order.
+    assert!(line.ends_with("exact errors; not built: friction, stress output"), "{line}");
+    // Stress-type fields asked for: item 12, with their names in the scene's order.
     let stressed = all.replace(
         "fields = [\"velocity\"]",
         "fields = [\"von_mises\", \"displacement\", \"stress_nodal\"]",
     );
     let line = parse_in(&dir, &stressed).unwrap().effects().summary();
     assert!(
-        line.ends_with("exact errors, stress output (von_mises, stress_nodal); not built: none"),
+        line.ends_with(
+            "exact errors, stress output (von_mises, stress_nodal); not built: friction"
+        ),
         "{line}"
     );
     // The layer along the contact boundary (the default), zero Dirichlet values: no lifting.
@@ -784,7 +788,7 @@ fn effects_summary_lines() {
     let line = parse_in(&dir, &text).unwrap().effects().summary();
     assert_eq!(
         line,
-        "effects: elasticity, mass-free layer (modified1 along \"contact\"), Dirichlet (zero values), contact (plane obstacle); not built: initial displacement, initial velocity, body force, tractions, Dirichlet lifting, exact errors, stress output"
+        "effects: elasticity, mass-free layer (modified1 along \"contact\"), Dirichlet (zero values), contact (plane obstacle); not built: initial displacement, initial velocity, body force, tractions, Dirichlet lifting, friction, exact errors, stress output"
     );
     assert!(!line.contains('\n'));
 }
@@ -874,7 +878,10 @@ fn contact_pairs_of_two_bodies() {
     )
     .unwrap();
     let c = s.contact.as_ref().unwrap();
-    assert_eq!(c.pairs, vec![ContactPair { slave: "a".into(), master: "b".into() }]);
+    assert_eq!(
+        c.pairs,
+        vec![ContactPair { slave: "a".into(), master: "b".into(), friction: None }]
+    );
     assert_eq!(c.boundary, None);
     assert!(c.obstacles.is_empty());
     // The layer runs along both sides unless the scene names its group.
@@ -945,7 +952,7 @@ fn several_contact_pairs() {
     let two = pairs("{ slave = \"a\", master = \"m\" }, { slave = \"b\", master = \"m2\" }");
     let s = parse_in(&dir, &format!("{two}[mass]\nkind = \"modified1\"\n")).unwrap();
     let c = s.contact.as_ref().unwrap();
-    let p = |a: &str, b: &str| ContactPair { slave: a.into(), master: b.into() };
+    let p = |a: &str, b: &str| ContactPair { slave: a.into(), master: b.into(), friction: None };
     assert_eq!(c.pairs, vec![p("a", "m"), p("b", "m2")]);
     assert_eq!((c.slave_groups(), c.master_groups()), (vec!["a", "b"], vec!["m", "m2"]));
     // The layer runs along every contact group.
@@ -1103,4 +1110,81 @@ fn effects_name_the_bodies() {
     let text = with_bodies("[[body]]\ngroup = \"x\"\nmass = \"lumped\"\n");
     let line = parse_in(&dir, &text).unwrap().effects().summary();
     assert!(line.contains("consistent mass, lumped mass; not built: mass-free layer"), "{line}");
+}
+
+#[test]
+fn friction_keys_give_each_obstacle_and_pair_its_law() {
+    let dir = workspace();
+    let base = format!("{MINIMAL}\n[contact]\nboundary = \"contact\"\n");
+    let plane = "{ type = \"plane\", point = [0, 0], normal = [0, 1]";
+    // The contact's law for every obstacle without its own; an obstacle's own wins, and its
+    // friction = 0 makes it frictionless.
+    let text = format!(
+        "{base}friction = 0.3\nobstacles = [{plane} }}, {plane}, friction = 0.5 }}, {plane}, friction = 0 }}, {plane}, tresca = 2 }}]\n"
+    );
+    let s = parse_in(&dir, &text).unwrap();
+    let laws: Vec<_> = s.contact.as_ref().unwrap().obstacles.iter().map(|o| o.friction).collect();
+    assert_eq!(
+        laws,
+        vec![
+            Some(FrictionSpec::Coulomb(0.3)),
+            Some(FrictionSpec::Coulomb(0.5)),
+            None,
+            Some(FrictionSpec::Tresca(2.0))
+        ]
+    );
+    let line = s.effects().summary();
+    assert!(
+        line.contains(
+            ", friction (Coulomb, mu = 0.3; Coulomb, mu = 0.5; Tresca, bound = 2); not built: "
+        ),
+        "{line}"
+    );
+    // friction = 0 everywhere: frictionless, listed among what is not built.
+    let text = format!("{base}friction = 0\nobstacle = {plane} }}\n");
+    let s = parse_in(&dir, &text).unwrap();
+    assert_eq!(s.contact.as_ref().unwrap().obstacles[0].friction, None);
+    assert!(
+        s.effects().summary().contains("; not built: ")
+            && s.effects().summary().contains("friction, exact errors")
+    );
+    // Pairs: their own, else the contact's.
+    let text = format!(
+        "{MINIMAL}\n[contact]\nfriction = 0.2\npairs = [{{ slave = \"a\", master = \"b\" }}, {{ slave = \"c\", master = \"d\", friction = 0.4 }}]\n"
+    );
+    let s = parse_in(&dir, &text).unwrap();
+    let laws: Vec<_> = s.contact.as_ref().unwrap().pairs.iter().map(|p| p.friction).collect();
+    assert_eq!(laws, vec![Some(FrictionSpec::Coulomb(0.2)), Some(FrictionSpec::Coulomb(0.4))]);
+}
+
+#[test]
+fn impossible_friction_values_name_their_key() {
+    let base = format!("{MINIMAL}\n[contact]\nboundary = \"contact\"\n");
+    let plane = "{ type = \"plane\", point = [0, 0], normal = [0, 1]";
+    assert_err(
+        &format!("{base}friction = -0.1\nobstacle = {plane} }}\n"),
+        &["contact.friction = -0.1 is impossible", "must be >= 0"],
+    );
+    assert_err(
+        &format!("{base}friction = nan\nobstacle = {plane} }}\n"),
+        &["contact.friction = NaN is impossible"],
+    );
+    assert_err(
+        &format!("{base}obstacles = [{plane}, tresca = -1 }}]\n"),
+        &["contact.obstacles[0].tresca = -1 is impossible"],
+    );
+    assert_err(
+        &format!("{base}obstacle = {plane}, friction = inf }}\n"),
+        &["contact.obstacle.friction = inf is impossible"],
+    );
+    assert_err(
+        &format!("{base}friction = 0.3\ntresca = 1\nobstacle = {plane} }}\n"),
+        &["contact: give at most one of contact.friction (Coulomb) and contact.tresca"],
+    );
+    assert_err(
+        &format!(
+            "{MINIMAL}\n[contact]\npairs = [{{ slave = \"a\", master = \"b\", friction = -2 }}]\n"
+        ),
+        &["contact.pairs[0].friction = -2 is impossible"],
+    );
 }

@@ -5,8 +5,8 @@
 use super::expr::{Expr, VecExpr};
 use super::model::{
     obstacle_key, steps_to_end, BodySpec, ContactPair, ContactSpec, DirichletSpec, ExactSpec,
-    Field, MassKind, MassSpec, MaterialSpec, MeshSource, NeumannSpec, Obstacle, OutputSpec, Scene,
-    Shape, SolverSpec,
+    Field, FrictionSpec, MassKind, MassSpec, MaterialSpec, MeshSource, NeumannSpec, Obstacle,
+    OutputSpec, Scene, Shape, SolverSpec,
 };
 use super::raw::{
     ExprSrc, RawBody, RawBodyForce, RawContact, RawDirichlet, RawExact, RawInitial, RawMass,
@@ -398,7 +398,8 @@ fn contact(raw: Option<RawContact>) -> VResult<Option<ContactSpec>> {
     };
     let has_obstacles = c.obstacle.is_some() || c.obstacles.is_some();
     let pairs_listed = c.pairs.is_some();
-    let pairs = contact_pairs(c.slave, c.master, c.pairs)?;
+    let friction = friction_law(c.friction, c.tresca, "contact")?;
+    let pairs = contact_pairs(c.slave, c.master, c.pairs, friction)?;
     let boundary = c.boundary.map(|b| group_name(b, "contact.boundary")).transpose()?;
     match (&boundary, pairs.is_empty(), has_obstacles) {
         (None, true, _) => return Err("contact: give contact.boundary (with an obstacle) or contact.slave and contact.master (two bodies)".into()),
@@ -418,8 +419,31 @@ fn contact(raw: Option<RawContact>) -> VResult<Option<ContactSpec>> {
     if boundary.is_none() {
         return Ok(Some(ContactSpec { pairs, boundary, obstacles: Vec::new(), listed: false }));
     }
-    let (obstacles, listed) = obstacles(c.obstacle, c.obstacles)?;
+    let (obstacles, listed) = obstacles(c.obstacle, c.obstacles, friction)?;
     Ok(Some(ContactSpec { pairs, boundary, obstacles, listed }))
+}
+
+/// `KEY.friction = MU` (Coulomb) or `KEY.tresca = S` (a given slip bound), at most one;
+/// `default` where neither is given. `friction = 0` is frictionless.
+fn friction_law(
+    mu: Option<f64>,
+    tresca: Option<f64>,
+    key: &str,
+) -> VResult<Option<Option<FrictionSpec>>> {
+    match (mu, tresca) {
+        (Some(_), Some(_)) => Err(format!(
+            "{key}: give at most one of {key}.friction (Coulomb) and {key}.tresca (a given slip bound)"
+        )),
+        (Some(mu), None) if !(mu >= 0.0 && mu.is_finite()) => Err(format!(
+            "{key}.friction = {mu} is impossible: the friction coefficient must be >= 0 and finite"
+        )),
+        (None, Some(s)) if !(s >= 0.0 && s.is_finite()) => Err(format!(
+            "{key}.tresca = {s} is impossible: the slip bound must be >= 0 and finite"
+        )),
+        (Some(mu), None) => Ok(Some((mu > 0.0).then_some(FrictionSpec::Coulomb(mu)))),
+        (None, Some(s)) => Ok(Some(Some(FrictionSpec::Tresca(s)))),
+        (None, None) => Ok(None),
+    }
 }
 
 /// `contact.obstacle` or the list `contact.obstacles` (exactly one), and whether it is the
@@ -427,6 +451,7 @@ fn contact(raw: Option<RawContact>) -> VResult<Option<ContactSpec>> {
 fn obstacles(
     one: Option<RawObstacle>,
     list: Option<Vec<RawObstacle>>,
+    friction: Option<Option<FrictionSpec>>,
 ) -> VResult<(Vec<Obstacle>, bool)> {
     let (raws, listed) = match (one, list) {
         (Some(_), Some(_)) => {
@@ -447,7 +472,7 @@ fn obstacles(
     let obstacles = raws
         .into_iter()
         .enumerate()
-        .map(|(i, o)| obstacle(o, &obstacle_key(listed, i)))
+        .map(|(i, o)| obstacle(o, &obstacle_key(listed, i), friction.flatten()))
         .collect::<VResult<Vec<_>>>()?;
     Ok((obstacles, listed))
 }
@@ -551,6 +576,7 @@ fn contact_pairs(
     slave: Option<String>,
     master: Option<String>,
     listed: Option<Vec<RawPair>>,
+    friction: Option<Option<FrictionSpec>>,
 ) -> VResult<Vec<ContactPair>> {
     let list = match (slave, master, listed) {
         (None, None, None) => return Ok(Vec::new()),
@@ -559,7 +585,7 @@ fn contact_pairs(
             if slave == master {
                 return Err(format!("contact.slave and contact.master are the same group \"{slave}\""));
             }
-            return Ok(vec![ContactPair { slave, master }]);
+            return Ok(vec![ContactPair { slave, master, friction: friction.flatten() }]);
         }
         (Some(_), None, None) => return Err("contact.slave needs contact.master (the other body's contact boundary)".into()),
         (None, Some(_), None) => return Err("contact.master needs contact.slave (this body's contact boundary)".into()),
@@ -591,7 +617,8 @@ fn contact_pairs(
                 "{key} repeats contact.pairs[{j}] (slave \"{slave}\", master \"{master}\")"
             ));
         }
-        pairs.push(ContactPair { slave, master });
+        let own = friction_law(p.friction, p.tresca, &key)?;
+        pairs.push(ContactPair { slave, master, friction: own.or(friction).flatten() });
     }
     for (i, p) in pairs.iter().enumerate() {
         if let Some(j) = pairs.iter().position(|q| q.master == p.slave) {
@@ -636,21 +663,27 @@ fn radius(r: f64, key: &str) -> VResult<f64> {
 }
 
 /// One obstacle (`key` names it: `contact.obstacle` or `contact.obstacles[i]`).
-fn obstacle(raw: RawObstacle, key: &str) -> VResult<Obstacle> {
+fn obstacle(raw: RawObstacle, key: &str, default: Option<FrictionSpec>) -> VResult<Obstacle> {
     let at = |name: &str| format!("{key}.{name}");
+    let (mu, tresca) = match &raw {
+        RawObstacle::Plane { friction, tresca, .. }
+        | RawObstacle::Sphere { friction, tresca, .. }
+        | RawObstacle::Cylinder { friction, tresca, .. } => (*friction, *tresca),
+    };
+    let friction = friction_law(mu, tresca, key)?.unwrap_or(default);
     let (shape, motion) = match raw {
-        RawObstacle::Plane { point: p, normal, motion } => {
+        RawObstacle::Plane { point: p, normal, motion, .. } => {
             let point = point(p, &at("point"))?;
             (Shape::Plane { point, normal: direction(normal, &at("normal"), "normal")? }, motion)
         }
-        RawObstacle::Sphere { center, radius: r, motion } => (
+        RawObstacle::Sphere { center, radius: r, motion, .. } => (
             Shape::Sphere {
                 center: point(center, &at("center"))?,
                 radius: radius(r, &at("radius"))?,
             },
             motion,
         ),
-        RawObstacle::Cylinder { point: p, axis, radius: r, motion } => {
+        RawObstacle::Cylinder { point: p, axis, radius: r, motion, .. } => {
             for (name, v) in [("point", &p), ("axis", &axis)] {
                 if v.len() != 3 {
                     return Err(format!(
@@ -678,7 +711,7 @@ fn obstacle(raw: RawObstacle, key: &str) -> VResult<Obstacle> {
             Some(d)
         }
     };
-    Ok(Obstacle { shape, motion })
+    Ok(Obstacle { shape, motion, friction })
 }
 
 pub(super) fn check_tau(tau: f64) -> VResult<()> {

@@ -1078,6 +1078,8 @@ mod tests {
             mass: MassCheck::default(),
             momentum_initial: vec![0.0, 0.0],
             momentum_final: vec![0.0, 0.0],
+            angular_momentum_initial: vec![0.0; 3],
+            angular_momentum_final: vec![0.0; 3],
             contact: Some(ContactSummary {
                 max_pressure: 2.5,
                 episodes_max: 1,

@@ -409,6 +409,7 @@ impl Midpoint {
                         du: &mut self.du,
                         step: n + 1,
                         time: t_next,
+                        tau: self.tau,
                     })
                     .map_err(with_step)?;
                 Ok((its, Some(c)))
@@ -676,7 +677,8 @@ impl Midpoint {
             }
         }
         if let Some(c) = &report {
-            self.energy.contact_work += c.work;
+            self.energy.contact_work += c.work + c.tangential_work;
+            self.energy.friction_dissipation += c.dissipation;
         }
         self.ksp_iterations += its;
         if forces.present() {
@@ -802,6 +804,10 @@ impl Midpoint {
         &self.du
     }
     /// `M v` of the current state (the momentum per component is its sum).
+    /// The mass matrix of the step (`M` or `M_H`).
+    pub fn mass(&self) -> &Matrix {
+        &self.m
+    }
     pub fn mv(&self) -> &Vector {
         &self.mv
     }

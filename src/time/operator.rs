@@ -17,6 +17,8 @@ pub struct StepSolverDefaults {
     /// `-step_ksp_reuse_preconditioner`: PETSc's value holds (else a multigrid preconditioner
     /// is kept, see [`StepOperator::new`]).
     pub user_reuse_preconditioner: bool,
+    /// The operator stays symmetric (no friction): PETSc is told so.
+    pub symmetric: bool,
 }
 
 /// How stiff a step is: the CFL number `c_p tau / h_min` of the pressure wave,
@@ -74,6 +76,7 @@ impl Default for StepSolverDefaults {
             rtol: 1e-10,
             factor_solver: None,
             user_reuse_preconditioner: false,
+            symmetric: true,
         }
     }
 }
@@ -111,7 +114,7 @@ impl StepOperator {
         k.get_diagonal(&mut diag)?;
         let dirichlet_diag = diag.norm_inf()?.max(f64::MIN_POSITIVE);
         k.zero_rows_columns(&dirichlet_dofs, dirichlet_diag, None, None)?;
-        k.set_option_symmetric(true)?;
+        k.set_option_symmetric(defaults.symmetric)?;
         if let Some(ns) = near_null_space {
             k.set_near_null_space(ns)?;
         }

@@ -546,7 +546,7 @@ impl MortarActiveSet<'_> {
     /// One solve of the active set on the interface as it stands: the basis changes around
     /// the inner solver, and the master side's forces.
     fn round(&mut self, sys: StepSystem<'_>) -> Result<(StepContact, usize)> {
-        let StepSystem { ksp, rhs, u, du, step, time, .. } = sys;
+        let StepSystem { ksp, rhs, u, du, step, time, tau, .. } = sys;
         // A node with no master under it any more cannot stay in contact.
         let nodes = self.inner.nodes_mut();
         if let Some(planes) = nodes.node_planes.as_ref() {
@@ -582,6 +582,7 @@ impl MortarActiveSet<'_> {
             du: &mut h.du,
             step,
             time,
+            tau,
         };
         let (mut out, its) = self.inner.solve(inner)?;
         let t2 = std::time::Instant::now();
@@ -843,6 +844,12 @@ pub fn pair_solver<'w>(
         }
         None => crate::contact::obstacle::Obstacles(Vec::new()),
     };
+    if let Some(p) = pairs.iter().find(|p| p.friction.is_some()) {
+        return Err(Error::Scene(format!(
+            "contact: friction between two bodies (slave \"{}\", master \"{}\") is not built yet; friction against rigid obstacles is",
+            p.slave, p.master
+        )));
+    }
     let contact_nodes = ContactNodes::new(world, &mesh, &part, boundary, obstacles);
     let search = SearchState { margin: smallest, ..SearchState::default() };
     let pair = Pair {

@@ -1,0 +1,502 @@
+//! Coulomb friction against rigid obstacles (issue 25): a block on a slope slides with
+//! `a = g (sin theta - mu cos theta)` and dissipates `mu m g cos theta` per unit of sliding, or
+//! sticks when `mu > tan theta`; in 3D it slides straight downhill; a disc hitting a plane
+//! obliquely with little friction slips at every node (`t = mu lambda`); Tresca's bound gives
+//! a constant friction force; `friction = 0` is the frictionless solver to the last digit;
+//! every result the same on 1, 2 and 3 ranks.
+
+mod common;
+use common::*;
+use std::path::Path;
+
+/// Gravity `g` on a slope of angle `theta`: the plane stays y = 0 (z = 0 in 3D) and gravity
+/// turns, `a = g (sin theta, -cos theta)` (3D: downhill along the angle `phi` in the plane).
+const G: f64 = 10.0;
+const THETA: f64 = std::f64::consts::PI / 6.0;
+
+/// The unit square (E = 1e4, so the block is nearly rigid: its first frequencies lie far
+/// above 1/T, and the normal force's start-up oscillation averages out over the run) on the
+/// plane y = 0, with the mass-free layer along its bottom; `rest` adds [contact] keys and
+/// tables.
+fn slope_2d(
+    dir: &Path,
+    name: &str,
+    gravity: &str,
+    steps: usize,
+    friction: &str,
+) -> std::path::PathBuf {
+    let text = format!(
+        r#"name = "{name}"
+[mesh]
+geo = "../meshes/square_quad.geo"
+params = {{ h = 0.25 }}
+[material]
+E = 1e4
+nu = 0.3
+rho = 1.0
+[body_force]
+acceleration = [{gravity}]
+[time]
+tau = 1e-2
+steps = {steps}
+[mass]
+kind = "modified1"
+[contact]
+boundary = "bottom"
+obstacle = {{ type = "plane", point = [0.0, 0.0], normal = [0.0, 1.0] }}
+{friction}
+[output]
+every = 10
+"#
+    );
+    scene_text(dir, &format!("{name}.toml"), &text)
+}
+
+fn gravity_2d(ramp: Option<f64>) -> String {
+    let r = ramp.map_or(String::new(), |t| format!("*min(t/{t}, 1)"));
+    format!("\"{G}*sin(pi/6){r}\", \"-{G}*cos(pi/6){r}\"")
+}
+
+fn contact(s: &RunSummary) -> &massfree::contact::history::ContactSummary {
+    s.contact.as_ref().expect("a [contact] summary")
+}
+
+/// Node values of the last written displacement, `dim` per node.
+fn last_displacement(h5: &Path) -> (Vec<f64>, usize) {
+    let run = reader(h5);
+    let ds = run.file.dataset(&layout::field("displacement")).unwrap();
+    let shape = ds.shape();
+    let all = run.series(&layout::field("displacement")).unwrap();
+    let per = shape[1] * shape[2];
+    (all[all.len() - per..].to_vec(), shape[2])
+}
+
+fn mean_component(u: &[f64], dim: usize, c: usize) -> f64 {
+    let n = u.len() / dim;
+    (0..n).map(|k| u[k * dim + c]).sum::<f64>() / n as f64
+}
+
+#[test]
+fn a_block_slides_down_a_slope_at_g_sin_minus_mu_cos_and_dissipates_mu_n_per_length() {
+    let dir = scratch("friction_slide");
+    let mu = 0.3;
+    let steps = 100;
+    let t = steps as f64 * 1e-2;
+    let scene = slope_2d(&dir, "slide", &gravity_2d(None), steps, &format!("friction = {mu}"));
+    let a = G * (THETA.sin() - mu * THETA.cos());
+    let mut runs = Vec::new();
+    for ranks in [1, 2] {
+        let s = run_scene(ranks, &scene, &[]);
+        let m = s.bodies.first().map_or(s.mass.total_mass[0], |b| b.total_mass[0]);
+        assert!((m - 1.0).abs() < 1e-12, "the unit square's mass: {m}");
+        // Momentum: the midpoint rule keeps impulse = momentum change exactly, so the mean
+        // acceleration is P(T) / (m T); the normal force's oscillation leaves it within 1%.
+        let a_run = s.momentum_final[0] / (m * t);
+        eprintln!(
+            "{ranks} rank(s): a = {a_run:.6} (theory {a:.6}), y momentum {:.2e}",
+            s.momentum_final[1]
+        );
+        assert!(rel_diff(a_run, a) < 0.01, "acceleration {a_run} against {a}");
+        // Displacement along the slope against a t^2 / 2.
+        let h5 = dir.join(format!("slide-{ranks}.h5"));
+        let (u, dim) = last_displacement(&h5);
+        let x = mean_component(&u, dim, 0);
+        assert!(rel_diff(x, a * t * t / 2.0) < 0.01, "distance {x} against {}", a * t * t / 2.0);
+        // Dissipation: mu m g cos theta per unit of sliding.
+        let c = contact(&s);
+        let d = c.friction_dissipation;
+        let expected = mu * m * G * THETA.cos() * x;
+        eprintln!("dissipation {d:.6} against mu N x = {expected:.6}");
+        assert!(rel_diff(d, expected) < 0.01, "dissipation {d} against {expected}");
+        // The energy identity with the dissipation: E - E0 = W_loads + W_contact - D.
+        assert!(s.energy_balance < 1e-8, "balance {:e}", s.energy_balance);
+        let energy = reader(&h5).series(&layout::energy("friction_dissipation")).unwrap();
+        assert!((energy.last().unwrap() - d).abs() <= 1e-12 * d, "the series ends at the total");
+        assert!(energy.windows(2).all(|w| w[1] >= w[0] - 1e-14 * d), "D only grows");
+        // Most nodes slip (the corners may lift off while the block rocks).
+        assert!(
+            c.slip_node_steps > 4 * c.stick_node_steps,
+            "{} slip, {} stick",
+            c.slip_node_steps,
+            c.stick_node_steps
+        );
+        runs.push((s, h5));
+    }
+    // 1 and 2 ranks: the same run.
+    let (s1, h1) = &runs[0];
+    let (s2, h2) = &runs[1];
+    assert!(rel_diff(s1.momentum_final[0], s2.momentum_final[0]) < 1e-8);
+    assert!(rel_diff(contact(s1).friction_dissipation, contact(s2).friction_dissipation) < 1e-8);
+    let name = layout::contact(layout::CONTACT_TANGENTIAL);
+    let (t1, t2) = (reader(h1).series(&name).unwrap(), reader(h2).series(&name).unwrap());
+    let scale = t1.iter().fold(0.0f64, |a, &x| a.max(x.abs()));
+    let diff = t1.iter().zip(&t2).fold(0.0f64, |a, (x, y)| a.max((x - y).abs()));
+    assert!(diff <= 1e-8 * scale, "tangential tractions differ by {diff:e} of {scale:e}");
+}
+
+#[test]
+fn a_block_whose_friction_exceeds_tan_theta_sticks() {
+    // mu = 0.7 > tan 30 deg = 0.577. Gravity ramps up over 0.3 s, so that the block does
+    // not start rocking; it then shears elastically but does not move along the plane.
+    let dir = scratch("friction_stick");
+    let scene = slope_2d(&dir, "stick", &gravity_2d(Some(0.3)), 200, "friction = 0.7");
+    let s = run_scene(2, &scene, &[]);
+    let h5 = dir.join("stick-2.h5");
+    let run = reader(&h5);
+    let state = run.series(&layout::contact(layout::CONTACT_STATE)).unwrap();
+    let slip = run.series(&layout::contact(layout::CONTACT_SLIP)).unwrap();
+    let nc = run.series(layout::CONTACT_NODES).unwrap().len();
+    // A node that sticks does not move along the plane, to solver tolerance.
+    for (k, st) in state.iter().enumerate() {
+        if *st == 1.0 {
+            let s = (slip[2 * k].powi(2) + slip[2 * k + 1].powi(2)).sqrt();
+            assert!(s < 1e-10, "step {}, node {}: slip {s:e} while sticking", k / nc, k % nc);
+        }
+    }
+    // At the end every node in contact sticks.
+    let last = &state[state.len() - nc..];
+    assert!(last.iter().all(|&x| x != 2.0), "the last step's states: {last:?}");
+    assert!(last.iter().filter(|&&x| x == 1.0).count() >= 3, "{last:?}");
+    // The block moves only by its elastic shear: the mean shear stress at its base is
+    // rho g sin theta L, and the shear strain tau / G over the height L gives a top
+    // displacement rho g sin theta L^2 / G (the mean over the block is below it); twice that
+    // leaves room for the vibration, a slipping block would be far beyond.
+    let shear_modulus = 1e4 / (2.0 * 1.3);
+    let elastic = G * THETA.sin() / shear_modulus;
+    let (u, dim) = last_displacement(&h5);
+    let x = mean_component(&u, dim, 0);
+    eprintln!("mean displacement {x:e}, elastic bound {elastic:e}");
+    assert!(x.abs() < 2.0 * elastic, "the block crept: {x} against {elastic}");
+    assert!(s.energy_balance < 1e-8, "balance {:e}", s.energy_balance);
+}
+
+#[test]
+fn in_3d_the_block_slides_straight_downhill() {
+    // Downhill points at phi = 30 deg in the plane: the slip directions are no axis, and the
+    // two tangents of every node carry it.
+    let dir = scratch("friction_3d");
+    let mu = 0.3;
+    let phi = std::f64::consts::PI / 6.0;
+    let text = format!(
+        r#"name = "slide3d"
+[mesh]
+geo = "../meshes/cube_hex.geo"
+params = {{ h = 0.25 }}
+[material]
+E = 1e4
+nu = 0.3
+rho = 1.0
+[body_force]
+acceleration = ["{G}*sin(pi/6)*cos(pi/6)", "{G}*sin(pi/6)*sin(pi/6)", "-{G}*cos(pi/6)"]
+[time]
+tau = 1e-2
+steps = 100
+[mass]
+kind = "modified1"
+[contact]
+boundary = "bottom"
+obstacle = {{ type = "plane", point = [0.0, 0.0, 0.0], normal = [0.0, 0.0, 1.0] }}
+friction = {mu}
+[output]
+every = 50
+"#
+    );
+    let scene = scene_text(&dir, "slide3d.toml", &text);
+    let s = run_scene(2, &scene, &[]);
+    let a = G * (THETA.sin() - mu * THETA.cos());
+    let p = &s.momentum_final;
+    let along = (p[0] * phi.cos() + p[1] * phi.sin()) / 1.0;
+    let across = -p[0] * phi.sin() + p[1] * phi.cos();
+    eprintln!("downhill {along:.6} (theory {a:.6}), across {across:e}, normal {:e}", p[2]);
+    assert!(rel_diff(along, a) < 0.01, "downhill momentum {along} against {a}");
+    assert!(across.abs() < 1e-3 * a, "the block turned away from downhill: {across}");
+    assert!(s.energy_balance < 1e-8, "balance {:e}", s.energy_balance);
+    // The friction impulse points uphill, mu times the normal impulse where every node slips.
+    let c = contact(&s);
+    let f = &c.friction_impulse;
+    let len = (f[0] * f[0] + f[1] * f[1]).sqrt();
+    let uphill = [-phi.cos(), -phi.sin()];
+    assert!(
+        (f[0] / len - uphill[0]).abs() < 1e-3 && (f[1] / len - uphill[1]).abs() < 1e-3,
+        "friction impulse {f:?}"
+    );
+}
+
+/// The disc of `scenes/disc.toml` (R = 8, the mass-free layer) hitting the plane obliquely:
+/// velocity (400, -800).
+fn oblique_disc(dir: &Path, friction: &str) -> std::path::PathBuf {
+    scene_variant(
+        "disc.toml",
+        dir,
+        &[
+            ("velocity = [\"0\", \"-800\"]", "velocity = [\"400\", \"-800\"]"),
+            ("[output]", &format!("{friction}\n[output]")),
+            ("steps = 1000", "steps = 400"),
+            ("every = 10", "every = 100"),
+        ],
+    )
+}
+
+#[test]
+fn an_oblique_impact_with_little_friction_slips_at_every_node_on_any_rank_count() {
+    let dir = scratch("friction_oblique");
+    let mu = 0.1;
+    let scene = oblique_disc(&dir, &format!("friction = {mu}"));
+    let mut histories = Vec::new();
+    for ranks in [1, 2, 3] {
+        let s = run_scene(ranks, &scene, &[]);
+        let h5 = dir.join(format!("disc-{ranks}.h5"));
+        let run = reader(&h5);
+        let lambda = run.series(&layout::contact("force")).unwrap();
+        let weights = run.series(layout::CONTACT_WEIGHTS).unwrap();
+        let nc = weights.len();
+        let tt = run.series(&layout::contact(layout::CONTACT_TANGENTIAL)).unwrap();
+        // The force on the obstacle side, t_q = -(traction on the body) D_qq.
+        let t: Vec<f64> = (0..lambda.len()).map(|k| -tt[2 * k] * weights[k % nc]).collect();
+        let scale = lambda.iter().fold(0.0f64, |a, &x| a.max(x));
+        // Never beyond the cone, at any node and step (to solver tolerance).
+        for k in 0..lambda.len() {
+            assert!(
+                t[k].abs() <= mu * lambda[k] + 1e-7 * mu * scale,
+                "step {}, node {}: |t| = {:e} > mu lambda = {:e}",
+                k / nc,
+                k % nc,
+                t[k].abs(),
+                mu * lambda[k]
+            );
+        }
+        // Gross slip: tangential impulse = mu x normal impulse.
+        let c = contact(&s);
+        assert_eq!(c.stick_node_steps, 0, "the disc slides along: no node sticks");
+        let (sum_t, sum_l): (f64, f64) = (t.iter().sum(), lambda.iter().sum());
+        eprintln!("{ranks} rank(s): sum t = {sum_t:.12e}, mu sum lambda = {:.12e}", mu * sum_l);
+        assert!(rel_diff(sum_t, mu * sum_l) < 1e-8, "{sum_t} against {}", mu * sum_l);
+        // It pushes the obstacle forward (+x), so the disc's friction impulse points back.
+        assert!(c.friction_impulse[0] < 0.0 && sum_t > 0.0);
+        // The energy identity, the dissipation >= 0 and the energy lost to it.
+        assert!(s.energy_balance < 1e-8, "balance {:e}", s.energy_balance);
+        let lost = s.energy_initial - s.energy_final;
+        assert!(c.friction_dissipation > 0.0);
+        assert!(
+            rel_diff(lost, c.friction_dissipation) < 1e-6,
+            "lost {lost} against D = {}",
+            c.friction_dissipation
+        );
+        histories.push((t, lambda, s.momentum_final.clone()));
+    }
+    let (t1, l1, p1) = &histories[0];
+    for (t, l, p) in &histories[1..] {
+        let scale = l1.iter().fold(0.0f64, |a, &x| a.max(x));
+        let dt = t1.iter().zip(t).fold(0.0f64, |a, (x, y)| a.max((x - y).abs()));
+        let dl = l1.iter().zip(l).fold(0.0f64, |a, (x, y)| a.max((x - y).abs()));
+        assert!(
+            dt <= 1e-8 * scale && dl <= 1e-8 * scale,
+            "histories differ: {dt:e}, {dl:e} of {scale:e}"
+        );
+        assert!(rel_diff(p1[0], p[0]) < 1e-8 && rel_diff(p1[1], p[1]) < 1e-8);
+    }
+}
+
+#[test]
+fn an_oblique_impact_with_much_friction_sticks_and_leaves_the_disc_spinning() {
+    // disc_oblique.toml (mu = 0.3: more than the m v_t / 3 a rigid disc needs to roll) with
+    // E = 1e5: the contact zone sticks, and the disc leaves spinning. For a rigid disc the
+    // normal forces pass through the centre, so the angular momentum about the centre of mass
+    // changes by the friction impulse times the radius, L = R F_t; a deformable disc deviates
+    // by the pressure centroid's offset and the indentation, which vanish with its stiffness
+    // (measured: 10%, 1.6%, 0.05% at E = 1e2, 1e4, 1e5).
+    let dir = scratch("friction_spin");
+    let scene = scene_variant(
+        "disc_oblique.toml",
+        &dir,
+        &[("E = 100.0", "E = 1e5"), ("steps = 1000", "steps = 200"), ("every = 10", "every = 100")],
+    );
+    let s = run_scene(1, &scene, &[]);
+    let c = contact(&s);
+    assert!(
+        c.stick_node_steps > 0 && c.slip_node_steps > 0,
+        "{} stick, {} slip",
+        c.stick_node_steps,
+        c.slip_node_steps
+    );
+    assert!(c.last_contact_step < 200, "the disc left the plane");
+    let radius = 8.0;
+    let f_t = c.friction_impulse[0];
+    let dl = s.angular_momentum_final[2] - s.angular_momentum_initial[2];
+    eprintln!("Delta L = {dl:.6e}, R F_t = {:.6e}", radius * f_t);
+    assert!(s.angular_momentum_initial[2].abs() < 1e-12 * dl.abs(), "it starts without spin");
+    assert!(rel_diff(dl, radius * f_t) < 0.01, "Delta L = {dl} against R F_t = {}", radius * f_t);
+    // Spinning with its travel (clockwise for +x): L < 0.
+    assert!(dl < 0.0 && f_t < 0.0);
+    assert!(s.energy_balance < 1e-8, "balance {:e}", s.energy_balance);
+}
+
+#[test]
+fn friction_zero_is_the_frictionless_solver_to_the_last_digit() {
+    let dir = scratch("friction_zero");
+    let plain = oblique_disc(&dir, "");
+    let h_plain = dir.join("plain.h5");
+    let h_zero = dir.join("zero.h5");
+    let o = massfree(
+        2,
+        &[
+            "run",
+            plain.to_str().unwrap(),
+            "--quiet",
+            "--overwrite",
+            "--output",
+            h_plain.to_str().unwrap(),
+        ],
+    );
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let zero = scene_variant(
+        "disc.toml",
+        &dir,
+        &[
+            ("velocity = [\"0\", \"-800\"]", "velocity = [\"400\", \"-800\"]"),
+            ("[output]", "friction = 0\n[output]"),
+            ("steps = 1000", "steps = 400"),
+            ("every = 10", "every = 100"),
+        ],
+    );
+    let o = massfree(
+        2,
+        &[
+            "run",
+            zero.to_str().unwrap(),
+            "--quiet",
+            "--overwrite",
+            "--output",
+            h_zero.to_str().unwrap(),
+        ],
+    );
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    for name in [layout::contact("force"), layout::field("displacement"), layout::energy("total")] {
+        let a = reader(&h_plain).series(&name).unwrap();
+        let b = reader(&h_zero).series(&name).unwrap();
+        assert!(a == b, "{name} differs");
+    }
+    // No friction data without friction.
+    assert!(reader(&h_zero).file.dataset(&layout::contact(layout::CONTACT_STATE)).is_err());
+}
+
+#[test]
+fn tresca_bound_gives_a_constant_friction_force() {
+    // Tresca's bound S (a traction) on the unit square's base. The block starts compressed
+    // between the plane and rollers on its top (u = (0, -e y), the top held at y = 1 - e;
+    // nu = 0, so this is a static state: no Poisson stress along x), so every base node stays
+    // pressed; gravity along the plane, g sin theta, drives it. Where all nodes slip, the
+    // friction force is S L (L = 1) exactly.
+    let dir = scratch("friction_tresca");
+    let bound = 2.0;
+    let text = format!(
+        r#"name = "tresca"
+[mesh]
+geo = "../meshes/square_quad.geo"
+params = {{ h = 0.25 }}
+[material]
+E = 1e4
+nu = 0.0
+rho = 1.0
+[body_force]
+acceleration = ["{G}*sin(pi/6)", "0"]
+[initial]
+displacement = ["0", "-1e-3*y"]
+[[dirichlet]]
+group = "top"
+components = ["y"]
+value = ["0", "-1e-3"]
+[time]
+tau = 1e-2
+steps = 100
+[mass]
+kind = "modified1"
+[contact]
+boundary = "bottom"
+obstacle = {{ type = "plane", point = [0.0, 0.0], normal = [0.0, 1.0] }}
+tresca = {bound}
+[output]
+every = 50
+"#
+    );
+    let scene = scene_text(&dir, "tresca.toml", &text);
+    let s = run_scene(1, &scene, &[]);
+    let h5 = dir.join("tresca-1.h5");
+    let run = reader(&h5);
+    let tt = run.series(&layout::contact(layout::CONTACT_TANGENTIAL)).unwrap();
+    let state = run.series(&layout::contact(layout::CONTACT_STATE)).unwrap();
+    let nc = run.series(layout::CONTACT_NODES).unwrap().len();
+    // Where a node slips it carries the traction S (against the slip: -x); after the start
+    // (the first step sticks: the block's elastic shear takes up gravity's first push) every
+    // node slips.
+    let mut slipping_steps = 0;
+    for (k, st) in state.iter().enumerate().skip(nc) {
+        if *st == 2.0 {
+            assert!(
+                (tt[2 * k] + bound).abs() < 1e-8 * bound,
+                "step {}, node {}: {}",
+                k / nc,
+                k % nc,
+                tt[2 * k]
+            );
+        }
+        if k % nc == 0 && state[k..k + nc].iter().all(|&x| x == 2.0) {
+            slipping_steps += 1;
+        }
+        if k / nc >= 10 {
+            assert_eq!(*st, 2.0, "step {}, node {} does not slip", k / nc, k % nc);
+        }
+    }
+    let (tau, t) = (1e-2, 1.0);
+    let c = contact(&s);
+    let f = -c.friction_impulse[0];
+    eprintln!("friction impulse {f} (S L T = {}), {slipping_steps} steps in full slip", bound * t);
+    // At most S L T; exactly S L tau per step in full slip, less in the steps before.
+    assert!(
+        f <= bound * t * (1.0 + 1e-9) && f >= bound * tau * slipping_steps as f64 * (1.0 - 1e-9),
+        "{f}"
+    );
+    assert!(slipping_steps >= 95, "{slipping_steps}");
+    // Momentum along x: gravity's impulse m g sin theta T less the friction's.
+    let p = s.momentum_final[0];
+    assert!(
+        rel_diff(p, G * THETA.sin() * t - f) < 1e-8,
+        "momentum {p} against {}",
+        G * THETA.sin() * t - f
+    );
+    assert!(s.energy_balance < 1e-8, "balance {:e}", s.energy_balance);
+}
+
+#[test]
+fn friction_where_it_is_not_built_is_a_one_line_error() {
+    let dir = scratch("friction_errors");
+    let scene = slope_2d(&dir, "cols", &gravity_2d(None), 5, "friction = 0.3");
+    let o = massfree(
+        1,
+        &[
+            "run",
+            scene.to_str().unwrap(),
+            "--quiet",
+            "--overwrite",
+            "--",
+            "-contact_solver",
+            "columns",
+        ],
+    );
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        !o.status.success() && err.contains("-contact_solver columns has no friction"),
+        "{err}"
+    );
+    assert!(!err.contains("panicked"), "{err}");
+    let pair = scene_variant("two_discs.toml", &dir, &[("[output]", "friction = 0.2\n[output]")]);
+    let o = massfree(1, &["run", pair.to_str().unwrap(), "--quiet", "--overwrite", "--steps", "2"]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        !o.status.success()
+            && err.contains("friction between two bodies")
+            && err.contains("not built yet"),
+        "{err}"
+    );
+    assert_eq!(err.trim().lines().filter(|l| l.contains("massfree")).count(), 1, "{err}");
+}
