@@ -131,7 +131,8 @@ fn main() {
         std::process::exit(1);
     }
     let quick = args.iter().any(|a| a == "--quick");
-    // --only scaling|solvers|mass|disc|contact3d|two_body|output|stress|suite runs one section.
+    // --only scaling|solvers|mass|disc|contact3d|two_body|friction|output|stress|suite runs one
+    // section.
     let only = args.iter().position(|a| a == "--only").and_then(|i| args.get(i + 1)).cloned();
     let want = |section: &str| only.as_deref().is_none_or(|o| o == section);
     let cg_jacobi: &[&str] = &[];
@@ -545,6 +546,80 @@ fn main() {
                 );
                 print!("{}", md.lines().last().map(|l| format!("{l}\n")).unwrap_or_default());
             }
+        }
+    }
+    // Friction (issue 25; README "Friction"): the disc and the ball hitting the plane
+    // obliquely, with and without Coulomb friction, at about 10^4 DOFs in 2D and 2-6 x 10^4 in
+    // 3D: per contact step the active-set iterations and the cost against a plain solve of the
+    // step (`-contact_reference_solve`), and the chatter of the pressure and of the tangential
+    // traction with each mass kind.
+    if want("friction") {
+        md += "\nFriction (2 ranks; per contact step: active-set iterations, KSP iterations and time against a plain solve of the same step):\n\n| run | mass | mu | DOFs | contact steps | active-set its | solves | KSP its / plain | time / plain | stick node-steps | slip node-steps | pressure osc2 (lowest) | total force TV | tangential osc2 (lowest) | tangential TV (total) | dissipation / E0 |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
+        let mut runs: Vec<(String, &str, Vec<String>)> = vec![];
+        let disc = if quick { ("0.5", "0.05") } else { ("0.25", "0.025") };
+        for mass in ["consistent", "lumped", "modified0", "modified1"] {
+            for mu in ["0", "0.3"] {
+                runs.push((
+                    format!("disc h = {}, hc = {}", disc.0, disc.1),
+                    "disc_oblique.toml",
+                    ["--param", &format!("h={}", disc.0), "--param", &format!("hc={}", disc.1)]
+                        .map(String::from)
+                        .to_vec(),
+                ));
+                let last = runs.last_mut().unwrap();
+                last.2.extend(["--mass", mass, "--friction", mu].map(String::from));
+            }
+        }
+        let balls: &[(&str, &str)] =
+            if quick { &[("0.2", "0.04")] } else { &[("0.1", "0.02"), ("0.07", "0.014")] };
+        for &(h, hc) in balls {
+            for mass in ["consistent", "modified0"] {
+                for mu in ["0", "0.3"] {
+                    let mut args: Vec<String> =
+                        ["--param", &format!("h={h}"), "--param", &format!("hc={hc}")]
+                            .map(String::from)
+                            .to_vec();
+                    args.extend(["--mass", mass, "--friction", mu].map(String::from));
+                    runs.push((format!("ball h = {h}, hc = {hc}"), "sphere_oblique.toml", args));
+                }
+            }
+        }
+        for (label, scene, mut args) in runs {
+            let mass = args[args.iter().position(|a| a == "--mass").unwrap() + 1].clone();
+            let mu = args[args.iter().position(|a| a == "--friction").unwrap() + 1].clone();
+            args.extend(["--", "-contact_reference_solve"].map(String::from));
+            eprintln!("bench: friction, {label}, {mass}, mu = {mu}");
+            let summary = bench_dir().join("friction.toml");
+            let Some(t) = run_scene(2, scene, &args, &summary) else {
+                md += &format!("| {label} | {mass} | {mu} | failed |\n");
+                continue;
+            };
+            let c = t.contact.as_ref().unwrap();
+            let (its, secs) = match c.reference {
+                Some(r) if r.steps > 0 && r.plain_ksp_iterations > 0 => (
+                    r.contact_ksp_iterations as f64 / r.plain_ksp_iterations as f64,
+                    r.contact_seconds / r.plain_seconds,
+                ),
+                _ => (f64::NAN, f64::NAN),
+            };
+            let csteps = c.contact_steps.max(1) as f64;
+            md += &format!(
+                "| {label} | {mass} | {mu} | {} | {} | {:.2} | {:.2} | {:.2} | {:.2} | {} | {} | {:.2e} | {:.2} | {:.2e} | {:.2} | {:.2e} |\n",
+                t.n_dofs,
+                c.contact_steps,
+                c.active_set_iterations_mean,
+                1.0 + c.extra_solves as f64 / csteps,
+                its,
+                secs,
+                c.stick_node_steps,
+                c.slip_node_steps,
+                c.lowest_osc2,
+                c.total_force_tv_index,
+                c.lowest_tangential_osc2,
+                c.total_tangential_tv_index,
+                c.friction_dissipation / t.energy_initial.abs().max(f64::MIN_POSITIVE),
+            );
+            print!("{}", md.lines().last().map(|l| format!("{l}\n")).unwrap_or_default());
         }
     }
     // Output cost: the beam at ~10^6 DOFs writing displacement and velocity every step

@@ -500,3 +500,115 @@ fn friction_where_it_is_not_built_is_a_one_line_error() {
     );
     assert_eq!(err.trim().lines().filter(|l| l.contains("massfree")).count(), 1, "{err}");
 }
+
+/// Per step of an ironing run: the reaction on the obstacle `F = sum_q (lambda_q n_q + t_q)`
+/// (from the traction on the body), `sum_q |t_q|`, `sum_q lambda_q`, and whether every node in
+/// contact slips.
+fn ironing_history(h5: &Path, dim: usize) -> Vec<([f64; 3], f64, f64, bool)> {
+    let run = reader(h5);
+    let w = run.series(layout::CONTACT_WEIGHTS).unwrap();
+    let nc = w.len();
+    let traction = run.series(&layout::contact("traction")).unwrap();
+    let tangential = run.series(&layout::contact(layout::CONTACT_TANGENTIAL)).unwrap();
+    let lambda = run.series(&layout::contact("force")).unwrap();
+    let state = run.series(&layout::contact(layout::CONTACT_STATE)).unwrap();
+    (0..lambda.len() / nc)
+        .map(|n| {
+            let mut f = [0.0; 3];
+            let (mut t, mut l) = (0.0, 0.0);
+            let mut all_slip = false;
+            for q in 0..nc {
+                let k = n * nc + q;
+                let mut tq = 0.0;
+                for c in 0..dim {
+                    f[c] -= traction[k * dim + c] * w[q];
+                    tq += (tangential[k * dim + c] * w[q]).powi(2);
+                }
+                t += tq.sqrt();
+                l += lambda[k];
+                if state[k] == 2.0 {
+                    all_slip = true;
+                }
+            }
+            let slipping = all_slip && (0..nc).all(|q| state[n * nc + q] != 1.0);
+            (f, t, l, slipping)
+        })
+        .collect()
+}
+
+#[test]
+fn ironing_drags_with_mu_times_the_normal_force_on_any_rank_count() {
+    // scenes/ironing.toml: a rigid disc pressed into the block and dragged along its top (a
+    // moving obstacle: the stick rows follow its translation). Where every node in contact
+    // slips, sum |t_q| = mu sum lambda_q; on 3 ranks cut into slabs along x the contact zone
+    // crosses the cuts as it moves, and the histories stay those of 1 rank.
+    let dir = scratch("friction_ironing");
+    let scene = scene_variant(
+        "ironing.toml",
+        &dir,
+        &[("h = 0.015625", "h = 0.03125"), ("every = 10", "every = 50")],
+    );
+    let mu = 0.3;
+    let mut runs = Vec::new();
+    for (ranks, extra) in [(1, &[][..]), (2, &[][..]), (3, &["--partition", "x-slabs"][..])] {
+        let s = run_scene(ranks, &scene, extra);
+        assert!(s.energy_balance < 1e-8, "{ranks} rank(s): balance {:e}", s.energy_balance);
+        let h = ironing_history(&dir.join(format!("ironing-{ranks}.h5")), 2);
+        let slipping: Vec<_> = h.iter().filter(|r| r.3).collect();
+        assert!(slipping.len() > 150, "{} steps in full slip", slipping.len());
+        for (n, r) in h.iter().enumerate().filter(|(_, r)| r.3) {
+            assert!(
+                rel_diff(r.1, mu * r.2) < 1e-8,
+                "step {n}: sum |t| = {} against mu sum lambda = {}",
+                r.1,
+                mu * r.2
+            );
+        }
+        // The drag resists the motion (+x): the obstacle is pushed back and up.
+        let last = h.last().unwrap().0;
+        assert!(last[0] < 0.0 && last[1] > 0.0, "{last:?}");
+        runs.push(h);
+    }
+    let scale = runs[0].iter().fold(0.0f64, |a, r| a.max(r.0[1].abs()));
+    for (k, h) in runs.iter().enumerate().skip(1) {
+        for (n, (a, b)) in runs[0].iter().zip(h).enumerate() {
+            for c in 0..2 {
+                assert!(
+                    (a.0[c] - b.0[c]).abs() <= 1e-8 * scale,
+                    "run {k}, step {n}: {:?} against {:?}",
+                    a.0,
+                    b.0
+                );
+            }
+        }
+    }
+}
+
+#[test]
+fn ironing_in_3d_drags_with_mu_times_the_normal_force() {
+    // scenes/ironing_3d.toml on a coarser cube: a rigid cylinder along y dragged along x.
+    let dir = scratch("friction_ironing_3d");
+    let scene = scene_variant(
+        "ironing_3d.toml",
+        &dir,
+        &[("h = 0.0625", "h = 0.125"), ("every = 10", "every = 50")],
+    );
+    let s = run_scene(2, &scene, &[]);
+    assert!(s.energy_balance < 1e-8, "balance {:e}", s.energy_balance);
+    let h = ironing_history(&dir.join("ironing_3d-2.h5"), 3);
+    let mu = 0.3;
+    let slipping = h.iter().filter(|r| r.3).count();
+    assert!(slipping > 100, "{slipping} steps in full slip");
+    for (n, r) in h.iter().enumerate().filter(|(_, r)| r.3) {
+        assert!(
+            rel_diff(r.1, mu * r.2) < 1e-8,
+            "step {n}: sum |t| = {} against mu sum lambda = {}",
+            r.1,
+            mu * r.2
+        );
+        // Nothing pushes along the cylinder's axis.
+        assert!(r.0[1].abs() < 1e-8 * r.0[2].abs(), "step {n}: {:?}", r.0);
+    }
+    let last = h.last().unwrap().0;
+    assert!(last[0] < 0.0 && last[2] > 0.0, "{last:?}");
+}
