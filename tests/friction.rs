@@ -489,22 +489,26 @@ fn friction_where_it_is_not_built_is_a_one_line_error() {
         "{err}"
     );
     assert!(!err.contains("panicked"), "{err}");
-    let pair = scene_variant("two_discs.toml", &dir, &[("[output]", "friction = 0.2\n[output]")]);
-    let o = massfree(1, &["run", pair.to_str().unwrap(), "--quiet", "--overwrite", "--steps", "2"]);
-    let err = String::from_utf8_lossy(&o.stderr);
-    assert!(
-        !o.status.success()
-            && err.contains("friction between two bodies")
-            && err.contains("not built yet"),
-        "{err}"
+    // Pairs with different laws: one law for all pairs is built.
+    let pairs = scene_variant(
+        "three_bars.toml",
+        &dir,
+        &[(
+            "{ slave = \"left_contact\", master = \"middle_left\" },",
+            "{ slave = \"left_contact\", master = \"middle_left\", friction = 0.4 },",
+        )],
     );
+    let o =
+        massfree(1, &["run", pairs.to_str().unwrap(), "--quiet", "--overwrite", "--steps", "2"]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success() && err.contains("pairs with different friction"), "{err}");
     assert_eq!(err.trim().lines().filter(|l| l.contains("massfree")).count(), 1, "{err}");
 }
 
-/// Per step of an ironing run: the reaction on the obstacle `F = sum_q (lambda_q n_q + t_q)`
+/// Per step of a run with friction: the reaction on the obstacle (or master side) `F = sum_q (lambda_q n_q + t_q)`
 /// (from the traction on the body), `sum_q |t_q|`, `sum_q lambda_q`, and whether every node in
 /// contact slips.
-fn ironing_history(h5: &Path, dim: usize) -> Vec<([f64; 3], f64, f64, bool)> {
+fn friction_history(h5: &Path, dim: usize) -> Vec<([f64; 3], f64, f64, bool)> {
     let run = reader(h5);
     let w = run.series(layout::CONTACT_WEIGHTS).unwrap();
     let nc = w.len();
@@ -536,6 +540,19 @@ fn ironing_history(h5: &Path, dim: usize) -> Vec<([f64; 3], f64, f64, bool)> {
         .collect()
 }
 
+/// Where every node in contact slips, `sum_q |t_q| = mu sum_q lambda_q` (to the solver's
+/// tolerance).
+fn assert_slip_at_the_bound(h: &[([f64; 3], f64, f64, bool)], mu: f64) {
+    for (n, r) in h.iter().enumerate().filter(|(_, r)| r.3) {
+        assert!(
+            rel_diff(r.1, mu * r.2) < 1e-8,
+            "step {n}: sum |t| = {} against mu sum lambda = {}",
+            r.1,
+            mu * r.2
+        );
+    }
+}
+
 #[test]
 fn ironing_drags_with_mu_times_the_normal_force_on_any_rank_count() {
     // scenes/ironing.toml: a rigid disc pressed into the block and dragged along its top (a
@@ -553,17 +570,10 @@ fn ironing_drags_with_mu_times_the_normal_force_on_any_rank_count() {
     for (ranks, extra) in [(1, &[][..]), (2, &[][..]), (3, &["--partition", "x-slabs"][..])] {
         let s = run_scene(ranks, &scene, extra);
         assert!(s.energy_balance < 1e-8, "{ranks} rank(s): balance {:e}", s.energy_balance);
-        let h = ironing_history(&dir.join(format!("ironing-{ranks}.h5")), 2);
+        let h = friction_history(&dir.join(format!("ironing-{ranks}.h5")), 2);
         let slipping: Vec<_> = h.iter().filter(|r| r.3).collect();
         assert!(slipping.len() > 150, "{} steps in full slip", slipping.len());
-        for (n, r) in h.iter().enumerate().filter(|(_, r)| r.3) {
-            assert!(
-                rel_diff(r.1, mu * r.2) < 1e-8,
-                "step {n}: sum |t| = {} against mu sum lambda = {}",
-                r.1,
-                mu * r.2
-            );
-        }
+        assert_slip_at_the_bound(&h, mu);
         // The drag resists the motion (+x): the obstacle is pushed back and up.
         let last = h.last().unwrap().0;
         assert!(last[0] < 0.0 && last[1] > 0.0, "{last:?}");
@@ -595,20 +605,110 @@ fn ironing_in_3d_drags_with_mu_times_the_normal_force() {
     );
     let s = run_scene(2, &scene, &[]);
     assert!(s.energy_balance < 1e-8, "balance {:e}", s.energy_balance);
-    let h = ironing_history(&dir.join("ironing_3d-2.h5"), 3);
+    let h = friction_history(&dir.join("ironing_3d-2.h5"), 3);
     let mu = 0.3;
     let slipping = h.iter().filter(|r| r.3).count();
     assert!(slipping > 100, "{slipping} steps in full slip");
+    assert_slip_at_the_bound(&h, mu);
+    // Nothing pushes along the cylinder's axis.
     for (n, r) in h.iter().enumerate().filter(|(_, r)| r.3) {
-        assert!(
-            rel_diff(r.1, mu * r.2) < 1e-8,
-            "step {n}: sum |t| = {} against mu sum lambda = {}",
-            r.1,
-            mu * r.2
-        );
-        // Nothing pushes along the cylinder's axis.
         assert!(r.0[1].abs() < 1e-8 * r.0[2].abs(), "step {n}: {:?}", r.0);
     }
     let last = h.last().unwrap().0;
     assert!(last[0] < 0.0 && last[2] > 0.0, "{last:?}");
+}
+
+#[test]
+fn a_block_sliding_on_another_feels_mu_times_the_normal_force_and_the_other_the_opposite() {
+    // scenes/slide_off.toml (the upper block lands on the long lower one and slides at 1)
+    // with mu = 0.2, before it reaches the edge: dual mortar multipliers carry the friction,
+    // the slip weighted by the same basis (the interface follows the bodies).
+    let dir = scratch("friction_pair");
+    let scene = scene_variant(
+        "slide_off.toml",
+        &dir,
+        &[("steps = 500", "steps = 250"), ("[output]", "friction = 0.2\n[output]")],
+    );
+    let mu = 0.2;
+    let mut impulses = Vec::new();
+    for ranks in [1, 2] {
+        // The node law holds to the solver's tolerance, relative to the right-hand side, which
+        // the inertia terms dominate: the landing's first contact forces are small against it.
+        let s = run_scene(ranks, &scene, &["--", "-ksp_rtol", "1e-12"]);
+        assert!(s.energy_balance < 1e-8, "balance {:e}", s.energy_balance);
+        let h = friction_history(&dir.join(format!("slide_off-{ranks}.h5")), 2);
+        let slipping = h.iter().filter(|r| r.3).count();
+        assert_slip_at_the_bound(&h, mu);
+        assert!(slipping > 200, "{slipping} steps in full slip");
+        // Action = reaction: the two bodies' contact impulses cancel, friction's included.
+        let body =
+            |g: &str| s.bodies.iter().find(|b| b.group == g).unwrap().contact_impulse.clone();
+        let (up, low) = (body("upper"), body("lower"));
+        let scale = up[1].abs();
+        for c in 0..2 {
+            assert!((up[c] + low[c]).abs() <= 1e-8 * scale, "impulses {up:?} and {low:?}");
+        }
+        // The friction slows the upper block: its x impulse is friction's, about mu times its
+        // normal impulse (the mortar normals are nearly vertical).
+        let friction = &s.bodies.iter().find(|b| b.group == "upper").unwrap().friction_impulse;
+        assert!(rel_diff(friction[0], up[0]) < 1e-3, "{friction:?} against {up:?}");
+        assert!(
+            rel_diff(-up[0], mu * up[1]) < 1e-2,
+            "x impulse {} against mu y impulse {}",
+            -up[0],
+            mu * up[1]
+        );
+        impulses.push(up);
+    }
+    assert!(
+        rel_diff(impulses[0][0], impulses[1][0]) < 1e-8
+            && rel_diff(impulses[0][1], impulses[1][1]) < 1e-8
+    );
+}
+
+#[test]
+fn a_block_pushed_along_another_sticks_until_the_push_reaches_mu_times_its_weight() {
+    // The upper block of slide_off.toml at rest, pressed down by gravity (ramped up to 1 over
+    // 0.5, so that it settles without rocking) and from t = 1 pushed along x by an
+    // acceleration rising as 0.2 (t - 1): with mu = 0.2 the push reaches mu m g at t = 2.
+    // Quasi-statically, gross slip (every node in contact slipping) cannot come before: the
+    // friction would then be mu N, more than the push (5% margin for what is left of the
+    // normal force's oscillation); well after it every node slips.
+    let dir = scratch("friction_pair_stick");
+    let scene = scene_variant(
+        "slide_off.toml",
+        &dir,
+        &[
+            ("velocity = [\"max(0, min(1, 1e6 * y))\", \"0\"]", "velocity = [\"0\", \"0\"]"),
+            (
+                "acceleration = [\"0\", \"-1\"]",
+                "acceleration = [\"0.2*max(0, t - 1)*max(0, min(1, 1e6 * y))\", \"-min(t/0.5, 1)\"]",
+            ),
+            ("steps = 500", "steps = 260"),
+            ("[output]", "friction = 0.2\n[output]"),
+        ],
+    );
+    let s = run_scene(2, &scene, &[]);
+    assert!(s.energy_balance < 1e-8, "balance {:e}", s.energy_balance);
+    let h5 = dir.join("slide_off-2.h5");
+    let run = reader(&h5);
+    let nc = run.series(layout::CONTACT_NODES).unwrap().len();
+    let state = run.series(&layout::contact(layout::CONTACT_STATE)).unwrap();
+    let tau = 0.01;
+    let gross = |n: usize| {
+        let row = &state[n * nc..(n + 1) * nc];
+        row.iter().any(|&x| x != 0.0) && row.iter().all(|&x| x != 1.0)
+    };
+    let first = (1..state.len() / nc).find(|&n| gross(n)).expect("the block slips in the end");
+    eprintln!("gross slip from step {first} (t = {})", first as f64 * tau);
+    assert!(first as f64 * tau >= 0.95 * 2.0, "gross slip at t = {}", first as f64 * tau);
+    // From t = 2.3 on the block slides: nearly every node slips (an edge node may stick for a
+    // step as the block vibrates).
+    let late: Vec<f64> = state[230 * nc..].to_vec();
+    let slip = late.iter().filter(|&&x| x == 2.0).count() as f64;
+    let touching = late.iter().filter(|&&x| x != 0.0).count() as f64;
+    assert!(slip >= 0.9 * touching, "{slip} of {touching} node-steps slip after t = 2.3");
+    let upper = s.bodies.iter().find(|b| b.group == "upper").unwrap();
+    assert!(upper.momentum_final[0] > 0.0, "the block moves along the push");
+    assert!(contact(&s).stick_node_steps > 0);
 }

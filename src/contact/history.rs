@@ -69,6 +69,10 @@ pub struct ContactSummary {
     pub slip_node_steps: usize,
     #[serde(default)]
     pub stick_nodes_last: usize,
+    /// With friction: node-steps held slipping to end a cycle between stick and slip (nodes
+    /// at the bound with next to no force, at the edge of a contact zone).
+    #[serde(default)]
+    pub held_slipping_node_steps: usize,
     #[serde(default)]
     pub slip_nodes_last: usize,
     /// With friction: the friction's part of `impulse`, `-tau sum_n sum_q t_q` (empty
@@ -321,6 +325,7 @@ impl History {
             stick_node_steps: self.stick_slip[0],
             slip_node_steps: self.stick_slip[1],
             stick_nodes_last: self.stick_slip[2],
+            held_slipping_node_steps: c.held_slipping(),
             slip_nodes_last: self.stick_slip[3],
             friction_impulse: if self.node_friction_impulse.is_empty() {
                 vec![]

@@ -32,6 +32,10 @@ pub trait ContactSolver {
     }
     /// Solves with the step operator beyond one per step, so far.
     fn extra_solves(&self) -> usize;
+    /// With friction: node-steps held slipping to end a stick/slip cycle, so far.
+    fn held_slipping(&self) -> usize {
+        0
+    }
     /// The contact steps' cost against plain solves, when measured.
     fn reference_cost(&self) -> Option<ReferenceCost> {
         None

@@ -44,6 +44,8 @@ pub struct ActiveSet<'w> {
     /// With friction, per contact node after the last step: its state, slip direction and
     /// `b / |z|` (the next step's first guess).
     slip_states: Vec<(NodeState, [f64; 3], f64)>,
+    /// Node-steps held slipping to end a stick/slip cycle.
+    held_slipping: usize,
 }
 
 /// The complementarity parameter `c_t` of the tangential sets, relative to a node's stiffness
@@ -121,6 +123,7 @@ impl<'w> ActiveSet<'w> {
             extra_solves: 0,
             reference: None,
             slip_states: Vec::new(),
+            held_slipping: 0,
         }
     }
 
@@ -241,6 +244,8 @@ impl ContactSolver for ActiveSet<'_> {
             (0..nc).all(|p| states[p] == NodeState::Inactive && frames[p].0 - ndu_last[p] > reach);
         let mut exact = quiet || loose <= tight;
         let mut confirmations = 0;
+        // Nodes held slipping to end a stick/slip cycle (see below).
+        let mut fixed = vec![false; nc];
         let (lambda, trace, tangent) = loop {
             let conds = conditions(&states, &dirs);
             cons.impose(k, &conds)?;
@@ -299,7 +304,10 @@ impl ContactSolver for ActiveSet<'_> {
                             NodeState::Inactive => false,
                         };
                         tangent.set(p, t, s);
-                        if keep {
+                        if fixed[p] {
+                            // Held slipping to end a cycle (below).
+                            NodeState::Slip
+                        } else if keep {
                             NodeState::Stick
                         } else {
                             let dir = if len > 0.0 { z.map(|x| x / len) } else { dirs[p].0 };
@@ -330,6 +338,34 @@ impl ContactSolver for ActiveSet<'_> {
                 // The set stays, the slip directions still turn (3D): another Newton step.
                 lp.again()?;
                 continue;
+            }
+            if exact && with_friction && next != states && lp.seen(&next) {
+                // A cycle of nodes between stick and slip: a node at the bound with a force
+                // next to nothing (at the edge of a contact zone) can stick with more than its
+                // bound and slip against its own slip, by turns. Such nodes are held slipping
+                // along their last direction for the rest of the step (their friction force is
+                // the bound's, their slip as it comes), once; a cycle after that is an error.
+                let flips: Vec<usize> = (0..nc).filter(|&p| next[p] != states[p]).collect();
+                let frictional = flips.iter().all(|&p| {
+                    matches!(
+                        (states[p], next[p]),
+                        (NodeState::Stick, NodeState::Slip) | (NodeState::Slip, NodeState::Stick)
+                    )
+                });
+                if frictional && !flips.iter().any(|&p| fixed[p]) {
+                    for &p in &flips {
+                        fixed[p] = true;
+                        if next[p] == NodeState::Stick {
+                            // It slipped last along dirs[p]; keep that direction.
+                            next[p] = NodeState::Slip;
+                        }
+                    }
+                    self.held_slipping += flips.len();
+                    lp.restart(&next);
+                    lp.again()?;
+                    states = next;
+                    continue;
+                }
             }
             match lp.advance(&states, next, &self.nodes.tags)? {
                 None => break (lambda, trace, tangent),
@@ -387,6 +423,9 @@ impl ContactSolver for ActiveSet<'_> {
     }
     fn extra_solves(&self) -> usize {
         self.extra_solves
+    }
+    fn held_slipping(&self) -> usize {
+        self.held_slipping
     }
     fn reference_cost(&self) -> Option<ReferenceCost> {
         self.reference

@@ -252,36 +252,32 @@ pub fn contact_impulses(
     contact: Option<&dyn ContactSolver>,
     history: &ContactHistory,
 ) -> Vec<Vec<f64>> {
-    let dim = d.part.dim;
-    let n = d.bodies.n_bodies();
-    let Some(c) = contact else { return vec![vec![0.0; dim]; n] };
-    let first_body = |v: usize| (0..n).find(|&b| d.bodies.body_nodes(b).binary_search(&v).is_ok());
-    (0..n)
-        .map(|b| {
-            let imp = history
-                .impulse_on(&c.boundary().nodes, c.master_nodes(), |v| first_body(v) == Some(b));
-            imp[..dim].to_vec()
-        })
-        .collect()
+    per_body(d, contact, |c, holds| {
+        history.impulse_on(&c.boundary().nodes, c.master_nodes(), holds)
+    })
 }
 
-/// Per body, the friction's part of [`contact_impulses`].
+/// Per body, the friction's part of [`contact_impulses`] at its contact nodes.
 pub fn friction_impulses(
     d: &Domain,
     contact: Option<&dyn ContactSolver>,
     history: &ContactHistory,
 ) -> Vec<Vec<f64>> {
+    per_body(d, contact, |c, holds| history.friction_impulse_on(&c.boundary().nodes, holds))
+}
+
+/// `sum(c, holds)` for each body, `holds` accepting the nodes of that body (a node on two
+/// bodies counts for the first); zeros without contact.
+fn per_body(
+    d: &Domain,
+    contact: Option<&dyn ContactSolver>,
+    sum: impl Fn(&dyn ContactSolver, &dyn Fn(usize) -> bool) -> [f64; 3],
+) -> Vec<Vec<f64>> {
     let dim = d.part.dim;
     let n = d.bodies.n_bodies();
     let Some(c) = contact else { return vec![vec![0.0; dim]; n] };
     let first_body = |v: usize| (0..n).find(|&b| d.bodies.body_nodes(b).binary_search(&v).is_ok());
-    (0..n)
-        .map(|b| {
-            let imp =
-                history.friction_impulse_on(&c.boundary().nodes, |v| first_body(v) == Some(b));
-            imp[..dim].to_vec()
-        })
-        .collect()
+    (0..n).map(|b| sum(c, &|v| first_body(v) == Some(b))[..dim].to_vec()).collect()
 }
 
 /// L2 and H1-seminorm errors of `u` against the scene's exact displacement at time t (`None`

@@ -437,10 +437,11 @@ pub fn summary_lines(d: &Domain, layer: Option<(usize, usize)>, s: &RunSummary) 
         ));
         if !c.friction_impulse.is_empty() {
             lines.push(format!(
-                "friction: dissipated {:.6e}; node-steps in stick {}, in slip {} (last step: {} stick, {} slip); friction impulse ({}); tangential chatter: lowest node osc2 {:.2e}, total TV index {:.3}",
+                "friction: dissipated {:.6e}; node-steps in stick {}, in slip {} ({} held slipping to end a cycle; last step: {} stick, {} slip); friction impulse ({}); tangential chatter: lowest node osc2 {:.2e}, total TV index {:.3}",
                 c.friction_dissipation,
                 c.stick_node_steps,
                 c.slip_node_steps,
+                c.held_slipping_node_steps,
                 c.stick_nodes_last,
                 c.slip_nodes_last,
                 c.friction_impulse.iter().map(|x| format!("{x:.6e}")).collect::<Vec<_>>().join(", "),

@@ -63,6 +63,9 @@ pub struct MortarActiveSet<'w> {
     /// D_qq)` per entry of `M`: where each slave node's force goes on the master side.
     master: Vec<usize>,
     couplings: Vec<(usize, usize, f64)>,
+    /// The last round's normal part of the master nodes' forces (`master_nodal` without
+    /// friction's): the main terms the consistent force's rest is taken against.
+    master_normal: Vec<[f64; 3]>,
     /// The interface nodes' displacements at the last evaluation (of `T`, the planes and the
     /// rows), and where the Jacobians of the consistent force were computed (following: the
     /// midpoint of the round, while `T` may lag behind by `operator_lag`).
@@ -273,6 +276,7 @@ impl<'w> MortarActiveSet<'w> {
             hat: None,
             coverage: coverage(&iface, &slots, nodes_len),
             couplings: couplings(&iface, &slots),
+            master_normal: Vec::new(),
             master: iface.master,
             update_distance,
             update_in_contact: options.update_in_contact,
@@ -590,16 +594,23 @@ impl MortarActiveSet<'_> {
         step_seconds += t2.elapsed().as_secs_f64();
         self.cost.step_seconds += step_seconds;
         // The master nodes get -M^T lambda in the equation of motion: a force
-        // sum_q coverage_q lambda_q n_q on the master body.
+        // sum_q coverage_q lambda_q n_q on the master body (with friction, the multiplier is
+        // lambda_q n_q + t_q: the slip is weighted by the same mortar basis).
+        let tangential = |q: usize| out.row.tangential.get(q).copied().unwrap_or([0.0; 3]);
         for (q, &f) in out.row.force.iter().enumerate() {
+            let t = tangential(q);
             for c in 0..3 {
-                out.master_force[c] += self.coverage[q] * f * out.normals[q][c];
+                out.master_force[c] += self.coverage[q] * (f * out.normals[q][c] + t[c]);
             }
         }
         out.master_nodal = vec![[0.0; 3]; self.master.len()];
+        self.master_normal = vec![[0.0; 3]; self.master.len()];
         for &(p, l, w) in &self.couplings {
+            let t = tangential(p);
             for c in 0..3 {
-                out.master_nodal[l][c] += w * out.row.force[p] * out.normals[p][c];
+                let normal = w * out.row.force[p] * out.normals[p][c];
+                self.master_normal[l][c] += normal;
+                out.master_nodal[l][c] += normal + w * t[c];
             }
         }
         Ok((out, its))
@@ -637,6 +648,9 @@ impl ContactSolver for MortarActiveSet<'_> {
     }
     fn extra_solves(&self) -> usize {
         self.inner.extra_solves() + self.extra_rounds
+    }
+    fn held_slipping(&self) -> usize {
+        self.inner.held_slipping()
     }
     fn is_pair(&self) -> bool {
         true
@@ -844,13 +858,17 @@ pub fn pair_solver<'w>(
         }
         None => crate::contact::obstacle::Obstacles(Vec::new()),
     };
-    if let Some(p) = pairs.iter().find(|p| p.friction.is_some()) {
+    // The slave nodes meet their planes as one more "obstacle" after the rigid ones: one law
+    // for all pairs.
+    let law = pairs[0].friction;
+    if let Some(p) = pairs.iter().find(|p| p.friction != law) {
         return Err(Error::Scene(format!(
-            "contact: friction between two bodies (slave \"{}\", master \"{}\") is not built yet; friction against rigid obstacles is",
+            "contact: pairs with different friction (slave \"{}\", master \"{}\" against the first pair's) are not built; give them one law",
             p.slave, p.master
         )));
     }
-    let contact_nodes = ContactNodes::new(world, &mesh, &part, boundary, obstacles);
+    let mut contact_nodes = ContactNodes::new(world, &mesh, &part, boundary, obstacles);
+    contact_nodes.friction.push(law.map(crate::contact::friction::FrictionLaw::from_scene));
     let search = SearchState { margin: smallest, ..SearchState::default() };
     let pair = Pair {
         mesh,

@@ -243,7 +243,9 @@ impl MortarActiveSet<'_> {
                 rest[k * dim + c] += out.row.force[p] * out.normals[p][c];
             }
         }
-        for (l, f) in out.master_nodal.iter().enumerate() {
+        // (The normal part only: friction's tangential forces are applied through the basis
+        // change, with no rest.)
+        for (l, f) in self.master_normal.iter().enumerate() {
             let k = at[&self.master[l]];
             for c in 0..dim {
                 rest[k * dim + c] -= f[c];
@@ -298,7 +300,8 @@ impl MortarActiveSet<'_> {
             self.master.iter().enumerate().map(|(l, &v)| (v, l)).collect();
         let p_of: HashMap<usize, usize> =
             self.slots.iter().map(|&p| (nodes.boundary.nodes[p], p)).collect();
-        out.contact_nodal = vec![[0.0; 3]; nodes.len()];
+        // Beside friction's tangential forces (if any), the rest's share.
+        out.contact_nodal.resize(nodes.len(), [0.0; 3]);
         for (k, &v) in self.pair.nodes.iter().enumerate() {
             for c in 0..dim {
                 let f = applied[k * dim + c];
@@ -433,11 +436,17 @@ impl MortarActiveSet<'_> {
         out.contact_nodal.resize(out.row.force.len(), [0.0; 3]);
         for (q, &p) in self.slots.iter().enumerate() {
             if out.row.active[p] && self.d_evaluated[p] > 0.0 && iface.d[q] > 0.0 {
-                let f = out.row.force[p] * iface.d[q] / self.d_evaluated[p];
+                let ratio = iface.d[q] / self.d_evaluated[p];
+                let f = out.row.force[p] * ratio;
                 for c in 0..3 {
                     out.contact_nodal[p][c] += (f - out.row.force[p]) * out.normals[p][c];
                 }
                 out.row.force[p] = f;
+                // Friction's tangential force is stated alike (the force applied, `-t` in
+                // `contact_nodal`, stays).
+                if let Some(t) = out.row.tangential.get_mut(p) {
+                    *t = t.map(|x| x * ratio);
+                }
             }
         }
         Ok(())
