@@ -540,12 +540,14 @@ fn friction_history(h5: &Path, dim: usize) -> Vec<([f64; 3], f64, f64, bool)> {
         .collect()
 }
 
-/// Where every node in contact slips, `sum_q |t_q| = mu sum_q lambda_q` (to the solver's
-/// tolerance).
+/// Where every node in contact slips, `sum_q |t_q| = mu sum_q lambda_q`, to the solver's
+/// tolerance on the run's largest force (the tolerance is relative to the right-hand side,
+/// which the inertia terms dominate: the first contact forces of an impact are far below it).
 fn assert_slip_at_the_bound(h: &[([f64; 3], f64, f64, bool)], mu: f64) {
+    let scale = h.iter().fold(0.0f64, |a, r| a.max(r.2));
     for (n, r) in h.iter().enumerate().filter(|(_, r)| r.3) {
         assert!(
-            rel_diff(r.1, mu * r.2) < 1e-8,
+            (r.1 - mu * r.2).abs() <= 1e-8 * mu * scale,
             "step {n}: sum |t| = {} against mu sum lambda = {}",
             r.1,
             mu * r.2
@@ -711,4 +713,138 @@ fn a_block_pushed_along_another_sticks_until_the_push_reaches_mu_times_its_weigh
     let upper = s.bodies.iter().find(|b| b.group == "upper").unwrap();
     assert!(upper.momentum_final[0] > 0.0, "the block moves along the push");
     assert!(contact(&s).stick_node_steps > 0);
+}
+
+#[test]
+fn cattaneo_mindlin_partial_slip_shrinks_the_stick_zone_as_theory_says() {
+    // scenes/cattaneo.toml at tau = 0.02: a half-cylinder (R = 4) pressed on a block of the
+    // same material (no normal-tangential coupling), then moved sideways. Cattaneo and
+    // Mindlin (2D): the contact half-width is Hertz's, a = sqrt(4 P R / (pi E*)) with
+    // 1/E* = 2 (1 - nu^2) / E; under a growing tangential force Q < mu P the middle sticks
+    // over |x| < c = a sqrt(1 - Q / (mu P)) and the edges slip, with the traction
+    // q = mu p0 (sqrt(1 - x^2/a^2) - (c/a) sqrt(1 - x^2/c^2)) in the stick zone and mu p in the
+    // slip zones (p0 = 2 P / (pi a)). The zone edges are measured halfway between the last
+    // node inside and the first outside, and must lie within one contact cell of theory.
+    let dir = scratch("friction_cattaneo");
+    let scene = scene_variant(
+        "cattaneo.toml",
+        &dir,
+        &[
+            ("tau = 0.01", "tau = 0.02"),
+            ("steps = 200", "steps = 100"),
+            ("every = 10", "every = 100"),
+        ],
+    );
+    let s = run_scene(2, &scene, &[]);
+    assert!(s.energy_balance < 1e-8, "balance {:e}", s.energy_balance);
+    let run = reader(&dir.join("cattaneo-2.h5"));
+    let (mu, e, nu, radius) = (0.3, 100.0, 0.3, 4.0);
+    let e_star = e / (2.0 * (1.0 - nu * nu));
+    let coords = run.coordinates().unwrap();
+    let nodes = run.series(layout::CONTACT_NODES).unwrap();
+    let w = run.series(layout::CONTACT_WEIGHTS).unwrap();
+    let nc = w.len();
+    let x: Vec<f64> = nodes.iter().map(|&v| coords[v as usize][0]).collect();
+    let mut order: Vec<usize> = (0..nc).collect();
+    order.sort_by(|&i, &j| x[i].total_cmp(&x[j]));
+    let lambda = run.series(&layout::contact("force")).unwrap();
+    let tt = run.series(&layout::contact(layout::CONTACT_TANGENTIAL)).unwrap();
+    let state = run.series(&layout::contact(layout::CONTACT_STATE)).unwrap();
+    // The edges of the nodes (in x order) in a set: halfway to the neighbours outside.
+    let half_width = |n: usize, inside: &dyn Fn(f64) -> bool| -> (f64, f64) {
+        let k: Vec<usize> = (0..nc).filter(|&i| inside(state[n * nc + order[i]])).collect();
+        let (lo, hi) = (k[0], *k.last().unwrap());
+        assert!(k.len() == hi - lo + 1, "step {n}: the set is not one interval");
+        let left = 0.5 * (x[order[lo]] + x[order[lo - 1]]);
+        let right = 0.5 * (x[order[hi]] + x[order[hi + 1]]);
+        (0.5 * (right - left), x[order[hi + 1]] - x[order[hi]])
+    };
+    let mut p_start = 0.0;
+    let mut checked = 0;
+    for n in 51..=96 {
+        let p: f64 = lambda[n * nc..(n + 1) * nc].iter().sum();
+        let q: f64 = (0..nc).map(|k| -tt[2 * (n * nc + k)] * w[k]).sum();
+        if n == 51 {
+            p_start = p;
+        }
+        // The normal force does not feel the tangential one.
+        assert!(rel_diff(p, p_start) < 1e-2, "step {n}: P = {p} against {p_start}");
+        let a = (4.0 * p * radius / (std::f64::consts::PI * e_star)).sqrt();
+        let (a_m, cell) = half_width(n, &|s| s != 0.0);
+        assert!((a_m - a).abs() <= cell, "step {n}: contact half-width {a_m} against Hertz's {a}");
+        if q / (mu * p) < 0.1 {
+            continue;
+        }
+        let c = a * (1.0 - q / (mu * p)).sqrt();
+        let (c_m, cell) = half_width(n, &|s| s == 1.0);
+        assert!(
+            (c_m - c).abs() <= cell,
+            "step {n}: Q/(mu P) = {:.3}, stick half-width {c_m} against {c}",
+            q / (mu * p)
+        );
+        // The traction profile, RMS over the contact nodes, within 10% of mu p0.
+        let p0 = 2.0 * p / (std::f64::consts::PI * a);
+        let theory = |xx: f64| {
+            let outer = (1.0 - xx * xx / (a * a)).max(0.0).sqrt();
+            let inner = if xx.abs() < c { (c / a) * (1.0 - xx * xx / (c * c)).sqrt() } else { 0.0 };
+            mu * p0 * (outer - inner)
+        };
+        let active: Vec<usize> = (0..nc).filter(|&k| state[n * nc + k] != 0.0).collect();
+        let rms =
+            (active.iter().map(|&k| (-tt[2 * (n * nc + k)] - theory(x[k])).powi(2)).sum::<f64>()
+                / active.len() as f64)
+                .sqrt();
+        assert!(
+            rms < 0.1 * mu * p0,
+            "step {n}: traction off by {rms} (RMS) against mu p0 = {}",
+            mu * p0
+        );
+        checked += 1;
+    }
+    assert!(checked > 30, "{checked} steps of partial slip checked");
+}
+
+#[test]
+fn an_oblique_ball_with_little_friction_slips_within_the_cone_in_3d() {
+    // scenes/sphere_oblique.toml with mu = 0.05: the friction impulse mu J_n (J_n about
+    // 2 m v_n for the elastic bounce) is below the (2/7) m v_t a solid ball needs to roll, so
+    // the ball slides through the whole impact. Every node stays in the cone, and while every
+    // node in contact slips, sum |t_q| = mu sum lambda_q; the energy lost is the dissipation.
+    let dir = scratch("friction_ball");
+    let scene = scene_variant("sphere_oblique.toml", &dir, &[("every = 10", "every = 110")]);
+    let mu = 0.05;
+    let s = run_scene(2, &scene, &["--friction", "0.05"]);
+    assert!(s.energy_balance < 1e-8, "balance {:e}", s.energy_balance);
+    let h5 = dir.join("sphere_oblique-2.h5");
+    let h = friction_history(&h5, 3);
+    assert_slip_at_the_bound(&h, mu);
+    let slipping = h.iter().filter(|r| r.3).count();
+    let touching = h.iter().filter(|r| r.2 > 0.0).count();
+    assert!(
+        slipping as f64 >= 0.9 * touching as f64,
+        "{slipping} of {touching} contact steps in full slip"
+    );
+    let run = reader(&h5);
+    let w = run.series(layout::CONTACT_WEIGHTS).unwrap();
+    let nc = w.len();
+    let lambda = run.series(&layout::contact("force")).unwrap();
+    let tt = run.series(&layout::contact(layout::CONTACT_TANGENTIAL)).unwrap();
+    let scale = lambda.iter().fold(0.0f64, |a, &x| a.max(x));
+    for k in 0..lambda.len() {
+        let t = (0..3).map(|c| (tt[3 * k + c] * w[k % nc]).powi(2)).sum::<f64>().sqrt();
+        assert!(
+            t <= mu * lambda[k] + 1e-7 * mu * scale,
+            "step {}, node {}: |t| = {t:e} > mu lambda",
+            k / nc,
+            k % nc
+        );
+    }
+    let c = contact(&s);
+    let lost = s.energy_initial - s.energy_final;
+    assert!(c.friction_dissipation > 0.0);
+    assert!(
+        rel_diff(lost, c.friction_dissipation) < 1e-6,
+        "lost {lost} against D = {}",
+        c.friction_dissipation
+    );
 }
