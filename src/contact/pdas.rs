@@ -57,8 +57,12 @@ const C_T: f64 = 0.01;
 
 /// Relative width of the band around the slip bound in which a node keeps its state.
 const SET_RTOL: f64 = 1e-9;
-/// A slipping node's direction has settled when it turns by less than this (radians).
-const DIR_TOL: f64 = 1e-6;
+/// A slipping node's direction has settled when it turns by less than this (radians). The
+/// size of its friction force is exact whatever the direction (the row along it), and the
+/// step's dissipation is booked with the final force and slip; only the direction of the
+/// force across the slip carries this error. 1e-6 took 4.56 active-set iterations per
+/// contact step on the oblique ball (consistent mass, 23058 DOFs), 1e-4 3.87, 1e-3 3.43.
+const DIR_TOL: f64 = 1e-4;
 
 /// Per contact node of an iterate: the tangential force `t_q` and the slip `s_q`.
 struct Tangent {
