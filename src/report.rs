@@ -138,9 +138,7 @@ pub struct BodySummary {
     /// other load it equals the momentum change.
     #[serde(default)]
     pub contact_impulse: Vec<f64>,
-    /// Friction's part of `contact_impulse` at the body's contact nodes (the nodes meeting
-    /// obstacles, a pair's slave nodes; a master body's share is in `contact_impulse` only;
-    /// zero without friction).
+    /// Friction's part of `contact_impulse` (zero without friction).
     #[serde(default)]
     pub friction_impulse: Vec<f64>,
 }

@@ -656,6 +656,11 @@ fn a_block_sliding_on_another_feels_mu_times_the_normal_force_and_the_other_the_
         // The friction slows the upper block: its x impulse is friction's, about mu times its
         // normal impulse (the mortar normals are nearly vertical).
         let friction = &s.bodies.iter().find(|b| b.group == "upper").unwrap().friction_impulse;
+        // Friction's parts cancel as well (the master's through -M^T t).
+        let lower = &s.bodies.iter().find(|b| b.group == "lower").unwrap().friction_impulse;
+        for c in 0..2 {
+            assert!((friction[c] + lower[c]).abs() <= 1e-8 * scale, "{friction:?} and {lower:?}");
+        }
         assert!(rel_diff(friction[0], up[0]) < 1e-3, "{friction:?} against {up:?}");
         assert!(
             rel_diff(-up[0], mu * up[1]) < 1e-2,

@@ -22,6 +22,8 @@ pub struct History {
     node_impulse: Vec<[f64; 3]>,
     /// Per contact node, the friction's share of `node_impulse`: `-tau sum_n t_q`.
     node_friction_impulse: Vec<[f64; 3]>,
+    /// Per master node, the friction's share of `master_node_impulse`.
+    master_friction_impulse: Vec<[f64; 3]>,
     /// Node-steps in stick and in slip (friction), and the nodes of the last step in each.
     stick_slip: [usize; 4],
     /// Per master node, `tau sum_n (M^T lambda)_l n` (pairs).
@@ -149,14 +151,20 @@ impl History {
         }
         if !c.row.tangential.is_empty() {
             self.node_friction_impulse.resize(n, [0.0; 3]);
-            for (imp, t) in self.node_friction_impulse.iter_mut().zip(&c.row.tangential) {
+            for (imp, f) in self.node_friction_impulse.iter_mut().zip(&c.friction_nodal) {
                 for i in 0..3 {
-                    imp[i] -= tau * t[i];
+                    imp[i] += tau * f[i];
                 }
             }
             let count = |s: u8| c.row.state.iter().filter(|&&x| x == s).count();
             let (stick, slip) = (count(crate::rows::STATE_STICK), count(crate::rows::STATE_SLIP));
             self.stick_slip = [self.stick_slip[0] + stick, self.stick_slip[1] + slip, stick, slip];
+        }
+        self.master_friction_impulse.resize(c.master_friction.len(), [0.0; 3]);
+        for (imp, f) in self.master_friction_impulse.iter_mut().zip(&c.master_friction) {
+            for i in 0..3 {
+                imp[i] += tau * f[i];
+            }
         }
         self.master_node_impulse.resize(c.master_nodal.len(), [0.0; 3]);
         for (imp, f) in self.master_node_impulse.iter_mut().zip(&c.master_nodal) {
@@ -192,10 +200,18 @@ impl History {
         out
     }
 
-    /// The friction's impulse on the contact nodes `holds` accepts (zero without friction).
-    pub fn friction_impulse_on(&self, nodes: &[usize], holds: impl Fn(usize) -> bool) -> [f64; 3] {
+    /// The friction's impulse on the contact nodes (`nodes`) and master nodes (`master`)
+    /// `holds` accepts (zero without friction).
+    pub fn friction_impulse_on(
+        &self,
+        nodes: &[usize],
+        master: &[usize],
+        holds: impl Fn(usize) -> bool,
+    ) -> [f64; 3] {
         let mut out = [0.0; 3];
-        for (&v, imp) in nodes.iter().zip(&self.node_friction_impulse) {
+        let all = (nodes.iter().zip(&self.node_friction_impulse))
+            .chain(master.iter().zip(&self.master_friction_impulse));
+        for (&v, imp) in all {
             if holds(v) {
                 for i in 0..3 {
                     out[i] += imp[i];
@@ -330,7 +346,7 @@ impl History {
             friction_impulse: if self.node_friction_impulse.is_empty() {
                 vec![]
             } else {
-                let all = self.friction_impulse_on(&self.nodes, |_| true);
+                let all = self.friction_impulse_on(&self.nodes, &[], |_| true);
                 all[..dim].to_vec()
             },
             lowest_tangential_osc2,

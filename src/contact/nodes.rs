@@ -338,6 +338,8 @@ impl<'w> ContactNodes<'w> {
             obstacle_force: [0.0; 3],
             master_force: [0.0; 3],
             master_nodal: Vec::new(),
+            master_friction: Vec::new(),
+            friction_nodal: Vec::new(),
             contact_nodal: Vec::new(),
         };
         for p in 0..nc {
@@ -365,6 +367,7 @@ impl<'w> ContactNodes<'w> {
                 }
             }
             out.contact_nodal = f.tangential.iter().map(|t| t.map(|x| -x)).collect();
+            out.friction_nodal.clone_from(&out.contact_nodal);
             out.row.tangential = f.tangential;
             out.row.state = f.state;
             out.row.slip = f.slip;

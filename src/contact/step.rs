@@ -49,6 +49,12 @@ pub struct StepContact {
     /// Per master node `l` (of [`ContactSolver::master_nodes`]): its share
     /// `sum_q (M_ql / D_qq) lambda_q n_q` of `master_force` (empty against rigid obstacles).
     pub master_nodal: Vec<[f64; 3]>,
+    /// With friction: per contact node, the tangential force its body got, `-t_q` as the
+    /// solve applied it (a pair's `t_q` may be restated at the midpoint in `row.tangential`).
+    pub friction_nodal: Vec<[f64; 3]>,
+    /// With friction between two bodies: per master node, friction's part of `master_nodal`,
+    /// `sum_q (M_ql / D_qq) t_q` (empty otherwise).
+    pub master_friction: Vec<[f64; 3]>,
     /// Per contact node: a force beside `-force n` (the rest of the consistent force of an
     /// interface that follows the bodies; empty otherwise).
     pub contact_nodal: Vec<[f64; 3]>,

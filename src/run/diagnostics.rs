@@ -257,13 +257,15 @@ pub fn contact_impulses(
     })
 }
 
-/// Per body, the friction's part of [`contact_impulses`] at its contact nodes.
+/// Per body, the friction's part of [`contact_impulses`].
 pub fn friction_impulses(
     d: &Domain,
     contact: Option<&dyn ContactSolver>,
     history: &ContactHistory,
 ) -> Vec<Vec<f64>> {
-    per_body(d, contact, |c, holds| history.friction_impulse_on(&c.boundary().nodes, holds))
+    per_body(d, contact, |c, holds| {
+        history.friction_impulse_on(&c.boundary().nodes, c.master_nodes(), holds)
+    })
 }
 
 /// `sum(c, holds)` for each body, `holds` accepting the nodes of that body (a node on two

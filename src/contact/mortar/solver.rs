@@ -605,12 +605,20 @@ impl MortarActiveSet<'_> {
         }
         out.master_nodal = vec![[0.0; 3]; self.master.len()];
         self.master_normal = vec![[0.0; 3]; self.master.len()];
+        if !out.row.tangential.is_empty() {
+            out.master_friction = vec![[0.0; 3]; self.master.len()];
+        }
         for &(p, l, w) in &self.couplings {
             let t = tangential(p);
             for c in 0..3 {
                 let normal = w * out.row.force[p] * out.normals[p][c];
                 self.master_normal[l][c] += normal;
                 out.master_nodal[l][c] += normal + w * t[c];
+            }
+            if let Some(f) = out.master_friction.get_mut(l) {
+                for c in 0..3 {
+                    f[c] += w * t[c];
+                }
             }
         }
         Ok((out, its))
