@@ -1,5 +1,7 @@
-//! Frictionless contact with rigid obstacles, resolved by a primal-dual active set inside
-//! each time step (METHOD.md section 5; no SNES).
+//! Contact with rigid obstacles, frictionless or with Coulomb/Tresca friction, resolved by a
+//! primal-dual active set inside each time step (METHOD.md section 5; no SNES). The normal
+//! condition is described here; friction's three sets per node are in [`constraint`] and
+//! [`pdas`].
 //!
 //! Per contact node `q`: normal `n_q` (unit, from the body towards the obstacle), gap
 //! `g_q(u) = g^n_q - n_q . (u_q - u^n_q)` linearized at the start of the step (exact for a
@@ -23,9 +25,9 @@
 //! ([`ContactSolver`]), `step.rs` what crosses it in a step ([`StepSystem`], [`StepContact`]);
 //! `nodes.rs` the contact boundary and nodes ([`ContactBoundary`], [`ContactNodes`], [`trace`]);
 //! `active_set.rs` the active-set loop's bookkeeping ([`ActiveSetLoop`]); `friction.rs` the
-//! friction law at one node (Coulomb and Tresca: the sets stick and slip, the complementarity
-//! function and the slip direction's derivative; not yet used by a solver); `cost.rs` what
-//! contact costs; this one the factory [`solver`] and its options. The files import each
+//! friction law at one node (Coulomb and Tresca: the sets stick and slip, the slip bound and
+//! the complementarity function; `pdas` turns them into the rows of
+//! [`constraint::Condition`]); `cost.rs` what contact costs; this one the factory [`solver`] and its options. The files import each
 //! other, never this one (no import circle).
 
 mod active_set;

@@ -9,6 +9,13 @@
 //! first guess next time, so a step with an unchanged contact zone costs one solve). The
 //! operator is rewritten, and the preconditioner rebuilt by PETSc, only when the set or an
 //! active node's normal changes.
+//!
+//! With friction (Hueber, Stadler and Wohlmuth 2008) a node in contact is in one of two more
+//! sets, stick or slip ([`Condition`]), chosen from `|t + c_t s|` against the slip bound `b`
+//! (`t` the tangential force read from the residual, `s` the slip increment relative to what
+//! the node meets); a slipping node's direction is Newton-iterated until it settles. The loop
+//! ends when the sets repeat and the directions have settled; the step reports the tangential
+//! forces, the slips, the states and the dissipation `sum t . s`.
 
 use super::active_set::ActiveSetLoop;
 use super::constraint::{Condition, NormalConstraints};
