@@ -118,6 +118,36 @@ pub struct ContactSummary {
     pub mortar: Option<super::cost::MortarCost>,
 }
 
+/// `dst[k] += tau src[k]` (`src` may be shorter: an empty list adds nothing).
+fn add_scaled(dst: &mut [[f64; 3]], src: &[[f64; 3]], tau: f64) {
+    for (d, f) in dst.iter_mut().zip(src) {
+        for i in 0..3 {
+            d[i] += tau * f[i];
+        }
+    }
+}
+
+/// The sum of the per-node values (`nodes` with `at_nodes`, `master` with `at_master`) of the
+/// nodes `holds` accepts.
+fn sum_held(
+    nodes: &[usize],
+    at_nodes: &[[f64; 3]],
+    master: &[usize],
+    at_master: &[[f64; 3]],
+    holds: impl Fn(usize) -> bool,
+) -> [f64; 3] {
+    let mut out = [0.0; 3];
+    let all = nodes.iter().zip(at_nodes).chain(master.iter().zip(at_master));
+    for (&v, x) in all {
+        if holds(v) {
+            for i in 0..3 {
+                out[i] += x[i];
+            }
+        }
+    }
+    out
+}
+
 impl History {
     pub fn start(&mut self, c: &dyn ContactSolver) {
         let nc = c.n_nodes();
@@ -144,34 +174,18 @@ impl History {
                 *x -= tau * c.row.force[p] * c.normals[p][i];
             }
         }
-        for (imp, f) in self.node_impulse.iter_mut().zip(&c.contact_nodal) {
-            for i in 0..3 {
-                imp[i] += tau * f[i];
-            }
-        }
+        add_scaled(&mut self.node_impulse, &c.contact_nodal, tau);
         if !c.row.tangential.is_empty() {
             self.node_friction_impulse.resize(n, [0.0; 3]);
-            for (imp, f) in self.node_friction_impulse.iter_mut().zip(&c.friction_nodal) {
-                for i in 0..3 {
-                    imp[i] += tau * f[i];
-                }
-            }
+            add_scaled(&mut self.node_friction_impulse, &c.friction_nodal, tau);
             let count = |s: u8| c.row.state.iter().filter(|&&x| x == s).count();
             let (stick, slip) = (count(crate::rows::STATE_STICK), count(crate::rows::STATE_SLIP));
             self.stick_slip = [self.stick_slip[0] + stick, self.stick_slip[1] + slip, stick, slip];
         }
         self.master_friction_impulse.resize(c.master_friction.len(), [0.0; 3]);
-        for (imp, f) in self.master_friction_impulse.iter_mut().zip(&c.master_friction) {
-            for i in 0..3 {
-                imp[i] += tau * f[i];
-            }
-        }
+        add_scaled(&mut self.master_friction_impulse, &c.master_friction, tau);
         self.master_node_impulse.resize(c.master_nodal.len(), [0.0; 3]);
-        for (imp, f) in self.master_node_impulse.iter_mut().zip(&c.master_nodal) {
-            for i in 0..3 {
-                imp[i] += tau * f[i];
-            }
-        }
+        add_scaled(&mut self.master_node_impulse, &c.master_nodal, tau);
         for i in 0..3 {
             self.impulse[i] += tau * c.resultant[i];
             self.master_impulse[i] += tau * c.master_force[i];
@@ -187,17 +201,7 @@ impl History {
         master: &[usize],
         holds: impl Fn(usize) -> bool,
     ) -> [f64; 3] {
-        let mut out = [0.0; 3];
-        let all = (nodes.iter().zip(&self.node_impulse))
-            .chain(master.iter().zip(&self.master_node_impulse));
-        for (&v, imp) in all {
-            if holds(v) {
-                for i in 0..3 {
-                    out[i] += imp[i];
-                }
-            }
-        }
-        out
+        sum_held(nodes, &self.node_impulse, master, &self.master_node_impulse, holds)
     }
 
     /// The friction's impulse on the contact nodes (`nodes`) and master nodes (`master`)
@@ -208,17 +212,7 @@ impl History {
         master: &[usize],
         holds: impl Fn(usize) -> bool,
     ) -> [f64; 3] {
-        let mut out = [0.0; 3];
-        let all = (nodes.iter().zip(&self.node_friction_impulse))
-            .chain(master.iter().zip(&self.master_friction_impulse));
-        for (&v, imp) in all {
-            if holds(v) {
-                for i in 0..3 {
-                    out[i] += imp[i];
-                }
-            }
-        }
-        out
+        sum_held(nodes, &self.node_friction_impulse, master, &self.master_friction_impulse, holds)
     }
 
     /// Every step's row (index 0 = the start).
