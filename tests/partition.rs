@@ -135,3 +135,56 @@ fn metis_repeats_itself() {
     assert_eq!(a, b);
     assert_eq!(a, d, "{c:?}");
 }
+
+/// The local view of each rank (own cells plus the vertex-neighbour ghost layer) against the
+/// whole mesh: owned nodes cover every node once with the replicated numbering, every owned
+/// node's cell star is complete, and the local maps lead back to the original entities.
+#[test]
+fn local_views_cover_the_mesh_with_complete_stars() {
+    let mesh = quad_mesh(15, 9);
+    let (off, list) = node_cells(&mesh);
+    for size in [1, 2, 3, 4] {
+        let cell_rank = massfree::partition::partition_cells(&mesh, size).unwrap();
+        let mut seen = vec![0usize; mesh.n_nodes()];
+        let mut own_cells = 0;
+        for rank in 0..size {
+            let whole = Partition::from_cell_ranks(&mesh, rank, size, cell_rank.clone());
+            let (local, p) = massfree::partition::local::localize(&mesh, &cell_rank, rank, size);
+            assert_eq!(p.node_offsets, whole.node_offsets);
+            assert_eq!(local.n_nodes(), p.node_original.len());
+            let (loff, llist) = node_cells(&local);
+            for (l, &v) in p.node_original.iter().enumerate() {
+                assert_eq!(local.coords[l], mesh.coords[v]);
+                assert_eq!(p.node_global[l], whole.node_global[v]);
+                assert_eq!(p.node_owner[l], whole.node_owner[v]);
+            }
+            for &l in &p.owned_nodes {
+                let v = p.node_original[l];
+                seen[v] += 1;
+                assert_eq!(loff[l + 1] - loff[l], off[v + 1] - off[v], "star of node {v}");
+            }
+            for (lc, &c) in p.cell_original.iter().enumerate() {
+                let back: Vec<usize> =
+                    local.cells[lc].nodes().iter().map(|&l| p.node_original[l]).collect();
+                assert_eq!(back, mesh.cells[c].nodes());
+                assert_eq!(p.cell_rank[lc], cell_rank[c]);
+                // A ghost cell shares a node with an own cell.
+                if cell_rank[c] != rank {
+                    assert!(local.cells[lc].nodes().iter().any(|&l| {
+                        llist[loff[l]..loff[l + 1]].iter().any(|&k| p.cell_rank[k] == rank)
+                    }));
+                }
+            }
+            own_cells += p.local_cells.len();
+            let owned_global: Vec<usize> = p.owned_nodes.iter().map(|&l| p.node_global[l]).collect();
+            let lo = p.node_offsets[rank];
+            assert_eq!(owned_global, (lo..lo + owned_global.len()).collect::<Vec<_>>());
+            if size > 1 {
+                assert!(local.cells.len() > p.local_cells.len(), "a ghost layer");
+                assert!(local.cells.len() < mesh.cells.len(), "not the whole mesh");
+            }
+        }
+        assert!(seen.iter().all(|&s| s == 1), "each node owned once");
+        assert_eq!(own_cells, mesh.cells.len());
+    }
+}

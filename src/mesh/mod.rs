@@ -100,3 +100,41 @@ impl Mesh {
         e.nodes().iter().map(|&n| self.coords[n]).collect()
     }
 }
+
+/// The block of natural (original-order) nodes a rank writes: an even split.
+pub fn natural_range(n_nodes: usize, rank: usize, size: usize) -> (usize, usize) {
+    let lo = n_nodes * rank / size;
+    let hi = n_nodes * (rank + 1) / size;
+    (lo, hi)
+}
+
+/// The cell kinds of the mesh in the order the file stores them (`/mesh/cells/<kind>`): gmsh
+/// type order.
+pub fn file_cell_kinds(mesh: &Mesh) -> Vec<ElementKind> {
+    let mut kinds: Vec<ElementKind> = mesh.cells.iter().map(|c| c.kind).collect();
+    kinds.sort_by_key(|k| k.gmsh_type());
+    kinds.dedup();
+    kinds
+}
+
+/// The natural (file) index of each mesh cell: its row in the file's cell order, the kinds of
+/// [`file_cell_kinds`] one after the other, mesh order within a kind. Cell fields are written
+/// in this order (for a mesh of one kind it is the mesh order).
+pub fn natural_cell_index(mesh: &Mesh) -> Vec<usize> {
+    let kinds = file_cell_kinds(mesh);
+    let mut next = vec![0usize; kinds.len()];
+    for c in &mesh.cells {
+        let k = kinds.iter().position(|&k| k == c.kind).expect("kind");
+        for n in &mut next[k + 1..] {
+            *n += 1;
+        }
+    }
+    mesh.cells
+        .iter()
+        .map(|c| {
+            let k = kinds.iter().position(|&k| k == c.kind).expect("kind");
+            next[k] += 1;
+            next[k] - 1
+        })
+        .collect()
+}

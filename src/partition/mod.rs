@@ -7,6 +7,8 @@
 //! Users only ever see the original (gmsh) node order, so results can be compared entry by
 //! entry across rank counts.
 
+pub mod local;
+
 use crate::error::{Error, Result};
 use crate::mesh::topology::node_cells;
 use crate::mesh::Mesh;
@@ -31,6 +33,19 @@ pub struct Partition {
     pub owned_nodes: Vec<usize>,
     /// Cells this rank assembles.
     pub local_cells: Vec<usize>,
+    /// Original (natural) index of each node of this rank's mesh: its row in every nodal
+    /// dataset a user sees. The identity when the rank holds the whole mesh.
+    pub node_original: Vec<usize>,
+    /// Index in the file's cell order of each cell of this rank's mesh.
+    pub cell_original: Vec<usize>,
+    /// Row of each cell of this rank's mesh in the file's cell datasets (kinds one after the
+    /// other, see `io::natural_cell_index`).
+    pub cell_natural: Vec<usize>,
+    /// Cells of the whole mesh.
+    pub n_global_cells: usize,
+    /// Global node number of each node of this rank's natural block
+    /// (`natural_block(n_global_nodes, rank, size)`): what output and restart scatter through.
+    pub natural_global: Vec<usize>,
     /// `preallocation` computed once (every matrix shares the pattern).
     prealloc: std::sync::OnceLock<(Vec<i32>, Vec<i32>)>,
 }
@@ -168,6 +183,8 @@ impl Partition {
         let owned_nodes: Vec<usize> = (0..n).filter(|&v| node_owner[v] == rank).collect();
         let local_cells: Vec<usize> =
             (0..mesh.cells.len()).filter(|&c| cell_rank[c] == rank).collect();
+        let (lo, hi) = crate::mesh::natural_range(n, rank, size);
+        let natural_global = node_global[lo..hi].to_vec();
         Partition {
             rank,
             size,
@@ -178,6 +195,11 @@ impl Partition {
             node_offsets,
             owned_nodes,
             local_cells,
+            node_original: (0..n).collect(),
+            cell_original: (0..mesh.cells.len()).collect(),
+            cell_natural: crate::mesh::natural_cell_index(mesh),
+            n_global_cells: mesh.cells.len(),
+            natural_global,
             prealloc: std::sync::OnceLock::new(),
         }
     }
