@@ -20,6 +20,11 @@ use crate::error::{Error, Result};
 use crate::fem::Material;
 use crate::mesh::topology::boundary_group;
 use crate::mesh::Mesh;
+use crate::partition::surface::Surface;
+use crate::partition::Partition;
+use mpi::collective::SystemOperation;
+use mpi::topology::SimpleCommunicator;
+use mpi::traits::*;
 use crate::scene::{MassKind, MaterialSpec, Scene};
 use crate::time::Regime;
 
@@ -51,6 +56,10 @@ pub struct Bodies {
     pub layer: Option<(MassKind, Vec<String>)>,
     /// Regions whose (modified) mass gets no layer: their cells get the consistent mass.
     no_layer: Vec<bool>,
+    /// The body of each gmsh entity that belongs to one.
+    entity_body: HashMap<i32, usize>,
+    /// Sorted contact-surface nodes of each body (see [`Bodies::surface_body_nodes`]).
+    surface_body_nodes: Vec<Vec<usize>>,
 }
 
 impl Bodies {
@@ -59,6 +68,38 @@ impl Bodies {
     /// holding the same gmsh entity; a contact group touching cells of different mass kinds;
     /// two layer variants; a body whose own `mass` is modified without a contact group on it.
     pub fn resolve(scene: &Scene, mesh: &Mesh) -> Result<Bodies> {
+        Self::resolve_with(scene, mesh, &|_| true, mesh, &|_| {})
+    }
+
+    /// The same on a rank's part of the mesh (own cells and ghosts, `partition::local`), with
+    /// the contact surface every rank holds: the cell counts are summed over the ranks (the
+    /// only collective call, reached by every rank), the layer groups' checks made on the
+    /// surface, so every rank gets the same regions, layer and errors.
+    pub fn resolve_local(
+        world: &SimpleCommunicator,
+        scene: &Scene,
+        mesh: &Mesh,
+        part: &Partition,
+        surface: &Surface,
+    ) -> Result<Bodies> {
+        let own = |c: usize| part.cell_rank[c] == part.rank;
+        let sum = |counts: &mut Vec<u64>| {
+            let mine = counts.clone();
+            world.all_reduce_into(&mine[..], &mut counts[..], SystemOperation::sum());
+        };
+        Self::resolve_with(scene, mesh, &own, &surface.mesh, &sum)
+    }
+
+    /// `resolve` with the cells this rank counts (`own`), the mesh the layer groups are
+    /// checked on (`surface`: the whole mesh, or the gathered contact surface) and the sum
+    /// of the region cell counts over the ranks.
+    fn resolve_with(
+        scene: &Scene,
+        mesh: &Mesh,
+        own: &dyn Fn(usize) -> bool,
+        surface: &Mesh,
+        sum: &dyn Fn(&mut Vec<u64>),
+    ) -> Result<Bodies> {
         let fail = |m: String| Error::Scene(format!("{}: {m}", scene.display_name()));
         let region =
             |name: String, group: Option<String>, spec: MaterialSpec, mass, given| Region {
@@ -79,7 +120,9 @@ impl Bodies {
         )];
         let groups: Vec<String> = scene.mass.layer_groups().iter().map(|g| g.to_string()).collect();
         if scene.bodies.is_empty() {
-            regions[0].n_cells = mesh.cells.len();
+            let mut n = vec![(0..mesh.cells.len()).filter(|&c| own(c)).count() as u64];
+            sum(&mut n);
+            regions[0].n_cells = n[0] as usize;
             let kind = scene.mass.kind;
             let layer = (kind.is_modified() && !groups.is_empty()).then_some((kind, groups));
             return Ok(Bodies {
@@ -88,6 +131,8 @@ impl Bodies {
                 body_nodes: Vec::new(),
                 layer,
                 no_layer: vec![false],
+                entity_body: HashMap::new(),
+                surface_body_nodes: Vec::new(),
             });
         }
         if scene.bodies.len() >= u16::MAX as usize {
@@ -137,15 +182,24 @@ impl Bodies {
         let cell_region: Vec<u16> = (mesh.cells.iter())
             .map(|c| entity_body.get(&c.entity).map_or(0, |&i| (i + 1) as u16))
             .collect();
+        let mut counts = vec![0u64; regions.len()];
+        for (c, &r) in cell_region.iter().enumerate() {
+            if own(c) {
+                counts[r as usize] += 1;
+            }
+        }
+        sum(&mut counts);
+        for (reg, &n) in regions.iter_mut().zip(&counts) {
+            reg.n_cells = n as usize;
+        }
         let mut body_nodes = vec![Vec::new(); scene.bodies.len()];
         for (c, &r) in mesh.cells.iter().zip(&cell_region) {
-            regions[r as usize].n_cells += 1;
             if r > 0 {
                 body_nodes[r as usize - 1].extend_from_slice(c.nodes());
             }
         }
         for (i, nodes) in body_nodes.iter_mut().enumerate() {
-            if nodes.is_empty() {
+            if counts[i + 1] == 0 {
                 return Err(fail(format!(
                     "body[{i}].group = \"{}\" holds no cell of the mesh",
                     scene.bodies[i].group
@@ -158,19 +212,20 @@ impl Bodies {
         // The regions each layer group touches (cells with a node on the group).
         let mut touched = vec![vec![false; regions.len()]; groups.len()];
         if !groups.is_empty() {
-            let mut on = vec![0u64; mesh.n_nodes()];
+            let mut on = vec![0u64; surface.n_nodes()];
             for (k, g) in groups.iter().enumerate().take(64) {
-                for e in boundary_group(mesh, g)? {
+                for e in boundary_group(surface, g)? {
                     for &n in e.nodes() {
                         on[n] |= 1 << k;
                     }
                 }
             }
-            for (c, &r) in mesh.cells.iter().zip(&cell_region) {
+            for c in &surface.cells {
+                let r = entity_body.get(&c.entity).map_or(0, |&i| i + 1);
                 let bits = c.nodes().iter().fold(0u64, |b, &n| b | on[n]);
                 for (k, t) in touched.iter_mut().enumerate().take(64) {
                     if bits & (1 << k) != 0 {
-                        t[r as usize] = true;
+                        t[r] = true;
                     }
                 }
             }
@@ -228,7 +283,39 @@ impl Bodies {
                 no_layer[r] = true;
             }
         }
-        Ok(Bodies { regions, cell_region, body_nodes, layer, no_layer })
+        let surface_body_nodes = Vec::new();
+        let mut b = Bodies {
+            regions,
+            cell_region,
+            body_nodes,
+            layer,
+            no_layer,
+            entity_body,
+            surface_body_nodes,
+        };
+        b.surface_body_nodes = b.nodes_of(surface);
+        Ok(b)
+    }
+
+    /// The sorted nodes of each body's cells in `mesh` (a part of the mesh, or the surface).
+    fn nodes_of(&self, mesh: &Mesh) -> Vec<Vec<usize>> {
+        let mut nodes = vec![Vec::new(); self.body_nodes.len()];
+        for c in &mesh.cells {
+            if let Some(&i) = self.entity_body.get(&c.entity) {
+                nodes[i].extend_from_slice(c.nodes());
+            }
+        }
+        for n in &mut nodes {
+            n.sort_unstable();
+            n.dedup();
+        }
+        nodes
+    }
+
+    /// The sorted contact-surface nodes (`partition::surface`) of `body[i]`'s cells: the
+    /// numbering the contact solvers use.
+    pub fn surface_body_nodes(&self, i: usize) -> &[usize] {
+        &self.surface_body_nodes[i]
     }
 
     /// The region of a cell (0: outside every body, i + 1: `body[i]`).

@@ -38,3 +38,70 @@ pub fn first_failure(world: &SimpleCommunicator, local: Option<String>) -> Optio
     let text = String::from_utf8_lossy(&bytes).into_owned();
     Some(if first == 0 { text } else { format!("{text} (rank {first})") })
 }
+
+/// Every rank's `local` values, concatenated in rank order (collective; for surface-sized data
+/// only: the result is as large as all ranks' parts together).
+pub fn gather_all<T>(world: &SimpleCommunicator, local: &[T]) -> Vec<T>
+where
+    T: mpi::datatype::Equivalence + Default + Clone,
+{
+    let n = world.size() as usize;
+    let mut counts = vec![0i32; n];
+    world.all_gather_into(&(local.len() as i32), &mut counts[..]);
+    let displs: Vec<i32> =
+        counts.iter().scan(0, |s, &c| Some(std::mem::replace(s, *s + c))).collect();
+    let total = counts.iter().sum::<i32>() as usize;
+    let mut all = vec![T::default(); total];
+    world.all_gather_varcount_into(
+        local,
+        &mut mpi::datatype::PartitionMut::new(&mut all[..], &counts[..], &displs[..]),
+    );
+    all
+}
+
+/// Rows of `width` words, each sent to the rank whose block `natural_range(n, r, size)` holds
+/// its first word (a global index below `n`; blocks as [`block_range`]); returns the rows this rank received, sorted by
+/// that index (collective: one all-to-all). What each rank sends and receives is its share:
+/// nothing here is as large as the whole.
+pub fn route_to_blocks(world: &SimpleCommunicator, n: usize, width: usize, rows: &[u64]) -> Vec<u64> {
+    let size = world.size() as usize;
+    let starts: Vec<usize> = (0..size).map(|r| block_range(n, r, size).0).collect();
+    let dest = |i: u64| starts.partition_point(|&s| s <= i as usize).max(1) - 1;
+    let mut order: Vec<usize> = (0..rows.len() / width).collect();
+    order.sort_by_key(|&k| (dest(rows[k * width]), k));
+    let mut send = Vec::with_capacity(rows.len());
+    let mut counts = vec![0i32; size];
+    for &k in &order {
+        counts[dest(rows[k * width])] += width as i32;
+        send.extend_from_slice(&rows[k * width..(k + 1) * width]);
+    }
+    let mut recv_counts = vec![0i32; size];
+    world.all_to_all_into(&counts[..], &mut recv_counts[..]);
+    let displs = |c: &[i32]| -> Vec<i32> {
+        c.iter().scan(0, |s, &x| Some(std::mem::replace(s, *s + x))).collect()
+    };
+    let (sd, rd) = (displs(&counts), displs(&recv_counts));
+    let mut recv = vec![0u64; recv_counts.iter().sum::<i32>() as usize];
+    world.all_to_all_varcount_into(
+        &mpi::datatype::Partition::new(&send[..], &counts[..], &sd[..]),
+        &mut mpi::datatype::PartitionMut::new(&mut recv[..], &recv_counts[..], &rd[..]),
+    );
+    let mut got: Vec<&[u64]> = recv.chunks(width).collect();
+    got.sort_by_key(|r| r[0]);
+    got.concat()
+}
+
+/// The exclusive prefix sum of `x` over the ranks and its total (collective).
+pub fn offset_and_total(world: &SimpleCommunicator, x: usize) -> (usize, usize) {
+    let mut inclusive = 0usize;
+    world.scan_into(&x, &mut inclusive, SystemOperation::sum());
+    let mut total = 0usize;
+    world.all_reduce_into(&x, &mut total, SystemOperation::sum());
+    (inclusive - x, total)
+}
+
+/// The even split of `0..n` over the ranks: rank `r` gets `n r / size .. n (r + 1) / size`
+/// (the natural node and cell blocks, `mesh::natural_range`).
+pub fn block_range(n: usize, rank: usize, size: usize) -> (usize, usize) {
+    (n * rank / size, n * (rank + 1) / size)
+}

@@ -142,7 +142,7 @@ fn metis_repeats_itself() {
 #[test]
 fn local_views_cover_the_mesh_with_complete_stars() {
     let mesh = quad_mesh(15, 9);
-    let (off, list) = node_cells(&mesh);
+    let (off, _) = node_cells(&mesh);
     for size in [1, 2, 3, 4] {
         let cell_rank = massfree::partition::partition_cells(&mesh, size).unwrap();
         let mut seen = vec![0usize; mesh.n_nodes()];

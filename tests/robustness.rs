@@ -145,7 +145,9 @@ fn metadata_child(dir: &Path) {
         compression: None,
     };
     let cell_rank = vec![0; mesh.cells.len()];
-    let mut out = Output::open(file, &world, &mesh, &cell_rank, plan).unwrap();
+    let size = world.size() as usize;
+    let blocks = massfree::io::MeshBlocks::whole(&mesh, &cell_rank, rank, size);
+    let mut out = Output::open(file, &world, &blocks, plan).unwrap();
     let (lo, hi) = out.natural_range();
     let block = vec![rank as f64; (hi - lo) * mesh.dim];
     for step in 0..rows {

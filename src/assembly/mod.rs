@@ -88,8 +88,7 @@ where
 
 /// The rank that integrates a boundary element: the owner of its smallest node (deterministic).
 pub fn boundary_rank(part: &Partition, e: &Element) -> usize {
-    let v = *e.nodes().iter().min().expect("boundary element has nodes");
-    part.node_owner[v]
+    part.boundary_rank(e)
 }
 
 /// Nodal interpolant of a vector expression at time `t` into a distributed vector.

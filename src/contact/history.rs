@@ -5,7 +5,7 @@
 use super::interface::ContactSolver;
 use super::metrics::{contact_period, episodes, osc2, tv_index};
 use super::step::StepContact;
-use crate::mesh::Mesh;
+use crate::partition::surface::Surface;
 use crate::rows::ContactRow;
 
 #[derive(Debug, Default)]
@@ -243,13 +243,13 @@ impl History {
     pub fn summary(
         &self,
         c: &dyn ContactSolver,
-        mesh: &Mesh,
+        surface: &Surface,
         contact_work: f64,
         friction_dissipation: f64,
         contact_steps_seconds: f64,
     ) -> ContactSummary {
         let nc = c.n_nodes();
-        let dim = mesh.dim;
+        let dim = surface.mesh.dim;
         let steps = self.rows.len();
         let any: Vec<bool> = self.rows.iter().map(|r| r.active.iter().any(|&x| x)).collect();
         let period = contact_period(&any);
@@ -318,8 +318,8 @@ impl History {
                 .map(|r| r.active.iter().filter(|&&x| x).count())
                 .max()
                 .unwrap_or(0),
-            lowest_node: c.boundary().nodes[lowest],
-            lowest_node_tag: mesh.node_tags[c.boundary().nodes[lowest]],
+            lowest_node: surface.part.node_original[c.boundary().nodes[lowest]],
+            lowest_node_tag: surface.mesh.node_tags[c.boundary().nodes[lowest]],
             lowest_osc2,
             lowest_tv_index: lowest_tv,
             total_force_tv_index: tf_tv,

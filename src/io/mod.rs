@@ -66,7 +66,7 @@ use mpi::collective::SystemOperation;
 use mpi::traits::*;
 
 use crate::error::{Error, Result};
-use crate::mesh::Mesh;
+
 use crate::rows::{ContactRow, Energy};
 
 fn h5err(path: &Path, what: &str, e: hdf5::Error) -> Error {
@@ -113,7 +113,75 @@ fn agreed_layout(
     Ok(())
 }
 
+pub mod blocks;
+
 pub use crate::mesh::{file_cell_kinds, natural_cell_index, natural_range};
+pub use blocks::MeshBlocks;
+
+/// `/mesh`: coordinates, node tags, cells by kind, cell ranks and the groups' nodes, each
+/// rank writing its blocks (datasets created collectively; every write is collective).
+fn write_mesh(
+    file: &File,
+    mesh: &MeshBlocks,
+    (lo, hi): (usize, usize),
+    (clo, chi): (usize, usize),
+    path: &Path,
+) -> Result<()> {
+    let n = mesh.n_nodes;
+    let g = group(file, "mesh", path)?;
+    let coords = g
+        .new_dataset::<f64>()
+        .shape((n, 3))
+        .create("coordinates")
+        .map_err(|e| h5err(path, "create /mesh/coordinates", e))?;
+    let flat: Vec<f64> = mesh.coords.iter().flat_map(|c| c.iter().copied()).collect();
+    let arr = ndarray::Array2::from_shape_vec((hi - lo, 3), flat).expect("shape");
+    coords.write_slice(&arr, ndarray::s![lo..hi, ..]).map_err(|e| h5err(path, "write /mesh/coordinates", e))?;
+    let tags = g
+        .new_dataset::<u64>()
+        .shape((n,))
+        .create("node_tags")
+        .map_err(|e| h5err(path, "create /mesh/node_tags", e))?;
+    tags.write_slice(&mesh.tags, ndarray::s![lo..hi]).map_err(|e| h5err(path, "write /mesh/node_tags", e))?;
+    let cr = g
+        .new_dataset::<i32>()
+        .shape((mesh.n_cells(),))
+        .create("cell_rank")
+        .map_err(|e| h5err(path, "create /mesh/cell_rank", e))?;
+    cr.write_slice(&mesh.cell_rank, ndarray::s![clo..chi])
+        .map_err(|e| h5err(path, "write /mesh/cell_rank", e))?;
+    // One dataset per kind: this rank's rows are its block's cells of that kind.
+    let cg = group(&g, "cells", path)?;
+    let mut first = 0;
+    for &(k, count) in &mesh.kinds {
+        let nn = k.n_nodes();
+        let ds = cg
+            .new_dataset::<u64>()
+            .shape((count, nn))
+            .create(k.name())
+            .map_err(|e| h5err(path, "create /mesh/cells", e))?;
+        let (a, b) = (clo.max(first).min(first + count), chi.max(first).min(first + count));
+        let conn: Vec<u64> =
+            mesh.cells[a - clo..b - clo].iter().flat_map(|c| c.iter().copied()).collect();
+        let arr = ndarray::Array2::from_shape_vec((b - a, nn), conn).expect("shape");
+        ds.write_slice(&arr, ndarray::s![a - first..b - first, ..])
+            .map_err(|e| h5err(path, "write /mesh/cells", e))?;
+        first += count;
+    }
+    // Physical groups: /mesh/groups/<name>/nodes with the group's dimension as attribute.
+    let gg = group(&g, "groups", path)?;
+    for (name, offset, nodes, total) in &mesh.groups {
+        let sub = group(&gg, &group_key(name), path)?;
+        let ds = sub
+            .new_dataset::<u64>()
+            .shape((*total,))
+            .create("nodes")
+            .map_err(|e| h5err(path, "create group nodes", e))?;
+        ds.write_slice(nodes, ndarray::s![*offset..*offset + nodes.len()])
+            .map_err(|e| h5err(path, "write group nodes", e))?;
+    }
+    Ok(())
+}
 
 struct ContactDatasets {
     pressure: Dataset,
@@ -301,8 +369,7 @@ impl Output {
     pub fn open(
         run_file: RunFile,
         world: &mpi::topology::SimpleCommunicator,
-        mesh: &Mesh,
-        cell_rank: &[usize],
+        mesh: &MeshBlocks,
         plan: OutputPlan,
     ) -> Result<Output> {
         let (rank, size) = (world.rank() as usize, world.size() as usize);
@@ -316,15 +383,17 @@ impl Output {
         }
         // Every dataset below is created collectively: all ranks must see the same layout. A
         // disagreement is a bug; it is reported here instead of hanging in HDF5.
-        let kinds_count: Vec<usize> = mesh.cells.iter().fold(vec![0; 8], |mut v, c| {
-            v[c.kind.gmsh_type() as usize % 8] += 1;
+        let kinds_count: Vec<usize> = mesh.kinds.iter().fold(vec![0; 8], |mut v, &(k, n)| {
+            v[k.gmsh_type() as usize % 8] += n;
             v
         });
+        let n_cells = mesh.n_cells();
         agreed_layout(
             world,
             &[
-                [mesh.n_nodes(), mesh.dim, cell_rank.len(), mesh.groups.len()].as_slice(),
+                [mesh.n_nodes, mesh.dim, n_cells, mesh.groups.len()].as_slice(),
                 &kinds_count,
+                &mesh.groups.iter().map(|g| g.3).collect::<Vec<_>>(),
                 &plan.fields.iter().map(|f| f.every * 4 + f.spec.components).collect::<Vec<_>>(),
             ]
             .concat(),
@@ -342,83 +411,10 @@ impl Output {
         let path_buf = path.to_path_buf();
         let path = path_buf.as_path();
         let dim = mesh.dim;
-        let n = mesh.n_nodes();
+        let n = mesh.n_nodes;
         let range = natural_range(n, rank, size);
-
-        // Mesh: every rank holds it; rank 0 writes (datasets are created collectively).
-        let g = group(&file, "mesh", path)?;
-        let coords = g
-            .new_dataset::<f64>()
-            .shape((n, 3))
-            .create("coordinates")
-            .map_err(|e| h5err(path, "create /mesh/coordinates", e))?;
-        let tags = g
-            .new_dataset::<u64>()
-            .shape((n,))
-            .create("node_tags")
-            .map_err(|e| h5err(path, "create /mesh/node_tags", e))?;
-        let cr = g
-            .new_dataset::<i32>()
-            .shape((cell_rank.len(),))
-            .create("cell_rank")
-            .map_err(|e| h5err(path, "create /mesh/cell_rank", e))?;
-        let cg = group(&g, "cells", path)?;
-        let kinds = file_cell_kinds(mesh);
-        let mut cell_sets = Vec::new();
-        for k in &kinds {
-            let conn: Vec<u64> = mesh
-                .cells
-                .iter()
-                .filter(|c| c.kind == *k)
-                .flat_map(|c| c.nodes().iter().map(|&v| v as u64))
-                .collect();
-            let nn = k.n_nodes();
-            let ds = cg
-                .new_dataset::<u64>()
-                .shape((conn.len() / nn, nn))
-                .create(k.name())
-                .map_err(|e| h5err(path, "create /mesh/cells", e))?;
-            cell_sets.push((ds, conn, nn));
-        }
-        if rank == 0 {
-            let flat: Vec<f64> = mesh.coords.iter().flat_map(|c| c.iter().copied()).collect();
-            let arr = ndarray::Array2::from_shape_vec((n, 3), flat).expect("shape");
-            coords.write(&arr).map_err(|e| h5err(path, "write /mesh/coordinates", e))?;
-            tags.write(&mesh.node_tags).map_err(|e| h5err(path, "write /mesh/node_tags", e))?;
-            // In the order of /mesh/cells (kind by kind; a mesh's cells may interleave kinds).
-            let cr_i: Vec<i32> = kinds
-                .iter()
-                .flat_map(|k| {
-                    mesh.cells
-                        .iter()
-                        .zip(cell_rank)
-                        .filter(|(c, _)| c.kind == *k)
-                        .map(|(_, &r)| r as i32)
-                })
-                .collect();
-            cr.write(&cr_i).map_err(|e| h5err(path, "write /mesh/cell_rank", e))?;
-            for (ds, conn, nn) in &cell_sets {
-                let arr = ndarray::Array2::from_shape_vec((conn.len() / nn, *nn), conn.clone())
-                    .expect("shape");
-                ds.write(&arr).map_err(|e| h5err(path, "write /mesh/cells", e))?;
-            }
-        }
-
-        // Physical groups: /mesh/groups/<name>/nodes with the group's dimension as attribute.
-        let gg = group(&g, "groups", path)?;
-        for pg in &mesh.groups {
-            let nodes: Vec<u64> =
-                mesh.group_nodes(&pg.name)?.into_iter().map(|v| v as u64).collect();
-            let sub = group(&gg, &group_key(&pg.name), path)?;
-            let ds = sub
-                .new_dataset::<u64>()
-                .shape((nodes.len(),))
-                .create("nodes")
-                .map_err(|e| h5err(path, "create group nodes", e))?;
-            if rank == 0 {
-                ds.write(&nodes).map_err(|e| h5err(path, "write group nodes", e))?;
-            }
-        }
+        let cell_range = natural_range(n_cells, rank, size);
+        write_mesh(&file, mesh, range, cell_range, path)?;
 
         let resizable_1d = |name: &str| -> Result<Dataset> {
             file.new_dataset::<f64>()
@@ -430,7 +426,6 @@ impl Output {
         let time = resizable_1d(layout::TIME)?;
         let step = resizable_1d(layout::STEP)?;
         let fg = group(&file, layout::FIELDS, path)?;
-        let n_cells = cell_rank.len();
         let field = |spec: &FieldSpec| -> Result<FieldSet> {
             let (name, c) = (spec.name.as_str(), spec.components);
             let rows = match spec.location {
@@ -482,12 +477,9 @@ impl Output {
             n_energies_written: 0,
             n_nodes: n,
             checkpoint: None,
-            cell_kinds: kinds
-                .iter()
-                .map(|k| (*k, mesh.cells.iter().filter(|c| c.kind == *k).count()))
-                .collect(),
+            cell_kinds: mesh.kinds.clone(),
             field_times: Vec::new(),
-            cell_range: natural_range(cell_rank.len(), rank, size),
+            cell_range,
         })
     }
 

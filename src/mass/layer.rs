@@ -38,7 +38,7 @@ use crate::fem::element::ElementKind;
 use crate::fem::kernels::{mass, MAX_DOFS, MAX_NODES};
 use crate::fem::shape::det3;
 use crate::mesh::topology::{
-    boundary_group, cells_near, facet_key, facet_map, node_cells, FacetCells,
+    boundary_group, facet_key, facet_map, node_cells, FacetCells,
 };
 use crate::mesh::Mesh;
 
@@ -94,6 +94,8 @@ pub struct MassFreeLayer {
     pub maps: Vec<ElementMap>,
     /// `cell -> index into layer_cells`, `u32::MAX` for cells outside the layer.
     cell_layer: Vec<u32>,
+    /// The whole layer's numbers of contact nodes and cells (over all ranks' parts).
+    totals: (usize, usize),
 }
 
 /// Relative tolerance for near-ties in the partner choice (times the element's diameter).
@@ -212,42 +214,71 @@ impl MassFreeLayer {
         variant: Variant,
     ) -> Result<MassFreeLayer> {
         let joined = contact_groups.join("\" and \"");
-        let name = joined.as_str();
         let mut elems = Vec::new();
         for g in contact_groups {
             elems.extend(boundary_group(mesh, g)?);
         }
-        let facets = facet_map(mesh, &cells_near(mesh, &elems));
-
-        let mut contact_nodes: Vec<usize> =
-            elems.iter().flat_map(|e| e.nodes().iter().copied()).collect();
-        contact_nodes.sort_unstable();
-        contact_nodes.dedup();
         let mut is_contact = vec![false; mesh.n_nodes()];
-        for &n in &contact_nodes {
-            is_contact[n] = true;
+        for e in &elems {
+            for &n in e.nodes() {
+                is_contact[n] = true;
+            }
         }
+        MassFreeLayer::from_contact_nodes(mesh, is_contact, |_| true, variant, &joined)
+    }
 
+    /// The layer of a rank's part of the mesh (own cells and the ghost layer), its contact
+    /// nodes flagged (`is_contact`, from the gathered contact surface): layer cells are the
+    /// cells with a contact node, and `E_K` is built for the cells `mapped(c)` says (the own
+    /// ones: every cell sharing a node with an own cell is local, so their partners are found
+    /// as on the whole mesh). Other layer cells get an empty map. `name` is for messages.
+    pub fn from_contact_nodes(
+        mesh: &Mesh,
+        is_contact: Vec<bool>,
+        mapped: impl Fn(usize) -> bool,
+        variant: Variant,
+        name: &str,
+    ) -> Result<MassFreeLayer> {
+        let contact_nodes: Vec<usize> = (0..mesh.n_nodes()).filter(|&v| is_contact[v]).collect();
         let layer_cells: Vec<usize> = (0..mesh.cells.len())
             .filter(|&c| mesh.cells[c].nodes().iter().any(|&n| is_contact[n]))
             .collect();
         let mut cell_layer = vec![u32::MAX; mesh.cells.len()];
+        let mut near = vec![false; mesh.n_nodes()];
         for (l, &c) in layer_cells.iter().enumerate() {
             cell_layer[c] = l as u32;
+            for &n in mesh.cells[c].nodes() {
+                near[n] = true;
+            }
         }
+        // The cells a layer cell's facets can be shared with (`cells_near` of the facets).
+        let near_cells: Vec<usize> = (0..mesh.cells.len())
+            .filter(|&c| mesh.cells[c].nodes().iter().any(|&n| near[n]))
+            .collect();
+        let facets = facet_map(mesh, &near_cells);
 
         let mut maps = Vec::with_capacity(layer_cells.len());
         let mut partners = Vec::new();
+        let unmapped = || ElementMap { sources: Vec::new(), weights: Vec::new() };
         match variant {
             Variant::Zero => {
                 for &c in &layer_cells {
-                    maps.push(map_variant0(mesh, c, &is_contact, name)?);
+                    maps.push(if mapped(c) {
+                        map_variant0(mesh, c, &is_contact, name)?
+                    } else {
+                        unmapped()
+                    });
                 }
             }
             Variant::One => {
                 let node_cells = node_cells(mesh);
                 partners.reserve(layer_cells.len());
                 for &c in &layer_cells {
+                    if !mapped(c) {
+                        partners.push(usize::MAX);
+                        maps.push(unmapped());
+                        continue;
+                    }
                     let k1 =
                         partner(mesh, c, &is_contact, &cell_layer, &facets, &node_cells, name)?;
                     partners.push(k1);
@@ -258,6 +289,7 @@ impl MassFreeLayer {
 
         Ok(MassFreeLayer {
             variant,
+            totals: (contact_nodes.len(), layer_cells.len()),
             contact_nodes,
             is_contact,
             layer_cells,
@@ -367,11 +399,17 @@ impl MassFreeLayer {
     }
 
     pub fn n_layer_cells(&self) -> usize {
-        self.layer_cells.len()
+        self.totals.1
     }
 
     pub fn n_contact_nodes(&self) -> usize {
-        self.contact_nodes.len()
+        self.totals.0
+    }
+
+    /// Set the whole layer's numbers of contact nodes and cells (a rank's part of the layer
+    /// counts its own ghosts and misses other ranks' cells).
+    pub fn set_totals(&mut self, contact_nodes: usize, layer_cells: usize) {
+        self.totals = (contact_nodes, layer_cells);
     }
 }
 

@@ -4,6 +4,10 @@
 
 pub mod layer;
 
+use mpi::collective::SystemOperation;
+use mpi::topology::SimpleCommunicator;
+use mpi::traits::*;
+
 use crate::assembly::assemble_blocks;
 use crate::error::{Error, Result};
 use crate::fem::kernels;
@@ -32,6 +36,42 @@ pub fn build_layer(
         )));
     }
     MassFreeLayer::build_along(mesh, contact_boundaries, variant).map(Some)
+}
+
+/// The layer of a rank's part of the mesh along the gathered contact surface (`contact_nodes`:
+/// original node indices, sorted), `E_K` built on own cells; the totals are the whole layer's.
+/// Collective: a failure on one rank (no partner, say) fails every rank with its message.
+pub fn build_local_layer(
+    world: &SimpleCommunicator,
+    mesh: &Mesh,
+    part: &Partition,
+    kind: MassKind,
+    contact_groups: &[&str],
+    contact_nodes: &[usize],
+) -> Result<Option<MassFreeLayer>> {
+    let variant = match kind {
+        MassKind::Modified0 => Variant::Zero,
+        MassKind::Modified1 => Variant::One,
+        _ => return Ok(None),
+    };
+    let is_contact: Vec<bool> = (part.node_original.iter())
+        .map(|v| contact_nodes.binary_search(v).is_ok())
+        .collect();
+    let own = |c: usize| part.cell_rank[c] == part.rank;
+    let name = contact_groups.join("\" and \"");
+    let built = MassFreeLayer::from_contact_nodes(mesh, is_contact, own, variant, &name);
+    let failure = crate::comm::first_failure(world, built.as_ref().err().map(|e| e.to_string()));
+    let mut layer = match (built, failure) {
+        (Ok(l), None) => l,
+        (Err(e), _) => return Err(e),
+        (Ok(_), Some(m)) => return Err(Error::Mesh(m)),
+    };
+    let own_cells = layer.layer_cells.iter().filter(|&&c| own(c)).count();
+    let mut n = [own_cells as u64, 0];
+    let mine = n;
+    world.all_reduce_into(&mine[..], &mut n[..], SystemOperation::sum());
+    layer.set_totals(contact_nodes.len(), n[0] as usize);
+    Ok(Some(layer))
 }
 
 /// Assemble the mass matrix, cell by cell: `cell_mass(c)` gives the density and the mass

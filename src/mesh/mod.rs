@@ -103,9 +103,7 @@ impl Mesh {
 
 /// The block of natural (original-order) nodes a rank writes: an even split.
 pub fn natural_range(n_nodes: usize, rank: usize, size: usize) -> (usize, usize) {
-    let lo = n_nodes * rank / size;
-    let hi = n_nodes * (rank + 1) / size;
-    (lo, hi)
+    crate::comm::block_range(n_nodes, rank, size)
 }
 
 /// The cell kinds of the mesh in the order the file stores them (`/mesh/cells/<kind>`): gmsh

@@ -9,8 +9,9 @@
 //! - a node's owner is the lowest rank among all cells of the whole mesh that contain it, and
 //!   owned nodes are numbered contiguously per rank in original order (as the replicated
 //!   [`Partition`] numbers them);
-//! - a boundary element (facet, edge, point of a physical group) is kept where all its nodes
-//!   are local nodes.
+//! - a boundary element (facet, edge, point of a physical group) is kept where one of its nodes
+//!   is a node of an own cell: then every cell containing it is local (so a facet's cell count
+//!   is right), and every group node this rank owns is found.
 //!
 //! With the vertex-neighbour ghost layer, every cell containing a node of an own cell is local:
 //! a row of an owned node can be assembled, and a node's cell star is complete, from local data.
@@ -52,7 +53,7 @@ pub fn localize(mesh: &Mesh, cell_rank: &[usize], rank: usize, size: usize) -> (
         Element::new(e.kind, &l, e.tag, e.entity)
     };
     let boundary: Vec<Element> = (mesh.boundary.iter())
-        .filter(|e| e.nodes().iter().all(|&v| local_of[v] != usize::MAX))
+        .filter(|e| e.nodes().iter().any(|&v| touched[v]))
         .map(relabel)
         .collect();
     let local = Mesh {

@@ -8,6 +8,7 @@
 //! entry across rank counts.
 
 pub mod local;
+pub mod surface;
 
 use crate::error::{Error, Result};
 use crate::mesh::topology::node_cells;
@@ -101,6 +102,15 @@ pub enum Strategy {
 }
 
 impl Strategy {
+    /// The rank of every cell of a whole mesh.
+    pub fn cell_ranks(self, mesh: &Mesh, size: usize) -> Result<Vec<usize>> {
+        Ok(match self {
+            Strategy::Metis => partition_cells(mesh, size)?,
+            Strategy::SlabsX => slabs(mesh, size, 0),
+            Strategy::SlabsY => slabs(mesh, size, 1),
+        })
+    }
+
     pub fn from_name(name: &str) -> Option<Strategy> {
         match name {
             "metis" => Some(Strategy::Metis),
@@ -143,12 +153,7 @@ impl Partition {
         size: usize,
         strategy: Strategy,
     ) -> Result<Partition> {
-        let cell_rank = match strategy {
-            Strategy::Metis => partition_cells(mesh, size)?,
-            Strategy::SlabsX => slabs(mesh, size, 0),
-            Strategy::SlabsY => slabs(mesh, size, 1),
-        };
-        Ok(Self::from_cell_ranks(mesh, rank, size, cell_rank))
+        Ok(Self::from_cell_ranks(mesh, rank, size, strategy.cell_ranks(mesh, size)?))
     }
 
     /// Ownership and numbering from a given cell partition (deterministic).
@@ -205,7 +210,20 @@ impl Partition {
     }
 
     pub fn n_owned_nodes(&self) -> usize {
-        self.owned_nodes.len()
+        self.node_offsets[self.rank + 1] - self.node_offsets[self.rank]
+    }
+    /// This rank's block of the natural (original) node order: what it writes and reads of
+    /// every nodal dataset.
+    pub fn natural_block(&self) -> (usize, usize) {
+        crate::mesh::natural_range(self.n_global_nodes(), self.rank, self.size)
+    }
+    /// This rank's block of the natural cell order (cell datasets).
+    pub fn natural_cell_block(&self) -> (usize, usize) {
+        crate::mesh::natural_range(self.n_global_cells, self.rank, self.size)
+    }
+    /// Global DOF of component `comp` of original node `natural` in this rank's natural block.
+    pub fn natural_dof(&self, natural: usize, comp: usize) -> usize {
+        self.natural_global[natural - self.natural_block().0] * self.dim + comp
     }
     pub fn n_global_nodes(&self) -> usize {
         self.node_offsets[self.size]
@@ -224,6 +242,12 @@ impl Partition {
     #[inline]
     pub fn dof(&self, node: usize, comp: usize) -> usize {
         self.node_global[node] * self.dim + comp
+    }
+    /// The rank that integrates a boundary element: the owner of its smallest node
+    /// (deterministic; local order is original order).
+    pub fn boundary_rank(&self, e: &crate::mesh::Element) -> usize {
+        let v = *e.nodes().iter().min().expect("boundary element has nodes");
+        self.node_owner[v]
     }
     pub fn owns(&self, node: usize) -> bool {
         self.node_owner[node] == self.rank

@@ -82,7 +82,7 @@ pub fn check_mass(
     x.with_local_slice_mut(|s| {
         for (i, &v) in owned.iter().enumerate() {
             for c in 0..dim {
-                s[i * dim + c] = ((v * dim + c + 1) as f64).sin();
+                s[i * dim + c] = ((part.node_original[v] * dim + c + 1) as f64).sin();
             }
         }
     })?;
@@ -164,19 +164,25 @@ pub fn body_momenta(d: &Domain, mv: &Vector) -> Result<Vec<Vec<f64>>> {
     Ok(p)
 }
 
-/// The contact nodes and the cells of the layer on each `[[body]]`.
+/// The contact nodes and the cells of the layer on each `[[body]]` (over all ranks:
+/// collective).
 pub fn body_layers(d: &Domain, layer: Option<&MassFreeLayer>) -> Vec<(usize, usize)> {
-    (0..d.bodies.n_bodies())
-        .map(|i| {
-            let Some(layer) = layer else { return (0, 0) };
-            let nodes = d.bodies.body_nodes(i);
-            let contact =
-                layer.contact_nodes.iter().filter(|v| nodes.binary_search(v).is_ok()).count();
-            let cells =
-                layer.layer_cells.iter().filter(|&&c| d.bodies.region_of(c) == i + 1).count();
-            (contact, cells)
-        })
-        .collect()
+    let n = d.bodies.n_bodies();
+    let Some(layer) = layer else { return vec![(0, 0); n] };
+    let part = &d.part;
+    let mut counts = vec![0u64; 2 * n];
+    for i in 0..n {
+        let nodes = d.bodies.body_nodes(i);
+        counts[2 * i] = (layer.contact_nodes.iter())
+            .filter(|&&v| part.owns(v) && nodes.binary_search(&v).is_ok())
+            .count() as u64;
+        counts[2 * i + 1] = (layer.layer_cells.iter())
+            .filter(|&&c| part.cell_rank[c] == part.rank && d.bodies.region_of(c) == i + 1)
+            .count() as u64;
+    }
+    let mut total = vec![0u64; 2 * n];
+    d.world.all_reduce_into(&counts[..], &mut total[..], SystemOperation::sum());
+    (0..n).map(|i| (total[2 * i] as usize, total[2 * i + 1] as usize)).collect()
 }
 
 /// Total momentum `1^T M v` per component (from the product `M v` the step keeps).
@@ -278,7 +284,9 @@ fn per_body(
     let dim = d.part.dim;
     let n = d.bodies.n_bodies();
     let Some(c) = contact else { return vec![vec![0.0; dim]; n] };
-    let first_body = |v: usize| (0..n).find(|&b| d.bodies.body_nodes(b).binary_search(&v).is_ok());
+    // The solvers number their nodes on the contact surface.
+    let first_body =
+        |v: usize| (0..n).find(|&b| d.bodies.surface_body_nodes(b).binary_search(&v).is_ok());
     (0..n).map(|b| sum(c, &|v| first_body(v) == Some(b))[..dim].to_vec()).collect()
 }
 

@@ -2,10 +2,13 @@
 
 use std::rc::Rc;
 
+use mpi::collective::SystemOperation;
 use mpi::topology::SimpleCommunicator;
+use mpi::traits::*;
 
 use crate::bodies::Bodies;
 use crate::mesh::Mesh;
+use crate::partition::surface::Surface;
 use crate::partition::Partition;
 use crate::scene::Scene;
 
@@ -19,10 +22,29 @@ pub struct Domain<'a> {
     /// Shared with the loads and the stress output.
     pub mesh: Rc<Mesh>,
     pub part: Rc<Partition>,
+    /// The contact surface, whole on every rank (contact groups and the layer's groups).
+    pub surface: Rc<Surface>,
     pub rank: usize,
     pub size: usize,
     /// The steps to run: the scene's, or the command line's `--steps`.
     pub n_steps: usize,
+    /// The largest extent of the mesh's bounding box (`stability::body_size`, all ranks).
+    pub body_size: f64,
+}
+
+/// The largest extent of the bounding box of all ranks' nodes (collective).
+pub fn body_size(world: &SimpleCommunicator, mesh: &Mesh) -> f64 {
+    let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
+    for x in &mesh.coords {
+        for i in 0..3 {
+            lo[i] = lo[i].min(x[i]);
+            hi[i] = hi[i].max(x[i]);
+        }
+    }
+    let (mut glo, mut ghi) = ([0.0; 3], [0.0; 3]);
+    world.all_reduce_into(&lo[..], &mut glo[..], SystemOperation::min());
+    world.all_reduce_into(&hi[..], &mut ghi[..], SystemOperation::max());
+    crate::stability::body_size(&[glo, ghi])
 }
 
 impl Domain<'_> {

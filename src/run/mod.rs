@@ -14,6 +14,7 @@
 //! - [`diagnostics`]: mass check, momenta, impulses, exact errors, costs;
 //! - [`stress`]: the stress-type output fields.
 
+pub mod blocks;
 pub mod diagnostics;
 pub mod domain;
 pub mod options;
@@ -37,7 +38,7 @@ use crate::console::{Console, Progress};
 use crate::contact::{ContactSolver, StepContact};
 use crate::error::{Error, Result};
 use crate::mesh::Mesh;
-use crate::partition::Partition;
+use crate::partition::local::localize;
 use crate::phase::{self, HangTimeout, Phase, Watchdog};
 use crate::post::{picture_paths, write_pictures};
 use crate::report::{MassCheck, RunSummary, Timings};
@@ -117,14 +118,18 @@ impl<'a> Simulation<'a> {
             let app = AppOptions::read()?;
             phase::enter(Phase::Meshing);
             let t0 = Instant::now();
-            let mesh = load_mesh(world, &scene)?;
-            scene.check_dim(mesh.dim)?;
-            let bodies = Bodies::resolve(&scene, &mesh)?;
+            let whole = load_mesh(world, &scene)?;
+            scene.check_dim(whole.dim)?;
             let t_mesh = t0.elapsed().as_secs_f64();
             phase::check_signal(world)?;
             phase::enter(Phase::Partitioning);
             let t1 = Instant::now();
-            let part = Partition::with_strategy(&mesh, rank, size, opts.partition)?;
+            // This rank's part: own cells and a ghost layer; the whole mesh is dropped here.
+            let cell_rank = opts.partition.cell_ranks(&whole, size)?;
+            let (mesh, part) = localize(&whole, &cell_rank, rank, size);
+            drop((whole, cell_rank));
+            let surface = crate::partition::surface::gather(world, &mesh, &part, &scene.surface_groups())?;
+            let bodies = Bodies::resolve_local(world, &scene, &mesh, &part, &surface)?;
             let t_part = t1.elapsed().as_secs_f64();
             phase::check_signal(world)?;
             let timings = Timings {
@@ -132,11 +137,11 @@ impl<'a> Simulation<'a> {
                 partition: max_over_ranks(world, t_part),
                 ..Default::default()
             };
-            Ok((mesh, part, timings, bodies, app))
+            Ok((mesh, part, surface, timings, bodies, app))
         });
-        let (mesh, part, timings, bodies, app) = match parts {
-            Ok((mesh, part, timings, bodies, app)) => {
-                (Rc::new(mesh), Rc::new(part), timings, bodies, app)
+        let (mesh, part, surface, timings, bodies, app) = match parts {
+            Ok((mesh, part, surface, timings, bodies, app)) => {
+                (Rc::new(mesh), Rc::new(part), Rc::new(surface), timings, bodies, app)
             }
             Err(e) => {
                 output.fail(world, agree, &e);
@@ -146,7 +151,9 @@ impl<'a> Simulation<'a> {
         let n_steps = opts.steps.unwrap_or(scene.steps);
         let views = Views::new(world, Rc::clone(&mesh), Rc::clone(&part));
         let stress = StressFields::new(world, Rc::clone(&mesh), Rc::clone(&part));
-        let domain = Domain { world, scene, bodies, mesh, part, rank, size, n_steps };
+        let body_size = domain::body_size(world, &mesh);
+        let domain =
+            Domain { world, scene, bodies, mesh, part, surface, rank, size, n_steps, body_size };
         Ok(Simulation {
             agree,
             console,
@@ -221,8 +228,8 @@ impl<'a> Simulation<'a> {
         self.console.say(format!(
             "{}: {} nodes, {} cells ({}D), {} DOFs on {} rank(s); assembling",
             d.scene.name,
-            d.mesh.n_nodes(),
-            d.mesh.cells.len(),
+            d.part.n_global_nodes(),
+            d.part.n_global_cells,
             d.mesh.dim,
             d.part.n_global_dofs(),
             d.size

@@ -19,7 +19,7 @@ use crate::contact::ContactSolver;
 use crate::error::{Error, Result};
 use crate::fem::stress::Quantity;
 use crate::io::{
-    group_key, layout, natural_range, Checkpoint, Meta, Output, OutputPlan, PlannedField, RunFile,
+    group_key, layout, Checkpoint, Meta, Output, OutputPlan, PlannedField, RunFile,
 };
 use crate::mass::MassFreeLayer;
 use crate::phase::{self, Phase};
@@ -154,20 +154,19 @@ impl RunOutput {
             }
         }
         file.write_meta(d.world, &meta)?;
-        let mut out = Output::open(file, d.world, mesh, &d.part.cell_rank, plan)?;
+        let blocks = super::blocks::mesh_blocks(d)?;
+        let mut out = Output::open(file, d.world, &blocks, plan)?;
         let mc = mass_check;
         out.write_mass_check(&mc.total_mass, &mc.first_moment, &mc.second_moment, &mc.probe)?;
         if let Some(c) = contact {
             let friction = d.scene.contact.as_ref().is_some_and(|s| s.has_friction());
-            out.create_contact(&c.boundary().nodes, &c.boundary().weights, mesh.dim, friction)?;
+            // The solvers' nodes are the contact surface's; the file has original numbers.
+            let original = |s: &usize| d.surface.part.node_original[*s];
+            let nodes: Vec<usize> = c.boundary().nodes.iter().map(original).collect();
+            out.create_contact(&nodes, &c.boundary().weights, mesh.dim, friction)?;
             if let Some(spec) = spec {
-                let mut nodes = Vec::new();
-                for g in spec.master_groups() {
-                    nodes.extend(mesh.group_nodes(g)?);
-                }
-                nodes.sort_unstable();
-                nodes.dedup();
-                out.create_contact_pair(d.world, &nodes)?;
+                let groups: Vec<&str> = spec.master_groups();
+                out.create_contact_pair(d.world, &d.surface.original_nodes(&groups)?)?;
             }
         }
         *self = RunOutput::Open(Box::new(out));
@@ -318,12 +317,13 @@ fn timings_text(t: &Timings) -> String {
 /// the contact nodes' rows), zero at every other node.
 fn traction_block(d: &Domain, contact: Option<&ContactStep>) -> Vec<f64> {
     let dim = d.part.dim;
-    let (lo, hi) = natural_range(d.mesh.n_nodes(), d.rank, d.size);
+    let (lo, hi) = d.part.natural_block();
     let mut block = vec![0.0; (hi - lo) * dim];
     let Some(c) = contact else { return block };
     let boundary = c.solver.boundary();
     let traction = c.row.traction(&boundary.weights, c.normals, dim);
-    for (q, &v) in boundary.nodes.iter().enumerate() {
+    for (q, &s) in boundary.nodes.iter().enumerate() {
+        let v = d.surface.part.node_original[s];
         if (lo..hi).contains(&v) {
             block[(v - lo) * dim..(v - lo + 1) * dim]
                 .copy_from_slice(&traction[q * dim..(q + 1) * dim]);
@@ -344,7 +344,7 @@ fn settings(
     let mut settings = vec![
         ("ranks".into(), d.size.to_string()),
         ("dim".into(), d.mesh.dim.to_string()),
-        ("nodes".into(), d.mesh.n_nodes().to_string()),
+        ("nodes".into(), d.part.n_global_nodes().to_string()),
         ("dofs".into(), d.part.n_global_dofs().to_string()),
         ("mass".into(), scene.mass.kind.name().to_string()),
         (

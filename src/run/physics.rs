@@ -13,7 +13,7 @@ use crate::contact::mortar::InterfaceMode;
 use crate::contact::{self, ContactBoundary, ContactSolver, Obstacles};
 use crate::error::{Error, Result};
 use crate::fem::kernels;
-use crate::mass::{build_layer, mass_matrix, MassFreeLayer};
+use crate::mass::{build_local_layer, mass_matrix, MassFreeLayer};
 use crate::mesh::Mesh;
 use crate::partition::Partition;
 use crate::petsc::{Matrix, NullSpace, Vector};
@@ -42,7 +42,8 @@ impl<'a> Physics<'a> {
         let layer = match &bodies.layer {
             Some((kind, groups)) => {
                 let groups: Vec<&str> = groups.iter().map(String::as_str).collect();
-                build_layer(mesh, *kind, &groups)?
+                let nodes = d.surface.original_nodes(&groups)?;
+                build_local_layer(d.world, mesh, part, *kind, &groups, &nodes)?
             }
             None => None,
         };
@@ -79,8 +80,8 @@ fn contact_solver<'a>(
     Ok(match &d.scene.contact {
         Some(spec) if !spec.pairs.is_empty() => Some(contact::mortar::pair_solver(
             d.world,
-            Rc::clone(&d.mesh),
-            Rc::clone(&d.part),
+            Rc::new(d.surface.mesh.clone()),
+            Rc::new(d.surface.part.clone()),
             &spec.pairs,
             spec.obstacle_boundary().map(|g| (g, Obstacles::from_scene(&spec.obstacles))),
             Midpoint::CONTACT_FORCE_FACTOR,
@@ -88,9 +89,9 @@ fn contact_solver<'a>(
         )?),
         Some(spec) => Some(contact::solver(
             d.world,
-            &d.mesh,
-            &d.part,
-            ContactBoundary::build(&d.mesh, spec.boundary.as_deref().unwrap_or_default())?,
+            &d.surface.mesh,
+            &d.surface.part,
+            ContactBoundary::build(&d.surface.mesh, spec.boundary.as_deref().unwrap_or_default())?,
             Obstacles::from_scene(&spec.obstacles),
             Midpoint::CONTACT_FORCE_FACTOR,
             &app.contact,

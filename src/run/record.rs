@@ -17,7 +17,7 @@ use crate::post::RunCurves;
 use crate::report::{BodySummary, ErrorSample, MassCheck, RunSummary, Timings};
 use crate::rows::Energy;
 use crate::scene::effects::short_number;
-use crate::stability::{self, ContactColumns, RunSeries, Stability};
+use crate::stability::{ContactColumns, RunSeries, Stability};
 use crate::time::{Midpoint, StepReport};
 
 /// What the run keeps while stepping, for the energy balance, the summary and the pictures.
@@ -198,7 +198,7 @@ impl Record {
             dirichlet_work: col(2),
             contact_work: col(3),
             contact,
-            body_size: stability::body_size(&d.mesh.coords),
+            body_size: d.body_size,
             ksp_iterations: midpoint.ksp_iterations(),
             ksp_iterations_step_max: self.ksp_step_max,
         };
@@ -241,7 +241,7 @@ pub fn summarize(
     let contact_summary = contact.map(|c| {
         let mut s = record.history.summary(
             c,
-            &d.mesh,
+            &d.surface,
             e.contact_work,
             e.friction_dissipation,
             max_over_ranks(d.world, record.contact_seconds),
@@ -278,7 +278,7 @@ pub fn summarize(
         })
         .collect();
     Ok(RunSummary {
-        n_nodes: d.mesh.n_nodes(),
+        n_nodes: d.part.n_global_nodes(),
         n_dofs: d.part.n_global_dofs(),
         steps: d.n_steps,
         timings: facts.timings.clone(),
@@ -335,7 +335,7 @@ pub fn summary_lines(d: &Domain, layer: Option<(usize, usize)>, s: &RunSummary) 
             d.mesh.dim,
             s.n_nodes,
             s.n_dofs,
-            d.mesh.cells.len(),
+            d.part.n_global_cells,
             d.size,
             mass_kinds(&d.bodies),
             match (layer, &d.bodies.layer) {

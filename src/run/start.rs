@@ -13,7 +13,7 @@ use crate::assembly;
 use crate::console::Console;
 use crate::contact::ContactSolver;
 use crate::error::{Error, Result};
-use crate::io::{natural_range, read_checkpoint, Checkpoint};
+use crate::io::{read_checkpoint, Checkpoint};
 use crate::petsc::Matrix;
 use crate::time::{Dirichlet, Energy, Forces, Midpoint, StepOperator, StepSolverDefaults};
 
@@ -102,7 +102,7 @@ pub fn make_massless_consistent(
         };
         let dofs: Vec<i32> = (through.iter())
             .flat_map(|&(v, _)| (0..d.part.dim).map(move |c| (v, c)))
-            .map(|(v, c)| d.part.dof(v, c) as i32)
+            .map(|(v, c)| d.surface.part.dof(v, c) as i32)
             .filter(|dof| !hold.contains(dof))
             .collect();
         if through.is_empty() {
@@ -128,8 +128,9 @@ pub fn restore(
     contact: Option<&mut (dyn ContactSolver + '_)>,
     forces: &dyn Forces,
 ) -> Result<Checkpoint> {
-    let range = natural_range(d.mesh.n_nodes(), d.rank, d.size);
-    let (cp, [u, v, du]) = read_checkpoint(path, d.world, range, d.mesh.n_nodes(), d.part.dim)?;
+    let range = d.part.natural_block();
+    let n = d.part.n_global_nodes();
+    let (cp, [u, v, du]) = read_checkpoint(path, d.world, range, n, d.part.dim)?;
     let works = Energy {
         external_work: cp.external_work,
         contact_work: cp.contact_work,
@@ -180,7 +181,7 @@ pub fn check_no_penetration(
     // The first obstacle that intersects the body, and its nodes.
     let Some(first) = hits.iter().map(|&(_, o)| o).min() else { return Ok(()) };
     let bad: Vec<usize> = hits.iter().filter(|&&(_, o)| o == first).map(|&(v, _)| v).collect();
-    let tags: Vec<String> = bad.iter().take(10).map(|&v| d.mesh.node_tags[v].to_string()).collect();
+    let tags: Vec<String> = bad.iter().take(10).map(|&v| d.surface.mesh.node_tags[v].to_string()).collect();
     // Past the obstacles: a slave node's plane (the master body).
     let what = if first < spec.obstacles.len() {
         spec.obstacle_key(first)

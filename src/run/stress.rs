@@ -33,7 +33,7 @@ use crate::bodies::Bodies;
 use crate::error::{Error, Result};
 use crate::fem::stress::{integrate, lumped_weights, samples, Quantity, Sample, MAX_SAMPLES};
 use crate::fem::MAX_NODES;
-use crate::io::{natural_cell_index, natural_range, Location};
+use crate::io::{natural_range, Location};
 use crate::mesh::Mesh;
 use crate::partition::Partition;
 use crate::petsc::{Scatter, Vector};
@@ -149,14 +149,13 @@ impl StressOutput {
         slot: &[usize],
     ) -> Result<StressOutput> {
         let t0 = Instant::now();
-        let all = natural_cell_index(&mesh);
-        let natural = part.local_cells.iter().map(|&c| all[c]).collect();
+        let natural = part.local_cells.iter().map(|&c| part.cell_natural[c]).collect();
         let mut out = StressOutput {
             mesh: Rc::clone(&mesh),
             part: Rc::clone(&part),
             dim: mesh.dim,
-            n_nodes: mesh.n_nodes(),
-            n_cells: mesh.cells.len(),
+            n_nodes: part.n_global_nodes(),
+            n_cells: part.n_global_cells,
             nodes: nodes.to_vec(),
             natural,
             cell_movers: Vec::new(),
@@ -200,7 +199,8 @@ impl StressOutput {
             return Ok(&mut self.node_movers[i]);
         }
         let nodes = &self.nodes;
-        let m = Mover::new(world, c, nodes.len(), self.n_nodes, |i| nodes[i])?;
+        let original = &self.part.node_original;
+        let m = Mover::new(world, c, nodes.len(), self.n_nodes, |i| original[nodes[i]])?;
         self.node_movers.push(m);
         Ok(self.node_movers.last_mut().expect("mover"))
     }

@@ -13,7 +13,6 @@ use mpi::traits::*;
 
 use crate::comm::sum_over_ranks;
 use crate::error::Result;
-use crate::io::natural_range;
 use crate::mesh::Mesh;
 use crate::partition::Partition;
 use crate::petsc::{Scatter, Vector};
@@ -48,17 +47,13 @@ impl<'a> Views<'a> {
     /// Scatter from the solver's layout to this rank's block of natural (gmsh) node order.
     fn natural_scatter(&self, x: &Vector) -> Result<(Scatter, Vector)> {
         let dim = self.part.dim;
-        let (lo, hi) = natural_range(
-            self.mesh.n_nodes(),
-            self.world.rank() as usize,
-            self.world.size() as usize,
-        );
+        let (lo, hi) = self.part.natural_block();
         let y = Vector::new_mpi((hi - lo) * dim, self.part.n_global_dofs(), dim)?;
         let mut from = Vec::with_capacity((hi - lo) * dim);
         let mut to = Vec::with_capacity((hi - lo) * dim);
         for node in lo..hi {
             for c in 0..dim {
-                from.push(self.part.dof(node, c) as i32);
+                from.push(self.part.natural_dof(node, c) as i32);
                 to.push((node * dim + c) as i32);
             }
         }

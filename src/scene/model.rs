@@ -514,6 +514,13 @@ impl Scene {
         self.steps as f64 * self.tau
     }
 
+    /// Every group contact or the mass-free layer looks at, once: the contact groups, then the
+    /// layer's. The ranks gather these surfaces whole (`partition::surface`).
+    pub fn surface_groups(&self) -> Vec<&str> {
+        let contact = self.contact.as_ref().map(|c| c.groups()).unwrap_or_default();
+        once_each(contact.into_iter().chain(self.mass.layer_groups()))
+    }
+
     /// Checks that every vector-valued key has exactly `dim` components (and that explicitly
     /// listed Dirichlet components exist in `dim` dimensions).
     pub fn check_dim(&self, dim: usize) -> Result<()> {
