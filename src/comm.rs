@@ -67,12 +67,31 @@ pub fn route_to_blocks(world: &SimpleCommunicator, n: usize, width: usize, rows:
     let size = world.size() as usize;
     let starts: Vec<usize> = (0..size).map(|r| block_range(n, r, size).0).collect();
     let dest = |i: u64| starts.partition_point(|&s| s <= i as usize).max(1) - 1;
-    let mut order: Vec<usize> = (0..rows.len() / width).collect();
-    order.sort_by_key(|&k| (dest(rows[k * width]), k));
+    let mut got = all_to_all_rows(world, width, rows, |k| dest(rows[k * width]));
+    let mut order: Vec<usize> = (0..got.len() / width).collect();
+    order.sort_by_key(|&k| got[k * width]);
+    let sorted: Vec<u64> =
+        order.iter().flat_map(|&k| got[k * width..(k + 1) * width].iter().copied()).collect();
+    got.clear();
+    sorted
+}
+
+/// Rows of `width` words, row `k` sent to rank `dest(k)`; returns the rows this rank received,
+/// in rank order (collective: one all-to-all).
+pub fn all_to_all_rows(
+    world: &SimpleCommunicator,
+    width: usize,
+    rows: &[u64],
+    dest: impl Fn(usize) -> usize,
+) -> Vec<u64> {
+    let size = world.size() as usize;
+    let n_rows = rows.len() / width.max(1);
+    let mut order: Vec<usize> = (0..n_rows).collect();
+    order.sort_by_key(|&k| dest(k));
     let mut send = Vec::with_capacity(rows.len());
     let mut counts = vec![0i32; size];
     for &k in &order {
-        counts[dest(rows[k * width])] += width as i32;
+        counts[dest(k)] += width as i32;
         send.extend_from_slice(&rows[k * width..(k + 1) * width]);
     }
     let mut recv_counts = vec![0i32; size];
@@ -86,9 +105,7 @@ pub fn route_to_blocks(world: &SimpleCommunicator, n: usize, width: usize, rows:
         &mpi::datatype::Partition::new(&send[..], &counts[..], &sd[..]),
         &mut mpi::datatype::PartitionMut::new(&mut recv[..], &recv_counts[..], &rd[..]),
     );
-    let mut got: Vec<&[u64]> = recv.chunks(width).collect();
-    got.sort_by_key(|r| r[0]);
-    got.concat()
+    recv
 }
 
 /// The exclusive prefix sum of `x` over the ranks and its total (collective).

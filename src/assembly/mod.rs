@@ -3,7 +3,11 @@
 //! `MatSetValues`/`VecSetValues` (PETSc moves off-rank entries). Every matrix and load vector
 //! of the solver goes through here, with exact preallocation from the partition.
 
-use crate::error::Result;
+pub mod rows;
+
+use mpi::topology::SimpleCommunicator;
+
+use crate::error::{Error, Result};
 use crate::mesh::{Element, Mesh};
 use crate::partition::Partition;
 use crate::petsc::{Matrix, Vector};
@@ -36,7 +40,7 @@ pub fn node_dofs(part: &Partition, nodes: &[usize], out: &mut Vec<i32>) {
 /// An empty distributed matrix with the pattern of "nodes sharing a cell", block size dim.
 pub fn new_matrix(mesh: &Mesh, part: &Partition) -> Result<Matrix> {
     let (d, o) = part.preallocation(mesh);
-    Matrix::new_aij(part.n_owned_dofs(), part.n_global_dofs(), part.dim, d, o)
+    Matrix::new_aij(part.n_owned_dofs(), part.n_global_dofs(), part.dim, &d, &o)
 }
 
 /// A distributed vector with this partition's layout.
@@ -67,23 +71,33 @@ pub fn assemble_blocks<F>(mesh: &Mesh, part: &Partition, mut kernel: F) -> Resul
 where
     F: FnMut(usize, &[[f64; 3]], &mut Vec<usize>, &mut Vec<f64>) -> Result<()>,
 {
-    let mut mat = new_matrix(mesh, part)?;
+    let mat = new_matrix(mesh, part)?;
+    let mut sums = rows::RowSums::new(part.graph(mesh), part.dim);
     let mut xy = [[0.0; 3]; 8];
     let mut nodes = Vec::with_capacity(8);
     let mut vals = Vec::with_capacity(MAX_EDOFS * MAX_EDOFS);
-    let mut dofs = Vec::with_capacity(MAX_EDOFS);
+    // A kernel error on one rank must not leave the others in the exchange: agree first.
+    let mut failed = None;
     for &c in &part.local_cells {
         let cell = &mesh.cells[c];
         let n = cell_coords(mesh, cell, &mut xy);
         nodes.clear();
         nodes.extend_from_slice(cell.nodes());
-        kernel(c, &xy[..n], &mut nodes, &mut vals)?;
-        node_dofs(part, &nodes, &mut dofs);
-        debug_assert_eq!(vals.len(), dofs.len() * dofs.len());
-        mat.set_values(&dofs, &dofs, &vals, true)?;
+        if let Err(e) = kernel(c, &xy[..n], &mut nodes, &mut vals) {
+            failed = Some(e);
+            break;
+        }
+        debug_assert_eq!(vals.len(), (nodes.len() * part.dim).pow(2));
+        sums.add(part, &nodes, &vals)?;
     }
-    mat.assemble()?;
-    Ok(mat)
+    let world = SimpleCommunicator::world();
+    let first = crate::comm::first_failure(&world, failed.as_ref().map(|e| e.to_string()));
+    match (failed, first) {
+        (Some(e), _) => return Err(e),
+        (None, Some(m)) => return Err(Error::Mesh(m)),
+        (None, None) => {}
+    }
+    sums.into_matrix(&world, mat)
 }
 
 /// The rank that integrates a boundary element: the owner of its smallest node (deterministic).

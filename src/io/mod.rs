@@ -160,7 +160,12 @@ fn write_mesh(
             .shape((count, nn))
             .create(k.name())
             .map_err(|e| h5err(path, "create /mesh/cells", e))?;
-        let (a, b) = (clo.max(first).min(first + count), chi.max(first).min(first + count));
+        // This rank's block's rows of this kind (none when the block lies elsewhere).
+        let (a, b) = (clo.max(first), chi.min(first + count));
+        if a >= b {
+            first += count;
+            continue;
+        }
         let conn: Vec<u64> =
             mesh.cells[a - clo..b - clo].iter().flat_map(|c| c.iter().copied()).collect();
         let arr = ndarray::Array2::from_shape_vec((b - a, nn), conn).expect("shape");

@@ -82,7 +82,7 @@ pub fn localize(mesh: &Mesh, cell_rank: &[usize], rank: usize, size: usize) -> (
         cell_original: cells,
         n_global_cells: mesh.cells.len(),
         natural_global: whole.node_global[lo..hi].to_vec(),
-        prealloc: std::sync::OnceLock::new(),
+        graph: std::sync::OnceLock::new(),
     };
     (local, part)
 }

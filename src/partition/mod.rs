@@ -7,11 +7,11 @@
 //! Users only ever see the original (gmsh) node order, so results can be compared entry by
 //! entry across rank counts.
 
+pub mod graph;
 pub mod local;
 pub mod surface;
 
 use crate::error::{Error, Result};
-use crate::mesh::topology::node_cells;
 use crate::mesh::Mesh;
 
 /// The fixed METIS seed: the partition must be the same on every rank and every run.
@@ -47,8 +47,8 @@ pub struct Partition {
     /// Global node number of each node of this rank's natural block
     /// (`natural_block(n_global_nodes, rank, size)`): what output and restart scatter through.
     pub natural_global: Vec<usize>,
-    /// `preallocation` computed once (every matrix shares the pattern).
-    prealloc: std::sync::OnceLock<(Vec<i32>, Vec<i32>)>,
+    /// The node graph of the rows, built once (every matrix shares the pattern).
+    graph: std::sync::OnceLock<graph::NodeGraph>,
 }
 
 /// METIS keeps its random-number state in globals: calls from several threads (tests) must
@@ -205,7 +205,7 @@ impl Partition {
             cell_natural: crate::mesh::natural_cell_index(mesh),
             n_global_cells: mesh.cells.len(),
             natural_global,
-            prealloc: std::sync::OnceLock::new(),
+            graph: std::sync::OnceLock::new(),
         }
     }
 
@@ -253,38 +253,14 @@ impl Partition {
         self.node_owner[node] == self.rank
     }
 
-    /// Exact preallocation for a matrix coupling nodes that share a cell: per owned DOF row,
-    /// the number of columns in the diagonal block (owned by this rank) and off it.
-    pub fn preallocation(&self, mesh: &Mesh) -> &(Vec<i32>, Vec<i32>) {
-        self.prealloc.get_or_init(|| self.compute_preallocation(mesh))
+    /// The node graph of this rank's rows (built once: every matrix shares it).
+    pub fn graph(&self, mesh: &Mesh) -> &graph::NodeGraph {
+        self.graph.get_or_init(|| graph::NodeGraph::build(mesh, self))
     }
 
-    fn compute_preallocation(&self, mesh: &Mesh) -> (Vec<i32>, Vec<i32>) {
-        let (off, list) = node_cells(mesh);
-        let (lo, hi) = (self.node_offsets[self.rank], self.node_offsets[self.rank + 1]);
-        let mut mark = vec![usize::MAX; mesh.n_nodes()];
-        let mut d_nnz = Vec::with_capacity(self.n_owned_dofs());
-        let mut o_nnz = Vec::with_capacity(self.n_owned_dofs());
-        for &v in &self.owned_nodes {
-            let (mut d, mut o) = (0i32, 0i32);
-            for &c in &list[off[v]..off[v + 1]] {
-                for &w in mesh.cells[c].nodes() {
-                    if mark[w] != v {
-                        mark[w] = v;
-                        let g = self.node_global[w];
-                        if g >= lo && g < hi {
-                            d += 1;
-                        } else {
-                            o += 1;
-                        }
-                    }
-                }
-            }
-            for _ in 0..self.dim {
-                d_nnz.push(d * self.dim as i32);
-                o_nnz.push(o * self.dim as i32);
-            }
-        }
-        (d_nnz, o_nnz)
+    /// Exact preallocation for a matrix coupling nodes that share a cell: per owned DOF row,
+    /// the number of columns in the diagonal block (owned by this rank) and off it.
+    pub fn preallocation(&self, mesh: &Mesh) -> (Vec<i32>, Vec<i32>) {
+        self.graph(mesh).preallocation(self)
     }
 }

@@ -177,7 +177,7 @@ pub fn gather(
         cell_natural: cells.iter().map(|c| c.1[1]).collect(),
         n_global_cells: part.n_global_cells,
         natural_global: Vec::new(),
-        prealloc: std::sync::OnceLock::new(),
+        graph: std::sync::OnceLock::new(),
     };
     Ok(Surface { mesh: surface, part: surface_part, contact_nodes })
 }

@@ -155,7 +155,7 @@ impl RunOutput {
         }
         file.write_meta(d.world, &meta)?;
         let blocks = super::blocks::mesh_blocks(d)?;
-        let mut out = Output::open(file, d.world, &blocks, plan)?;
+        let mut out = Output::open(file, d.world, &blocks, plan).inspect_err(|e| eprintln!("DEBUG rank {}: {e}", d.rank))?;
         let mc = mass_check;
         out.write_mass_check(&mc.total_mass, &mc.first_moment, &mc.second_moment, &mc.probe)?;
         if let Some(c) = contact {
