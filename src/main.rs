@@ -135,6 +135,10 @@ enum Command {
         /// slabs along x or y, a predictable cut through the median).
         #[arg(long, default_value = "metis", value_parser = ["metis", "x-slabs", "y-slabs"])]
         partition: String,
+        /// Every rank reads the whole mesh file and cuts its part out of it (as before the
+        /// mesh was read by blocks; for repeating old runs and checking the distributed input).
+        #[arg(long)]
+        replicated_mesh: bool,
         /// Continue a finished or interrupted run from the checkpoint in its HDF5 file.
         #[arg(long, value_name = "RUN.h5")]
         restart: Option<PathBuf>,
@@ -252,6 +256,7 @@ fn run(
             mass,
             friction,
             partition,
+            replicated_mesh,
             restart,
             summary: summary_file,
             hang_timeout,
@@ -290,6 +295,7 @@ fn run(
                 verbose,
                 no_output,
                 partition,
+                replicated_mesh,
                 restart,
                 petsc_args: petsc,
                 hang_timeout: Some(hang_timeout),

@@ -12,9 +12,18 @@ use crate::time::Corrections;
 /// Wall time of the phases of a run, in seconds (max over ranks).
 #[derive(Debug, Clone, Default, serde::Serialize, serde::Deserialize)]
 pub struct Timings {
+    /// Meshing (gmsh, when the cache misses) and reading this rank's share of the mesh file.
     pub mesh: f64,
+    /// Deciding the rank of every cell.
     pub partition: f64,
+    /// Moving cells to their ranks: ownership, numbering, the ghost layer, the contact surface.
+    #[serde(default)]
+    pub migration: f64,
+    /// Matrices and loads (the layer's part of it in `layer`).
     pub assembly: f64,
+    /// Building the mass-free layer (its part of `assembly`).
+    #[serde(default)]
+    pub layer: f64,
     pub setup: f64,
     pub stepping: f64,
     /// Writing the output (the stress-type fields' computation excluded).
@@ -59,6 +68,9 @@ pub struct RunSummary {
     pub matmult_seconds: f64,
     /// Peak resident memory summed over the ranks, in MiB.
     pub peak_memory_mib: f64,
+    /// The largest peak resident memory of one rank, in MiB.
+    #[serde(default)]
+    pub peak_memory_rank_mib: f64,
     pub ranks: usize,
     /// The step solver as PETSc finally configured it (defaults < scene < command line).
     pub ksp_type: String,

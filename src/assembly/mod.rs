@@ -72,7 +72,7 @@ where
     F: FnMut(usize, &[[f64; 3]], &mut Vec<usize>, &mut Vec<f64>) -> Result<()>,
 {
     let mat = new_matrix(mesh, part)?;
-    let mut sums = rows::RowSums::new(part.graph(mesh), part.dim);
+    let mut sums = rows::RowSums::new(part.graph(mesh), mesh, part);
     let mut xy = [[0.0; 3]; 8];
     let mut nodes = Vec::with_capacity(8);
     let mut vals = Vec::with_capacity(MAX_EDOFS * MAX_EDOFS);
@@ -88,7 +88,7 @@ where
             break;
         }
         debug_assert_eq!(vals.len(), (nodes.len() * part.dim).pow(2));
-        sums.add(part, &nodes, &vals)?;
+        sums.add(part, part.cell_original[c], &nodes, &vals)?;
     }
     let world = SimpleCommunicator::world();
     let first = crate::comm::first_failure(&world, failed.as_ref().map(|e| e.to_string()));

@@ -4,12 +4,19 @@
 //! in one all-to-all; then each owned node row goes to PETSc in one `MatSetValues` call with
 //! sorted columns. Per-element insertion into PETSc (hash lookups, the stash for off-rank
 //! rows) cost most of the assembly before.
+//!
+//! Every entry is summed over its cells in increasing original cell index, whatever the
+//! partition: rows touched only by own cells as the cells come (local order is original
+//! order), rows on the partition's seams (a ghost cell in their star) from their
+//! contributions sorted by cell. So the matrices are the same to the last bit on any number
+//! of ranks, and what differs between rank counts is only the solver's arithmetic.
 
 use mpi::topology::SimpleCommunicator;
 
 use crate::comm::all_to_all_rows;
 use crate::error::{Error, Result};
 use crate::partition::graph::NodeGraph;
+use crate::mesh::Mesh;
 use crate::partition::Partition;
 use crate::petsc::Matrix;
 
@@ -19,31 +26,49 @@ pub struct RowSums<'g> {
     dim: usize,
     /// `dim x dim` blocks, one per graph slot, row-major.
     blocks: Vec<f64>,
-    /// Blocks for other ranks: rows of `2 + dim^2` words (row node, column node, values).
+    /// Blocks for other ranks: rows of `3 + dim^2` words (row node, column node, original
+    /// cell, values).
     away: Vec<u64>,
     away_rank: Vec<usize>,
+    /// Owned rows on a seam (some cell of their star is another rank's).
+    seam: Vec<bool>,
+    /// Their contributions from own cells, summed at the end with the others' in cell order.
+    deferred: Vec<u64>,
 }
 
 impl<'g> RowSums<'g> {
-    pub fn new(graph: &'g NodeGraph, dim: usize) -> RowSums<'g> {
+    pub fn new(graph: &'g NodeGraph, mesh: &Mesh, part: &Partition) -> RowSums<'g> {
+        let mut seam = vec![false; graph.n_rows()];
+        for (c, e) in mesh.cells.iter().enumerate() {
+            if part.cell_rank[c] != part.rank {
+                for &v in e.nodes() {
+                    if part.owns(v) {
+                        seam[part.node_global[v] - graph.first] = true;
+                    }
+                }
+            }
+        }
+        let dim = part.dim;
         RowSums {
             graph,
             dim,
             blocks: vec![0.0; graph.cols.len() * dim * dim],
             away: Vec::new(),
             away_rank: Vec::new(),
+            seam,
+            deferred: Vec::new(),
         }
     }
 
     /// Add the dense block `vals` ((nodes.len() dim)^2, row-major, interlaced) coupling
-    /// `nodes` (local node indices).
-    pub fn add(&mut self, part: &Partition, nodes: &[usize], vals: &[f64]) -> Result<()> {
+    /// `nodes` (local node indices), the contribution of the cell of original index `cell`.
+    pub fn add(&mut self, part: &Partition, cell: usize, nodes: &[usize], vals: &[f64]) -> Result<()> {
         let d = self.dim;
         let nd = nodes.len() * d;
         for (a, &v) in nodes.iter().enumerate() {
             let g = part.node_global[v];
-            if part.owns(v) {
-                let row = g - self.graph.first;
+            let row = g.wrapping_sub(self.graph.first);
+            if part.owns(v) && !self.seam[row] {
                 for (b, &w) in nodes.iter().enumerate() {
                     let slot = self.graph.slot(row, part.node_global[w]).ok_or_else(|| {
                         Error::Internal(format!("assembly: node pair ({g}, {}) outside the pattern", part.node_global[w]))
@@ -56,14 +81,18 @@ impl<'g> RowSums<'g> {
                     }
                 }
             } else {
+                let own = part.owns(v);
+                let out = if own { &mut self.deferred } else { &mut self.away };
                 for (b, &w) in nodes.iter().enumerate() {
-                    self.away.extend([g as u64, part.node_global[w] as u64]);
+                    out.extend([g as u64, part.node_global[w] as u64, cell as u64]);
                     for i in 0..d {
                         for j in 0..d {
-                            self.away.push(vals[(a * d + i) * nd + b * d + j].to_bits());
+                            out.push(vals[(a * d + i) * nd + b * d + j].to_bits());
                         }
                     }
-                    self.away_rank.push(part.node_owner[v]);
+                    if !own {
+                        self.away_rank.push(part.node_owner[v]);
+                    }
                 }
             }
         }
@@ -73,17 +102,22 @@ impl<'g> RowSums<'g> {
     /// Send the other ranks' blocks, add what came, and hand every row to `mat` (collective).
     pub fn into_matrix(mut self, world: &SimpleCommunicator, mut mat: Matrix) -> Result<Matrix> {
         let d = self.dim;
-        let width = 2 + d * d;
+        let width = 3 + d * d;
         let ranks = std::mem::take(&mut self.away_rank);
-        let came = all_to_all_rows(world, width, &self.away, |k| ranks[k]);
+        let mut came = all_to_all_rows(world, width, &self.away, |k| ranks[k]);
         self.away = Vec::new();
-        for r in came.chunks(width) {
+        // The seam rows: every contribution, own and received, in (entry, cell) order.
+        came.append(&mut self.deferred);
+        let mut order: Vec<usize> = (0..came.len() / width).collect();
+        order.sort_unstable_by_key(|&k| (came[k * width], came[k * width + 1], came[k * width + 2]));
+        for k in order {
+            let r = &came[k * width..(k + 1) * width];
             let (g, h) = (r[0] as usize, r[1] as usize);
             let row = g.checked_sub(self.graph.first).filter(|&x| x < self.graph.n_rows());
             let slot = row.and_then(|row| self.graph.slot(row, h)).ok_or_else(|| {
                 Error::Internal(format!("assembly: received node pair ({g}, {h}) outside this rank's rows"))
             })?;
-            for (k, &bits) in r[2..].iter().enumerate() {
+            for (k, &bits) in r[3..].iter().enumerate() {
                 self.blocks[slot * d * d + k] += f64::from_bits(bits);
             }
         }

@@ -126,15 +126,19 @@ impl<'a> Simulation<'a> {
             let t1 = Instant::now();
             // This rank's part: own cells and a ghost layer; the whole mesh is dropped here.
             let cell_rank = opts.partition.cell_ranks(&whole, size)?;
+            let t_part = t1.elapsed().as_secs_f64();
+            let t2 = Instant::now();
             let (mesh, part) = localize(&whole, &cell_rank, rank, size);
             drop((whole, cell_rank));
-            let surface = crate::partition::surface::gather(world, &mesh, &part, &scene.surface_groups())?;
+            let surface =
+                crate::partition::surface::gather(world, &mesh, &part, &scene.surface_groups())?;
             let bodies = Bodies::resolve_local(world, &scene, &mesh, &part, &surface)?;
-            let t_part = t1.elapsed().as_secs_f64();
+            let t_migration = t2.elapsed().as_secs_f64();
             phase::check_signal(world)?;
             let timings = Timings {
                 mesh: max_over_ranks(world, t_mesh),
                 partition: max_over_ranks(world, t_part),
+                migration: max_over_ranks(world, t_migration),
                 ..Default::default()
             };
             Ok((mesh, part, surface, timings, bodies, app))
@@ -239,6 +243,7 @@ impl<'a> Simulation<'a> {
         let t0 = Instant::now();
         let physics = Physics::assemble(d, &self.app, self.console)?;
         self.timings.assembly = max_over_ranks(d.world, t0.elapsed().as_secs_f64());
+        self.timings.layer = max_over_ranks(d.world, physics.layer_seconds);
         let layer = physics.layer.as_ref();
         let mass_check = diagnostics::check_mass(d, &mut self.views, &physics.m, layer)?;
         phase::check_signal(d.world)?;
@@ -253,7 +258,7 @@ impl<'a> Simulation<'a> {
         let console = self.console;
         phase::enter(Phase::SolverSetup);
         let t1 = Instant::now();
-        let Physics { a, m, dirichlet, layer, mut contact, loads } = physics;
+        let Physics { a, m, dirichlet, layer, mut contact, loads, .. } = physics;
         let with_contact = contact.is_some();
         let (op, cfl) =
             start::step_operator(d, &self.app, console, &m, &a, &dirichlet, with_contact)?;

@@ -26,6 +26,9 @@ pub struct RunOptions {
     /// Do not write the HDF5 file.
     pub no_output: bool,
     pub partition: crate::partition::Strategy,
+    /// Every rank reads the whole mesh and cuts its part out of it (`--replicated-mesh`: how
+    /// runs were set up before the mesh was read by blocks; repeats them, checks the other).
+    pub replicated_mesh: bool,
     /// Continue from the checkpoint of this run's HDF5 file.
     pub restart: Option<PathBuf>,
     /// The PETSc options of the command line (recorded in the output).

@@ -308,8 +308,8 @@ impl RunOutput {
 /// The `timings` attribute: one `phase = seconds` line per phase.
 fn timings_text(t: &Timings) -> String {
     format!(
-        "mesh = {:e}\npartition = {:e}\nassembly = {:e}\nsetup = {:e}\nstepping = {:e}\noutput = {:e}\nstress = {:e}\n",
-        t.mesh, t.partition, t.assembly, t.setup, t.stepping, t.output, t.stress
+        "mesh = {:e}\npartition = {:e}\nmigration = {:e}\nassembly = {:e}\nlayer = {:e}\nsetup = {:e}\nstepping = {:e}\noutput = {:e}\nstress = {:e}\n",
+        t.mesh, t.partition, t.migration, t.assembly, t.layer, t.setup, t.stepping, t.output, t.stress
     )
 }
 

@@ -28,6 +28,8 @@ pub struct Physics<'a> {
     pub layer: Option<MassFreeLayer>,
     pub contact: Option<Box<dyn ContactSolver + 'a>>,
     pub loads: LoadsAt,
+    /// Building the mass-free layer (part of the assembly).
+    pub layer_seconds: f64,
 }
 
 impl<'a> Physics<'a> {
@@ -39,6 +41,7 @@ impl<'a> Physics<'a> {
             kernels::stiffness(mesh.cells[c].kind, xy, bodies.material(c), out)
                 .map_err(|e| Error::Mesh(format!("{e} (gmsh element tag {})", mesh.cells[c].tag)))
         })?;
+        let t_layer = std::time::Instant::now();
         let layer = match &bodies.layer {
             Some((kind, groups)) => {
                 let groups: Vec<&str> = groups.iter().map(String::as_str).collect();
@@ -47,6 +50,7 @@ impl<'a> Physics<'a> {
             }
             None => None,
         };
+        let layer_seconds = t_layer.elapsed().as_secs_f64();
         let m = mass_matrix(mesh, part, |c| bodies.cell_mass(c), layer.as_ref())?;
         let neumann: Vec<(String, VecExpr)> =
             d.scene.neumann.iter().map(|n| (n.group.clone(), n.traction.clone())).collect();
@@ -67,7 +71,7 @@ impl<'a> Physics<'a> {
             d.scene.body_acceleration.as_ref(),
             &m,
         )?;
-        Ok(Physics { a, m, dirichlet, layer, contact, loads })
+        Ok(Physics { a, m, dirichlet, layer, contact, loads, layer_seconds })
     }
 }
 

@@ -235,6 +235,7 @@ pub fn summarize(
     let matmult_seconds =
         diagnostics::time_matmult(d, &midpoint.operator().k, midpoint.v(), &mut scratch)?;
     let peak_memory_mib = sum_over_ranks(d.world, diagnostics::peak_rss_mib());
+    let peak_memory_rank_mib = max_over_ranks(d.world, diagnostics::peak_rss_mib());
     let p1 = diagnostics::momentum(d, midpoint.mv())?;
     let body_p1 = diagnostics::body_momenta(d, midpoint.mv())?;
     let e = midpoint.energy();
@@ -293,6 +294,7 @@ pub fn summarize(
         output,
         matmult_seconds,
         peak_memory_mib,
+        peak_memory_rank_mib,
         ranks: d.size,
         ksp_type: ksp.ksp_type()?,
         pc_type: ksp.pc_type()?,

@@ -1058,6 +1058,7 @@ mod tests {
                 stepping: 0.5,
                 output: 0.0,
                 stress: 0.0,
+                ..Default::default()
             },
             ksp_iterations: 124,
             energy_initial: 1.0,
@@ -1069,6 +1070,7 @@ mod tests {
             output: None,
             matmult_seconds: 1e-4,
             peak_memory_mib: 85.5,
+            peak_memory_rank_mib: 85.5,
             ranks: 2,
             ksp_type: "cg".into(),
             pc_type: "jacobi".into(),

@@ -1,0 +1,96 @@
+//! Issue 26, scale out: every rank reads and holds only its part of the mesh. Checked as the
+//! user runs it (mpirun, 1-4 ranks):
+//! - the shipped scenes give the same file, dataset by dataset, whether the ranks read the
+//!   mesh by blocks (the default) or each reads it whole and cuts its part out
+//!   (`--replicated-mesh`, how runs were set up before): both paths build the same parts, so
+//!   the only allowed difference is round-off (1e-12 relative, per dataset);
+//! - the files do not depend on the rank count beyond the solver's tolerance;
+//! - the memory of a rank shrinks with the rank count (what does not shrink is reported).
+
+mod common;
+
+use std::path::{Path, PathBuf};
+
+use common::{run_scene, scene_text, scratch};
+
+/// Every numeric dataset of a run file, by path (the partition's own record, `cell_rank`,
+/// and the settings text are left out: they say how the run was split, not what it computed).
+fn datasets(h5: &Path) -> Vec<(String, Vec<f64>)> {
+    fn walk(g: &hdf5::Group, prefix: &str, out: &mut Vec<(String, Vec<f64>)>) {
+        for name in g.member_names().unwrap() {
+            let path = format!("{prefix}/{name}");
+            if let Ok(sub) = g.group(&name) {
+                walk(&sub, &path, out);
+            } else if let Ok(ds) = g.dataset(&name) {
+                if path.ends_with("cell_rank") {
+                    continue;
+                }
+                if let Ok(v) = ds.read_raw::<f64>() {
+                    out.push((path, v));
+                }
+            }
+        }
+    }
+    let f = hdf5::File::open(h5).unwrap();
+    let mut out = Vec::new();
+    walk(&f, "", &mut out);
+    out.sort_by(|a, b| a.0.cmp(&b.0));
+    out
+}
+
+/// The largest difference of two run files, relative to each dataset's largest entry, and
+/// the dataset where it is.
+fn file_difference(a: &Path, b: &Path) -> (f64, String) {
+    let (da, db) = (datasets(a), datasets(b));
+    let names = |d: &[(String, Vec<f64>)]| d.iter().map(|x| x.0.clone()).collect::<Vec<_>>();
+    assert_eq!(names(&da), names(&db), "{} and {} hold different datasets", a.display(), b.display());
+    let mut worst = (0.0, String::new());
+    for ((name, x), (_, y)) in da.iter().zip(&db) {
+        assert_eq!(x.len(), y.len(), "{name}: sizes differ");
+        let scale = x.iter().chain(y).fold(0.0f64, |m, v| m.max(v.abs()));
+        if scale == 0.0 {
+            continue;
+        }
+        let d = x.iter().zip(y).fold(0.0f64, |m, (p, q)| m.max((p - q).abs())) / scale;
+        if d > worst.0 {
+            worst = (d, name.clone());
+        }
+    }
+    worst
+}
+
+/// A shipped scene copied under `name` into `dir` (its mesh paths kept).
+fn shipped(dir: &Path, scene: &str, name: &str) -> PathBuf {
+    let text = std::fs::read_to_string(common::repo().join("scenes").join(scene)).unwrap();
+    scene_text(dir, &format!("{name}.toml"), &text)
+}
+
+/// The scenes and their steps: 2D and 3D, rigid obstacles, two bodies (mortar), friction,
+/// the mass-free layer, exact errors and stress output among them.
+const SCENES: [(&str, usize); 6] = [
+    ("disc.toml", 20),
+    ("two_discs.toml", 20),
+    ("sphere.toml", 10),
+    ("beam.toml", 20),
+    ("slide_off.toml", 20),
+    ("disc_oblique.toml", 20),
+];
+
+#[test]
+fn reading_by_blocks_gives_the_replicated_paths_files_on_1_to_4_ranks() {
+    let dir = scratch("scale-out-same");
+    for (scene, steps) in SCENES {
+        let stem = scene.trim_end_matches(".toml");
+        let blocks = shipped(&dir, scene, &format!("{stem}-blocks"));
+        let whole = shipped(&dir, scene, &format!("{stem}-whole"));
+        let n = steps.to_string();
+        for ranks in 1..=4 {
+            let args = ["--steps", n.as_str(), "--partition", "metis"];
+            run_scene(ranks, &blocks, &args);
+            run_scene(ranks, &whole, &[&args[..], &["--replicated-mesh"]].concat());
+            let (a, b) = (dir.join(format!("{stem}-blocks-{ranks}.h5")), dir.join(format!("{stem}-whole-{ranks}.h5")));
+            let (d, name) = file_difference(&a, &b);
+            assert!(d <= 1e-12, "{scene} on {ranks} rank(s): {name} differs by {d:e} between the paths");
+        }
+    }
+}
