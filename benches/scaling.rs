@@ -131,7 +131,7 @@ fn main() {
         std::process::exit(1);
     }
     let quick = args.iter().any(|a| a == "--quick");
-    // --only scaling|solvers|mass|disc|contact3d|two_body|friction|output|stress|suite runs one
+    // --only scaling|solvers|mass|disc|contact3d|two_body|friction|output|stress|suite|setup runs one
     // section.
     let only = args.iter().position(|a| a == "--only").and_then(|i| args.get(i + 1)).cloned();
     let want = |section: &str| only.as_deref().is_none_or(|o| o == section);
@@ -777,7 +777,65 @@ fn main() {
             }
         }
     }
+    if want("setup") {
+        md += &setup_section(quick);
+    }
     let path = bench_dir().join("scaling.md");
     std::fs::write(&path, &md).unwrap();
     println!("\n{md}\nwritten to {}", path.display());
+}
+
+/// Issue 26: the set-up phases (read, partition, migration, assembly, layer, solver set-up)
+/// and the peak memory of the largest rank, for the mesh read by blocks (the default) and for
+/// the replicated path (`--replicated-mesh --partition metis`: every rank reads the whole
+/// mesh, as before), on the 3D block and on two contact scenes. One step each.
+fn setup_section(quick: bool) -> String {
+    let mut md = String::from(
+        "\nSet-up phases (1 step, no output; seconds are the slowest rank's; assembly rate = cells / (ranks x assembly seconds), A, M and loads together; peak MiB of the largest rank):\n\n| case | path | ranks | DOFs | cells | read s | partition s | migration s | assembly s | cells/s/rank | layer s | solver set-up s | peak MiB/rank |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|\n",
+    );
+    let blocks: &[(&str, &[usize])] = if quick {
+        &[("0.1", &[1, 2, 4])]
+    } else {
+        &[("0.03", &[1, 2, 4]), ("0.02", &[2, 4])]
+    };
+    let mut runs: Vec<(String, &str, Vec<String>, usize)> = vec![];
+    for &(h, ranks) in blocks {
+        for &r in ranks {
+            runs.push((format!("block P1 h = {h}"), "block_tet.toml", vec!["--param".into(), format!("h={h}")], r));
+        }
+    }
+    for (label, scene) in [("ball on plane (contact, M_H)", "sphere.toml"), ("two spheres (mortar)", "two_spheres.toml")] {
+        for r in [1, 2, 4] {
+            runs.push((label.to_string(), scene, vec![], r));
+        }
+    }
+    for (label, scene, args, ranks) in runs {
+        for (path, extra) in [("blocks", vec![]), ("replicated", vec!["--replicated-mesh", "--partition", "metis"])] {
+            let mut a = args.clone();
+            a.extend(["--steps", "1"].map(String::from));
+            a.extend(extra.iter().map(|s| s.to_string()));
+            eprintln!("bench: setup, {label}, {path}, {ranks} rank(s)");
+            let summary = bench_dir().join("setup.toml");
+            let Some(t) = run_scene(ranks, scene, &a, &summary) else {
+                md += &format!("| {label} | {path} | {ranks} | failed |\n");
+                continue;
+            };
+            let tm = &t.timings;
+            let cells = t.n_cells.max(1) as f64;
+            md += &format!(
+                "| {label} | {path} | {ranks} | {} | {} | {:.2} | {:.2} | {:.2} | {:.2} | {:.2e} | {:.3} | {:.2} | {:.0} |\n",
+                t.n_dofs,
+                t.n_cells,
+                tm.mesh,
+                tm.partition,
+                tm.migration,
+                tm.assembly,
+                cells / (ranks as f64 * tm.assembly.max(1e-9)),
+                tm.layer,
+                tm.setup,
+                t.peak_memory_rank_mib
+            );
+        }
+    }
+    md
 }

@@ -47,6 +47,9 @@ pub struct ErrorSample {
 #[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 pub struct RunSummary {
     pub n_nodes: usize,
+    /// Cells of the whole mesh.
+    #[serde(default)]
+    pub n_cells: usize,
     pub n_dofs: usize,
     pub steps: usize,
     pub timings: Timings,

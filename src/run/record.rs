@@ -280,6 +280,7 @@ pub fn summarize(
         .collect();
     Ok(RunSummary {
         n_nodes: d.part.n_global_nodes(),
+        n_cells: d.part.n_global_cells,
         n_dofs: d.part.n_global_dofs(),
         steps: d.n_steps,
         timings: facts.timings.clone(),

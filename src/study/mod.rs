@@ -1048,6 +1048,7 @@ mod tests {
         use crate::report::{ErrorSample, MassCheck, Timings};
         let run = RunSummary {
             n_nodes: 729,
+            n_cells: 640,
             n_dofs: 1458,
             steps: 30,
             timings: Timings {
