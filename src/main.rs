@@ -96,6 +96,22 @@ enum Command {
         #[command(flatten)]
         snapshot: SnapshotArgs,
     },
+    /// Check the distributed mesh front end against the replicated path on this rank count
+    /// (every field of each rank's part of the mesh, bit for bit), or time one path alone.
+    #[command(hide = true)]
+    MeshCheck {
+        /// The mesh file (MSH 4.1).
+        mesh: PathBuf,
+        /// Partition: metis, x-slabs, y-slabs or rcb.
+        #[arg(long, default_value = "rcb")]
+        partition: String,
+        /// ASCII files above this size (bytes) are converted to binary with gmsh.
+        #[arg(long)]
+        ascii_limit: Option<u64>,
+        /// Run only one path and print its times and peak memory: distributed or replicated.
+        #[arg(long, value_parser = ["distributed", "replicated"])]
+        only: Option<String>,
+    },
     /// Run a scene (launch with mpirun for several ranks). PETSc options go after `--`.
     Run {
         /// The scene file (TOML).
@@ -240,6 +256,18 @@ fn run(
         }
         return Ok(());
     }
+    if let Command::MeshCheck { mesh, partition, ascii_limit, only } = &cli.command {
+        use massfree::partition::verify::{mesh_check, Paths};
+        let strategy = massfree::partition::Strategy::from_name(partition)
+            .ok_or_else(|| Error::Usage(format!("--partition {partition}: unknown")))?;
+        let paths = match only.as_deref() {
+            Some("distributed") => Paths::Distributed,
+            Some("replicated") => Paths::Replicated,
+            _ => Paths::Compare,
+        };
+        let limit = ascii_limit.unwrap_or(massfree::mesh::share::ASCII_WHOLE_LIMIT);
+        return mesh_check(&universe.world(), mesh, strategy, limit, paths);
+    }
     let world = universe.world();
     let rank = world.rank() as usize;
     match cli.command {
@@ -316,7 +344,8 @@ fn run(
         Command::Compare { .. }
         | Command::Study { .. }
         | Command::Post { .. }
-        | Command::Suite { .. } => Ok(()),
+        | Command::Suite { .. }
+        | Command::MeshCheck { .. } => Ok(()),
     }
 }
 

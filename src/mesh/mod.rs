@@ -3,9 +3,13 @@
 //! `.geo` sources with the gmsh command in `gmsh`, geometric checks in `check`, which cells
 //! share facets and nodes (and the checked contact boundary groups) in `topology`.
 
+pub mod blocks;
 pub mod check;
+pub mod convert;
+pub mod exchange;
 pub mod gmsh;
 pub mod msh;
+pub mod share;
 pub mod topology;
 
 use crate::error::{Error, Result};

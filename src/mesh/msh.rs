@@ -36,11 +36,11 @@ struct RawElement {
 }
 
 #[derive(Default)]
-struct RawMsh {
+pub(super) struct RawMsh {
     /// (dim, physical tag) -> name.
-    names: BTreeMap<(usize, i32), String>,
+    pub(super) names: BTreeMap<(usize, i32), String>,
     /// (dim, entity tag) -> physical tags.
-    entity_phys: HashMap<(usize, i32), Vec<i32>>,
+    pub(super) entity_phys: HashMap<(usize, i32), Vec<i32>>,
     /// (gmsh tag, coordinates), in file order.
     nodes: Vec<(u64, [f64; 3])>,
     elements: Vec<RawElement>,
@@ -50,17 +50,17 @@ struct RawMsh {
 
 /// Cursor over the file bytes that reads either ASCII tokens or binary values, so each
 /// section parser is written once for both encodings.
-struct Cursor<'a> {
-    data: &'a [u8],
-    pos: usize,
-    binary: bool,
-    source: &'a str,
+pub(super) struct Cursor<'a> {
+    pub(super) data: &'a [u8],
+    pub(super) pos: usize,
+    pub(super) binary: bool,
+    pub(super) source: &'a str,
     /// Current section name, for error messages.
-    section: &'static str,
+    pub(super) section: &'static str,
 }
 
 impl<'a> Cursor<'a> {
-    fn err(&self, msg: impl std::fmt::Display) -> Error {
+    pub(super) fn err(&self, msg: impl std::fmt::Display) -> Error {
         Error::Mesh(format!("{}: {msg} ({})", self.source, self.location()))
     }
 
@@ -189,7 +189,7 @@ impl<'a> Cursor<'a> {
     }
 
     /// Expects the `$EndName` line closing the current section.
-    fn end_section(&mut self, name: &str) -> Result<()> {
+    pub(super) fn end_section(&mut self, name: &str) -> Result<()> {
         self.skip_ws();
         let was_binary = self.binary;
         self.binary = false;
@@ -245,58 +245,98 @@ fn unsupported_type(t: i32) -> (&'static str, bool) {
     }
 }
 
+/// The error for an element block of a type massfree does not read, naming the first element
+/// (`first`: its tag, if the block has one) and the entity.
+pub(super) fn unsupported_error(
+    source: &str,
+    gtype: i32,
+    first: Option<u64>,
+    dim: usize,
+    entity: i32,
+) -> Error {
+    let at = match first {
+        Some(t) => format!("element tag {t}"),
+        None => "an empty block".to_string(),
+    };
+    let (what, high_order) = unsupported_type(gtype);
+    let hint = if high_order {
+        "; massfree needs first-order elements: set `Mesh.ElementOrder = 1;` \
+         in the .geo (or mesh with `gmsh -order 1`)"
+    } else {
+        "; supported: 2-node lines, 3-node triangles, 4-node quadrangles, \
+         4-node tetrahedra, 8-node hexahedra, points"
+    };
+    Error::Mesh(format!(
+        "{source}: unsupported gmsh element type {gtype} ({what}) at {at} in entity \
+         (dim {dim}, tag {entity}){hint}"
+    ))
+}
+
+/// `$MeshFormat`: version 4.1, ASCII or binary (then little-endian), data size 8. Leaves
+/// the cursor after `$EndMeshFormat`, in binary mode for a binary file.
+pub(super) fn mesh_format(c: &mut Cursor) -> Result<()> {
+    c.skip_ws();
+    let first = c.line();
+    if first != "$MeshFormat" {
+        let shown: String = first.chars().take(40).collect();
+        return Err(c.err(format!("not a gmsh MSH file: expected $MeshFormat, found \"{shown}\"")));
+    }
+    c.section = "$MeshFormat";
+    let version = c.token("version")?.to_string();
+    if version != "4.1" {
+        return Err(
+            c.err(format!("MSH 4.1 required, found {version}; mesh with `gmsh -format msh41`"))
+        );
+    }
+    let file_type: i32 = c.parse_token("file type")?;
+    let data_size: i32 = c.parse_token("data size")?;
+    if data_size != 8 {
+        return Err(c.err(format!("data size {data_size} not supported (need 8)")));
+    }
+    match file_type {
+        0 => {}
+        1 => {
+            // Binary: the header line ends with '\n', then an int 1 to detect endianness.
+            c.line();
+            c.binary = true;
+            let one = c.bytes::<4>("endianness marker")?;
+            if i32::from_le_bytes(one) != 1 {
+                return Err(c.err("big-endian binary MSH is not supported"));
+            }
+        }
+        _ => return Err(c.err(format!("bad file type {file_type} (0 = ASCII, 1 = binary)"))),
+    }
+    c.end_section("MeshFormat")?;
+    Ok(())
+}
+
+/// The name of the next section (its `$Name` header line read), or None at the end of the data.
+pub(super) fn next_section<'a>(c: &mut Cursor<'a>) -> Result<Option<&'a str>> {
+    c.skip_ws();
+    if c.at_end() {
+        return Ok(None);
+    }
+    let was_binary = c.binary;
+    c.binary = false;
+    c.section = "section header";
+    let header = c.line();
+    c.binary = was_binary;
+    let Some(name) = header.strip_prefix('$') else {
+        let shown: String = header.chars().take(40).collect();
+        return Err(c.err(format!("expected a $Section header, found \"{shown}\"")));
+    };
+    Ok(Some(name))
+}
+
 impl RawMsh {
     fn parse(bytes: &[u8], source: &str) -> Result<RawMsh> {
         let mut c = Cursor { data: bytes, pos: 0, binary: false, source, section: "header" };
         let mut raw = RawMsh::default();
-        c.skip_ws();
-        let first = c.line();
-        if first != "$MeshFormat" {
-            let shown: String = first.chars().take(40).collect();
-            return Err(
-                c.err(format!("not a gmsh MSH file: expected $MeshFormat, found \"{shown}\""))
-            );
-        }
-        c.section = "$MeshFormat";
-        let version = c.token("version")?.to_string();
-        if version != "4.1" {
-            return Err(c.err(format!(
-                "MSH 4.1 required, found {version}; mesh with `gmsh -format msh41`"
-            )));
-        }
-        let file_type: i32 = c.parse_token("file type")?;
-        let data_size: i32 = c.parse_token("data size")?;
-        if data_size != 8 {
-            return Err(c.err(format!("data size {data_size} not supported (need 8)")));
-        }
-        match file_type {
-            0 => {}
-            1 => {
-                // Binary: the header line ends with '\n', then an int 1 to detect endianness.
-                c.line();
-                c.binary = true;
-                let one = c.bytes::<4>("endianness marker")?;
-                if i32::from_le_bytes(one) != 1 {
-                    return Err(c.err("big-endian binary MSH is not supported"));
-                }
-            }
-            _ => return Err(c.err(format!("bad file type {file_type} (0 = ASCII, 1 = binary)"))),
-        }
-        c.end_section("MeshFormat")?;
+        mesh_format(&mut c)?;
 
         loop {
-            c.skip_ws();
-            if c.at_end() {
+            let Some(name) = next_section(&mut c)? else {
                 break;
-            }
-            let was_binary = c.binary;
-            c.binary = false;
-            c.section = "section header";
-            let header = c.line();
-            c.binary = was_binary;
-            let Some(name) = header.strip_prefix('$') else {
-                let shown: String = header.chars().take(40).collect();
-                return Err(c.err(format!("expected a $Section header, found \"{shown}\"")));
             };
             match name {
                 "PhysicalNames" => {
@@ -341,7 +381,7 @@ impl RawMsh {
     }
 
     /// `$PhysicalNames` is text even in binary files: `dim tag "name"` per line.
-    fn physical_names(&mut self, c: &mut Cursor) -> Result<()> {
+    pub(super) fn physical_names(&mut self, c: &mut Cursor) -> Result<()> {
         let was_binary = c.binary;
         c.binary = false;
         let n: usize = c.parse_token("number of physical names")?;
@@ -360,7 +400,7 @@ impl RawMsh {
         Ok(())
     }
 
-    fn entities(&mut self, c: &mut Cursor) -> Result<()> {
+    pub(super) fn entities(&mut self, c: &mut Cursor) -> Result<()> {
         let mut counts = [0usize; 4];
         for (d, n) in counts.iter_mut().enumerate() {
             *n = c.count(&format!("number of dimension-{d} entities"), 1)?;
@@ -440,23 +480,7 @@ impl RawMsh {
             let n = c.count("number of elements in block", 1)?;
             let Some(kind) = ElementKind::from_gmsh(gtype) else {
                 let first = if n > 0 { c.size("element tag").ok() } else { None };
-                let at = match first {
-                    Some(t) => format!("element tag {t}"),
-                    None => "an empty block".to_string(),
-                };
-                let (what, high_order) = unsupported_type(gtype);
-                let hint = if high_order {
-                    "; massfree needs first-order elements: set `Mesh.ElementOrder = 1;` \
-                     in the .geo (or mesh with `gmsh -order 1`)"
-                } else {
-                    "; supported: 2-node lines, 3-node triangles, 4-node quadrangles, \
-                     4-node tetrahedra, 8-node hexahedra, points"
-                };
-                return Err(Error::Mesh(format!(
-                    "{}: unsupported gmsh element type {gtype} ({what}) at {at} in entity \
-                     (dim {dim}, tag {entity}){hint}",
-                    c.source
-                )));
+                return Err(unsupported_error(c.source, gtype, first, dim, entity));
             };
             if kind.dim() != dim {
                 return Err(c.err(format!(
@@ -561,7 +585,12 @@ impl RawMsh {
             }
         }
 
-        // Physical groups: names from $PhysicalNames, membership from $Entities.
+        let groups = self.groups();
+        Ok(Mesh { dim, coords, node_tags, cells, boundary, groups })
+    }
+
+    /// Physical groups: names from $PhysicalNames, membership from $Entities.
+    pub(super) fn groups(&self) -> Vec<PhysicalGroup> {
         let mut groups: BTreeMap<(usize, i32), Vec<i32>> =
             self.names.keys().map(|&k| (k, Vec::new())).collect();
         for (&(d, entity), phys) in &self.entity_phys {
@@ -569,7 +598,7 @@ impl RawMsh {
                 groups.entry((d, p)).or_default().push(entity);
             }
         }
-        let groups = groups
+        groups
             .into_iter()
             .map(|((d, tag), mut entities)| {
                 entities.sort_unstable();
@@ -577,8 +606,6 @@ impl RawMsh {
                 let name = self.names.get(&(d, tag)).cloned().unwrap_or_else(|| tag.to_string());
                 PhysicalGroup { name, dim: d, tag, entities }
             })
-            .collect();
-
-        Ok(Mesh { dim, coords, node_tags, cells, boundary, groups })
+            .collect()
     }
 }

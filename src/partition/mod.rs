@@ -7,9 +7,13 @@
 //! Users only ever see the original (gmsh) node order, so results can be compared entry by
 //! entry across rank counts.
 
+pub mod distribute;
+pub mod gathered;
 pub mod graph;
 pub mod local;
+pub mod rcb;
 pub mod surface;
+pub mod verify;
 
 use crate::error::{Error, Result};
 use crate::mesh::Mesh;
@@ -61,11 +65,6 @@ pub fn partition_cells(mesh: &Mesh, nparts: usize) -> Result<Vec<usize>> {
     if nparts <= 1 || ne == 0 {
         return Ok(vec![0; ne]);
     }
-    if ne < nparts {
-        return Err(Error::Partition(format!(
-            "the mesh has {ne} cells, fewer than the {nparts} ranks: use fewer ranks or a finer mesh"
-        )));
-    }
     let mut eptr: Vec<metis::Idx> = Vec::with_capacity(ne + 1);
     let mut eind: Vec<metis::Idx> = Vec::new();
     eptr.push(0);
@@ -73,10 +72,30 @@ pub fn partition_cells(mesh: &Mesh, nparts: usize) -> Result<Vec<usize>> {
         eind.extend(c.nodes().iter().map(|&v| v as metis::Idx));
         eptr.push(eind.len() as metis::Idx);
     }
+    metis_parts(&eptr, &eind, mesh.dim, nparts)
+}
+
+/// METIS k-way partition of the cells given by their connectivity (`eptr`, `eind`: original
+/// node indices, cells in original order) in dimension `dim`, with the fixed seed.
+pub fn metis_parts(
+    eptr: &[metis::Idx],
+    eind: &[metis::Idx],
+    dim: usize,
+    nparts: usize,
+) -> Result<Vec<usize>> {
+    let ne = eptr.len() - 1;
+    if nparts <= 1 || ne == 0 {
+        return Ok(vec![0; ne]);
+    }
+    if ne < nparts {
+        return Err(Error::Partition(format!(
+            "the mesh has {ne} cells, fewer than the {nparts} ranks: use fewer ranks or a finer mesh"
+        )));
+    }
     // Facet neighbours: 2 shared nodes in 2D (an edge), 3 in 3D (a triangle or part of a quad face).
-    let ncommon = if mesh.dim == 2 { 2 } else { 3 };
+    let ncommon = if dim == 2 { 2 } else { 3 };
     let _guard = METIS_LOCK.lock().unwrap_or_else(|e| e.into_inner());
-    let dual = metis::mesh_to_dual(&eptr, &eind, ncommon)
+    let dual = metis::mesh_to_dual(eptr, eind, ncommon)
         .map_err(|e| Error::Partition(format!("METIS_MeshToDual failed: {e}")))?;
     let mut part: Vec<metis::Idx> = vec![0; ne];
     metis::Graph::new(1, nparts as metis::Idx, dual.xadj(), dual.adjncy())
@@ -99,6 +118,9 @@ pub enum Strategy {
     /// The same along y: e.g. two bodies stacked in y each on its own rank(s), so that a
     /// contact pair's slave and master sides live on different ranks.
     SlabsY,
+    /// Recursive coordinate bisection of the cell centroids (`rcb`): equal counts, box-shaped
+    /// parts; computed from distributed data without a replicated graph or a gather.
+    Rcb,
 }
 
 impl Strategy {
@@ -108,6 +130,7 @@ impl Strategy {
             Strategy::Metis => partition_cells(mesh, size)?,
             Strategy::SlabsX => slabs(mesh, size, 0),
             Strategy::SlabsY => slabs(mesh, size, 1),
+            Strategy::Rcb => rcb::rcb(mesh, size),
         })
     }
 
@@ -116,6 +139,7 @@ impl Strategy {
             "metis" => Some(Strategy::Metis),
             "x-slabs" => Some(Strategy::SlabsX),
             "y-slabs" => Some(Strategy::SlabsY),
+            "rcb" => Some(Strategy::Rcb),
             _ => None,
         }
     }
@@ -131,7 +155,12 @@ pub fn slabs(mesh: &Mesh, nparts: usize, axis: usize) -> Vec<usize> {
             c.nodes().iter().map(|&v| mesh.coords[v][axis]).sum::<f64>() / c.nodes().len() as f64
         })
         .collect();
-    let mut order: Vec<usize> = (0..mesh.cells.len()).collect();
+    slab_cut(&cx, nparts)
+}
+
+/// The cells sorted by `cx` (ties by index), cut into `nparts` equal-count slabs.
+pub fn slab_cut(cx: &[f64], nparts: usize) -> Vec<usize> {
+    let mut order: Vec<usize> = (0..cx.len()).collect();
     order.sort_by(|&a, &b| cx[a].total_cmp(&cx[b]).then(a.cmp(&b)));
     let n = order.len();
     let mut part = vec![0; n];
