@@ -147,9 +147,11 @@ enum Command {
         /// frictionless).
         #[arg(long, value_name = "MU")]
         friction: Option<f64>,
-        /// How cells are split over ranks: metis (default), x-slabs or y-slabs (equal-count
-        /// slabs along x or y, a predictable cut through the median).
-        #[arg(long, default_value = "metis", value_parser = ["metis", "x-slabs", "y-slabs"])]
+        /// How cells are split over ranks: rcb (default: recursive coordinate bisection of the
+        /// cell centroids, computed without any rank holding the mesh), metis (METIS on rank 0
+        /// over the gathered connectivity: the partition of runs before rcb), x-slabs or
+        /// y-slabs (equal-count slabs along x or y, a predictable cut through the median).
+        #[arg(long, default_value = "rcb", value_parser = ["rcb", "metis", "x-slabs", "y-slabs"])]
         partition: String,
         /// Every rank reads the whole mesh file and cuts its part out of it (as before the
         /// mesh was read by blocks; for repeating old runs and checking the distributed input).

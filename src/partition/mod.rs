@@ -109,8 +109,8 @@ pub fn metis_parts(
 /// How the cells are split over the ranks.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum Strategy {
-    /// METIS k-way on the dual graph (the default: small interfaces).
-    #[default]
+    /// METIS k-way on the dual graph (small interfaces; the default before `Rcb`: repeats
+    /// older runs).
     Metis,
     /// Equal-count slabs of cell centroids along x: a predictable cut through x = median,
     /// e.g. to make a contact zone straddle the partition boundary.
@@ -119,7 +119,9 @@ pub enum Strategy {
     /// contact pair's slave and master sides live on different ranks.
     SlabsY,
     /// Recursive coordinate bisection of the cell centroids (`rcb`): equal counts, box-shaped
-    /// parts; computed from distributed data without a replicated graph or a gather.
+    /// parts; computed from distributed data without a replicated graph or a gather (the
+    /// default).
+    #[default]
     Rcb,
 }
 

@@ -38,6 +38,8 @@ use crate::console::{Console, Progress};
 use crate::contact::{ContactSolver, StepContact};
 use crate::error::{Error, Result};
 use crate::mesh::Mesh;
+use crate::mesh::share::ASCII_WHOLE_LIMIT;
+use crate::partition::distribute::{read_local_timed, FrontTimes};
 use crate::partition::local::localize;
 use crate::phase::{self, HangTimeout, Phase, Watchdog};
 use crate::post::{picture_paths, write_pictures};
@@ -117,27 +119,27 @@ impl<'a> Simulation<'a> {
             options::enter_solver_defaults()?;
             let app = AppOptions::read()?;
             phase::enter(Phase::Meshing);
-            let t0 = Instant::now();
-            let whole = load_mesh(world, &scene)?;
-            scene.check_dim(whole.dim)?;
-            let t_mesh = t0.elapsed().as_secs_f64();
-            phase::check_signal(world)?;
+            let path = mesh_file(world, &scene)?;
             phase::enter(Phase::Partitioning);
-            let t1 = Instant::now();
-            // This rank's part: own cells and a ghost layer; the whole mesh is dropped here.
-            let cell_rank = opts.partition.cell_ranks(&whole, size)?;
-            let t_part = t1.elapsed().as_secs_f64();
+            // This rank's part of the mesh: own cells and a ghost layer. Read by blocks (no
+            // rank holds the whole mesh), or, with --replicated-mesh, cut out of the whole
+            // mesh every rank reads.
+            let (mesh, part, front) = if opts.replicated_mesh {
+                read_replicated(&path, opts.partition, rank, size)?
+            } else {
+                read_local_timed(world, &path, opts.partition, ASCII_WHOLE_LIMIT)?
+            };
+            scene.check_dim(mesh.dim)?;
+            crate::mesh::share::agree(world, crate::mesh::check::check_geometry(&mesh))?;
             let t2 = Instant::now();
-            let (mesh, part) = localize(&whole, &cell_rank, rank, size);
-            drop((whole, cell_rank));
             let surface =
                 crate::partition::surface::gather(world, &mesh, &part, &scene.surface_groups())?;
             let bodies = Bodies::resolve_local(world, &scene, &mesh, &part, &surface)?;
-            let t_migration = t2.elapsed().as_secs_f64();
+            let t_migration = front.distribute + t2.elapsed().as_secs_f64();
             phase::check_signal(world)?;
             let timings = Timings {
-                mesh: max_over_ranks(world, t_mesh),
-                partition: max_over_ranks(world, t_part),
+                mesh: max_over_ranks(world, front.read),
+                partition: max_over_ranks(world, front.partition),
                 migration: max_over_ranks(world, t_migration),
                 ..Default::default()
             };
@@ -440,8 +442,9 @@ impl<'a> Simulation<'a> {
     }
 }
 
-/// Mesh the scene's geometry (gmsh on rank 0, others wait) and read it on every rank.
-pub fn load_mesh(world: &SimpleCommunicator, scene: &Scene) -> Result<Mesh> {
+/// The scene's mesh file: its `msh`, or its `geo` meshed by gmsh on rank 0 (the others wait,
+/// then find it in the cache).
+pub fn mesh_file(world: &SimpleCommunicator, scene: &Scene) -> Result<PathBuf> {
     let rank = world.rank();
     let path = match &scene.mesh {
         MeshSource::Msh { path } => path.clone(),
@@ -473,9 +476,33 @@ pub fn load_mesh(world: &SimpleCommunicator, scene: &Scene) -> Result<Mesh> {
             }
         }
     };
-    let mesh = crate::mesh::msh::read_msh(&path)?;
+    Ok(path)
+}
+
+/// Mesh the scene's geometry and read the whole mesh (every rank that calls it holds it).
+pub fn load_mesh(world: &SimpleCommunicator, scene: &Scene) -> Result<Mesh> {
+    let mesh = crate::mesh::msh::read_msh(&mesh_file(world, scene)?)?;
     crate::mesh::check::check_geometry(&mesh)?;
     Ok(mesh)
+}
+
+/// `--replicated-mesh`: every rank reads the whole mesh, partitions it and cuts its part out
+/// (the set-up before the mesh was read by blocks), with the same phase times.
+fn read_replicated(
+    path: &Path,
+    strategy: crate::partition::Strategy,
+    rank: usize,
+    size: usize,
+) -> Result<(Mesh, crate::partition::Partition, FrontTimes)> {
+    let t = Instant::now();
+    let whole = crate::mesh::msh::read_msh(path)?;
+    let read = t.elapsed().as_secs_f64();
+    let t = Instant::now();
+    let cell_rank = strategy.cell_ranks(&whole, size)?;
+    let partition = t.elapsed().as_secs_f64();
+    let t = Instant::now();
+    let (mesh, part) = localize(&whole, &cell_rank, rank, size);
+    Ok((mesh, part, FrontTimes { read, partition, distribute: t.elapsed().as_secs_f64() }))
 }
 
 /// Run `f`, turning a panic into an error (its message was kept by the panic hook), so that a
