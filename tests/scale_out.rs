@@ -13,8 +13,8 @@ use std::path::{Path, PathBuf};
 
 use common::{run_scene, scene_text, scratch};
 
-/// Every numeric dataset of a run file, by path (the partition's own record, `cell_rank`,
-/// and the settings text are left out: they say how the run was split, not what it computed).
+/// Every numeric dataset of a run file, by path (`/mesh/cell_rank` included: with
+/// `--partition metis` both paths must split the mesh as METIS did before).
 fn datasets(h5: &Path) -> Vec<(String, Vec<f64>)> {
     fn walk(g: &hdf5::Group, prefix: &str, out: &mut Vec<(String, Vec<f64>)>) {
         for name in g.member_names().unwrap() {
@@ -22,9 +22,6 @@ fn datasets(h5: &Path) -> Vec<(String, Vec<f64>)> {
             if let Ok(sub) = g.group(&name) {
                 walk(&sub, &path, out);
             } else if let Ok(ds) = g.dataset(&name) {
-                if path.ends_with("cell_rank") {
-                    continue;
-                }
                 if let Ok(v) = ds.read_raw::<f64>() {
                     out.push((path, v));
                 }
@@ -93,4 +90,29 @@ fn reading_by_blocks_gives_the_replicated_paths_files_on_1_to_4_ranks() {
             assert!(d <= 1e-12, "{scene} on {ranks} rank(s): {name} differs by {d:e} between the paths");
         }
     }
+}
+
+/// Peak resident memory of the largest rank, 1 against 4 ranks (oversubscribed), for the 3D
+/// block at about 10^6 DOFs (one step, no output): the issue asks for at most 0.30 (0.42
+/// while every rank held the whole mesh). Printed: the part that does not shrink with the
+/// ranks, from `peak = a + b / ranks` through the two runs.
+#[test]
+fn memory_per_rank_falls_with_the_rank_count() {
+    let dir = scratch("scale-out-memory");
+    let scene = shipped(&dir, "block_tet.toml", "block");
+    let args = ["--param", "h=0.032", "--steps", "1", "--no-output"];
+    let peak = |ranks: usize| {
+        let s = run_scene(ranks, &scene, &args);
+        assert!(s.n_dofs > 900_000, "the mesh should have about 10^6 DOFs, it has {}", s.n_dofs);
+        s.peak_memory_rank_mib
+    };
+    let (one, four) = (peak(1), peak(4));
+    let b = (one - four) * 4.0 / 3.0;
+    eprintln!(
+        "peak per rank: 1 rank {one:.0} MiB, 4 ranks {four:.0} MiB (ratio {:.3}); fixed part {:.0} MiB per rank, {:.0} MiB shared out",
+        four / one,
+        one - b,
+        b
+    );
+    assert!(four <= 0.30 * one, "4 ranks: {four:.0} MiB per rank against {one:.0} MiB on one");
 }
