@@ -17,7 +17,6 @@
 use std::collections::HashMap;
 
 use mpi::collective::SystemOperation;
-use mpi::datatype::PartitionMut;
 use mpi::topology::SimpleCommunicator;
 use mpi::traits::*;
 
@@ -493,22 +492,8 @@ pub(crate) fn gather(
 ) -> Vec<(u32, u32, f64)> {
     let keys: Vec<u64> = local.iter().map(|e| (u64::from(e.0) << 32) | u64::from(e.1)).collect();
     let vals: Vec<f64> = local.iter().map(|e| e.2).collect();
-    let n = world.size() as usize;
-    let mut counts = vec![0i32; n];
-    world.all_gather_into(&(keys.len() as i32), &mut counts[..]);
-    let displs: Vec<i32> =
-        counts.iter().scan(0, |s, &c| Some(std::mem::replace(s, *s + c))).collect();
-    let total = counts.iter().sum::<i32>() as usize;
-    let mut all_keys = vec![0u64; total];
-    let mut all_vals = vec![0.0f64; total];
-    world.all_gather_varcount_into(
-        &keys[..],
-        &mut PartitionMut::new(&mut all_keys[..], &counts[..], &displs[..]),
-    );
-    world.all_gather_varcount_into(
-        &vals[..],
-        &mut PartitionMut::new(&mut all_vals[..], &counts[..], &displs[..]),
-    );
+    let all_keys = crate::comm::gather_all(world, &keys);
+    let all_vals = crate::comm::gather_all(world, &vals);
     all_keys.iter().zip(&all_vals).map(|(&k, &v)| ((k >> 32) as u32, k as u32, v)).collect()
 }
 
