@@ -21,7 +21,7 @@
 use super::blocks::{read_at, scan, ElementBlock, Layout, NodeBlock, Scan};
 use super::exchange::{buffers, exchange, real, word};
 use super::{natural_range, Element, Mesh, PhysicalGroup};
-use crate::comm::{first_failure, offset_and_total};
+use crate::comm::offset_and_total;
 use crate::error::{Error, Result};
 use mpi::collective::SystemOperation;
 use mpi::topology::SimpleCommunicator;
@@ -90,22 +90,49 @@ fn open_and_scan(path: &Path, source: &str) -> Result<Option<(File, Layout)>> {
 }
 
 /// A local result made collective: an error on any rank is the error on every rank (that of
-/// the lowest failing rank), so that no rank goes on into the next collective call alone.
+/// the lowest failing rank, the first in file order where ranks read in file order), so that no
+/// rank goes on into the next collective call alone.
 pub fn agree<T>(world: &SimpleCommunicator, r: Result<T>) -> Result<T> {
-    let msg = r.as_ref().err().map(|e| e.to_string());
-    let kept = r.as_ref().err().cloned();
-    match (first_failure(world, msg), r) {
-        (None, Ok(v)) => Ok(v),
-        (Some(text), _) => Err(kept.unwrap_or_else(|| relay(text))),
-        (None, Err(e)) => Err(e),
+    let size = world.size();
+    let mine = if r.is_err() { world.rank() } else { size };
+    let mut first = size;
+    world.all_reduce_into(&mine, &mut first, SystemOperation::min());
+    if first == size {
+        return r;
     }
+    let root = world.process_at_rank(first);
+    let mut bytes = match &r {
+        Err(e) if world.rank() == first => encode(e),
+        _ => Vec::new(),
+    };
+    let mut len = bytes.len() as u64;
+    root.broadcast_into(&mut len);
+    bytes.resize(len as usize, 0);
+    root.broadcast_into(&mut bytes[..]);
+    Err(decode(&bytes))
 }
 
-/// Another rank's error, as this rank reports it: the message without its kind's prefix.
-fn relay(text: String) -> Error {
-    match text.strip_prefix("mesh error: ") {
-        Some(m) => Error::Mesh(m.to_string()),
-        None => Error::Mesh(text),
+/// An error as bytes (kind, then message) and back: only the kinds the reader returns.
+fn encode(e: &Error) -> Vec<u8> {
+    let (kind, text) = match e {
+        Error::Mesh(m) => (b'M', m.clone()),
+        Error::Partition(m) => (b'P', m.clone()),
+        Error::Mpi(m) => (b'X', m.clone()),
+        Error::Internal(m) => (b'I', m.clone()),
+        other => (b'I', other.to_string()),
+    };
+    let mut b = vec![kind];
+    b.extend(text.into_bytes());
+    b
+}
+
+fn decode(b: &[u8]) -> Error {
+    let text = String::from_utf8_lossy(b.get(1..).unwrap_or_default()).into_owned();
+    match b.first() {
+        Some(b'M') => Error::Mesh(text),
+        Some(b'P') => Error::Partition(text),
+        Some(b'X') => Error::Mpi(text),
+        _ => Error::Internal(text),
     }
 }
 

@@ -86,7 +86,10 @@ pub fn cell_ranks(
         }
         Strategy::Rcb => {
             let cent = centroids(world, share)?;
-            Ok(rcb::rcb_distributed(world, &cent, share.cell_first, share.dim, size))
+            let mut ranks = rcb::rcb_distributed(world, &cent, share.cell_first, share.dim, size);
+            drop(cent);
+            super::band::refine_distributed(world, share, &mut ranks, size)?;
+            Ok(ranks)
         }
     }
 }
@@ -106,6 +109,20 @@ fn centroids(world: &SimpleCommunicator, share: &Share) -> Result<Vec<[f64; 3]>>
             xs.extend(c.nodes().iter().map(|v| coords[need.binary_search(v).expect("asked")]));
             rcb::centroid(&xs)
         })
+        .collect())
+}
+
+/// Whether each of this rank's cells has a node in cells of two ranks or more (collective).
+pub(super) fn on_interface(
+    world: &SimpleCommunicator,
+    share: &Share,
+    cell_rank: &[usize],
+) -> Result<Vec<bool>> {
+    let dir = NodeDirectory::build(world, share, cell_rank)?;
+    let need = nodes_of(&share.cells);
+    let shared = ask(world, share, &need, |i, out| out.push((dir.touch(i).len() > 1) as u64))?;
+    Ok((share.cells.iter())
+        .map(|c| c.nodes().iter().any(|v| shared[need.binary_search(v).expect("asked")] == 1))
         .collect())
 }
 

@@ -7,11 +7,13 @@
 //! Users only ever see the original (gmsh) node order, so results can be compared entry by
 //! entry across rank counts.
 
+pub mod band;
 pub mod distribute;
 pub mod gathered;
 pub mod graph;
 pub mod local;
 pub mod rcb;
+pub mod refine;
 pub mod surface;
 pub mod verify;
 

@@ -61,8 +61,16 @@ fn longest(lo: &[f64; 3], hi: &[f64; 3], dim: usize) -> usize {
     axis
 }
 
-/// The rank of every cell of a whole mesh.
+/// The rank of every cell of a whole mesh: the cuts, then the interfaces smoothed
+/// (`refine`).
 pub fn rcb(mesh: &Mesh, nparts: usize) -> Vec<usize> {
+    let mut part = cuts(mesh, nparts);
+    super::refine::refine(mesh, &mut part, nparts);
+    part
+}
+
+/// The bisection alone on a whole mesh.
+pub fn cuts(mesh: &Mesh, nparts: usize) -> Vec<usize> {
     let cent: Vec<[f64; 3]> =
         mesh.cells.iter().map(|c| centroid(&mesh.element_coords(c))).collect();
     let mut part = vec![0; cent.len()];

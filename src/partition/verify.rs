@@ -154,8 +154,10 @@ fn differences(m1: &Mesh, p1: &Partition, m2: &Mesh, p2: &Partition) -> Vec<Stri
     checks.iter().filter(|c| !c.1).map(|c| c.0.to_string()).collect()
 }
 
-/// "partition STRATEGY: cells per rank MIN..MAX (ideal X), cut facets C" of the whole mesh
-/// (rank 0, for the tests' balance and shape checks).
+/// "partition STRATEGY: cells per rank MIN..MAX (ideal X), shared nodes S, cut facets C" of
+/// the whole mesh (rank 0, for the tests' balance and shape checks): S nodes are in cells of
+/// two ranks or more (they make the ghost layers and the messages), C facets are between cells
+/// of two ranks.
 fn partition_quality(
     world: &SimpleCommunicator,
     path: &Path,
@@ -171,11 +173,20 @@ fn partition_quality(
         .values()
         .filter(|&&(a, b, n)| n == 2 && ranks[a] != ranks[b])
         .count();
+    let mut first = vec![usize::MAX; whole.n_nodes()];
+    let mut shared = vec![false; whole.n_nodes()];
+    for (c, e) in whole.cells.iter().enumerate() {
+        for &v in e.nodes() {
+            shared[v] |= first[v] != usize::MAX && first[v] != ranks[c];
+            first[v] = ranks[c];
+        }
+    }
     Ok(format!(
-        "partition {strategy:?}: cells per rank {}..{} (ideal {:.1}), cut facets {cut}",
+        "partition {strategy:?}: cells per rank {}..{} (ideal {:.1}), shared nodes {}, cut facets {cut}",
         count.iter().min().unwrap_or(&0),
         count.iter().max().unwrap_or(&0),
-        whole.cells.len() as f64 / size as f64
+        whole.cells.len() as f64 / size as f64,
+        shared.iter().filter(|&&s| s).count()
     ))
 }
 
