@@ -79,8 +79,9 @@ pub fn mesh_check(
     }
 }
 
-/// The replicated path with its times: every rank reads the whole mesh.
-fn replicated(
+/// The replicated path with its times: every rank reads the whole mesh, partitions it and
+/// cuts its part out (`--replicated-mesh`, and the reference of `mesh-check`).
+pub fn replicated(
     world: &SimpleCommunicator,
     path: &Path,
     strategy: Strategy,

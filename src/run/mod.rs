@@ -39,8 +39,7 @@ use crate::contact::{ContactSolver, StepContact};
 use crate::error::{Error, Result};
 use crate::mesh::Mesh;
 use crate::mesh::share::ASCII_WHOLE_LIMIT;
-use crate::partition::distribute::{read_local_timed, FrontTimes};
-use crate::partition::local::localize;
+use crate::partition::distribute::read_local_timed;
 use crate::phase::{self, HangTimeout, Phase, Watchdog};
 use crate::post::{picture_paths, write_pictures};
 use crate::report::{MassCheck, RunSummary, Timings};
@@ -124,8 +123,10 @@ impl<'a> Simulation<'a> {
             // This rank's part of the mesh: own cells and a ghost layer. Read by blocks (no
             // rank holds the whole mesh), or, with --replicated-mesh, cut out of the whole
             // mesh every rank reads.
-            let (mesh, part, front) = if opts.replicated_mesh {
-                read_replicated(&path, opts.partition, rank, size)?
+            // On one rank the part is the whole mesh: read it whole (the directory exchanges
+            // of the distributed path would only cost time there; measured in README).
+            let (mesh, part, front) = if opts.replicated_mesh || size == 1 {
+                crate::partition::verify::replicated(world, &path, opts.partition)?
             } else {
                 read_local_timed(world, &path, opts.partition, ASCII_WHOLE_LIMIT)?
             };
@@ -484,25 +485,6 @@ pub fn load_mesh(world: &SimpleCommunicator, scene: &Scene) -> Result<Mesh> {
     let mesh = crate::mesh::msh::read_msh(&mesh_file(world, scene)?)?;
     crate::mesh::check::check_geometry(&mesh)?;
     Ok(mesh)
-}
-
-/// `--replicated-mesh`: every rank reads the whole mesh, partitions it and cuts its part out
-/// (the set-up before the mesh was read by blocks), with the same phase times.
-fn read_replicated(
-    path: &Path,
-    strategy: crate::partition::Strategy,
-    rank: usize,
-    size: usize,
-) -> Result<(Mesh, crate::partition::Partition, FrontTimes)> {
-    let t = Instant::now();
-    let whole = crate::mesh::msh::read_msh(path)?;
-    let read = t.elapsed().as_secs_f64();
-    let t = Instant::now();
-    let cell_rank = strategy.cell_ranks(&whole, size)?;
-    let partition = t.elapsed().as_secs_f64();
-    let t = Instant::now();
-    let (mesh, part) = localize(&whole, &cell_rank, rank, size);
-    Ok((mesh, part, FrontTimes { read, partition, distribute: t.elapsed().as_secs_f64() }))
 }
 
 /// Run `f`, turning a panic into an error (its message was kept by the panic hook), so that a
