@@ -119,7 +119,7 @@ fn main() {
         .allowlist_function("^MPI_(Comm_rank|Comm_size|Wtime|Initialized|Finalized)$")
         .allowlist_type("^(Petsc|Mat|Vec|KSP|PC|IS|InsertMode|ScatterMode|NormType)[A-Za-z0-9_]*")
         .allowlist_var("^PETSC_COMM_WORLD$")
-        .allowlist_var("^(MATAIJ|VECSTANDARD)$")
+        .allowlist_var("^(MATAIJ|MATBAIJ|VECSTANDARD)$")
         .allowlist_var("^(KSPConvergedReasons|PETSC_DEFAULT|PETSC_DECIDE|PETSC_DETERMINE)$")
         // Variadic and callback-heavy corners we never call; keeps the bindings smaller.
         .blocklist_function(".*(Fortran|_Private|Python).*")

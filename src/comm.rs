@@ -4,6 +4,8 @@ use mpi::collective::SystemOperation;
 use mpi::topology::SimpleCommunicator;
 use mpi::traits::*;
 
+use crate::error::{Error, Result};
+
 /// The largest `x` over the ranks (collective).
 pub fn max_over_ranks(world: &SimpleCommunicator, x: f64) -> f64 {
     let mut y = 0.0;
@@ -76,6 +78,37 @@ pub fn route_to_blocks(world: &SimpleCommunicator, n: usize, width: usize, rows:
     sorted
 }
 
+/// [`route_to_blocks`] when every index of `0..n` comes in exactly one row (a field over the
+/// nodes or the cells): each row is put at its place in this rank's block, no sort and no
+/// copies beyond the exchange's; `rows` is freed as soon as it is sent. An index missing or
+/// twice is an internal error.
+pub fn route_to_blocks_dense(
+    world: &SimpleCommunicator,
+    n: usize,
+    width: usize,
+    rows: Vec<u64>,
+) -> Result<Vec<u64>> {
+    let size = world.size() as usize;
+    let starts: Vec<usize> = (0..size).map(|r| block_range(n, r, size).0).collect();
+    let dest = |i: u64| starts.partition_point(|&s| s <= i as usize).max(1) - 1;
+    let got = all_to_all_rows(world, width, &rows, |k| dest(rows[k * width]));
+    drop(rows);
+    let (lo, hi) = block_range(n, world.rank() as usize, size);
+    let mut placed = vec![u64::MAX; (hi - lo) * width];
+    let mut seen = vec![false; hi - lo];
+    for r in got.chunks_exact(width) {
+        let i = (r[0] as usize).wrapping_sub(lo);
+        if i >= hi - lo || std::mem::replace(&mut seen[i], true) {
+            return Err(Error::Internal(format!("route_to_blocks_dense: index {} twice or outside {lo}..{hi}", r[0])));
+        }
+        placed[i * width..(i + 1) * width].copy_from_slice(r);
+    }
+    if seen.iter().any(|&s| !s) {
+        return Err(Error::Internal(format!("route_to_blocks_dense: an index of {lo}..{hi} is missing")));
+    }
+    Ok(placed)
+}
+
 /// Rows of `width` words, row `k` sent to rank `dest(k)`; returns the rows this rank received,
 /// in rank order (collective: one all-to-all).
 pub fn all_to_all_rows(
@@ -86,14 +119,29 @@ pub fn all_to_all_rows(
 ) -> Vec<u64> {
     let size = world.size() as usize;
     let n_rows = rows.len() / width.max(1);
-    let mut order: Vec<usize> = (0..n_rows).collect();
-    order.sort_by_key(|&k| dest(k));
-    let mut send = Vec::with_capacity(rows.len());
     let mut counts = vec![0i32; size];
-    for &k in &order {
-        counts[dest(k)] += width as i32;
-        send.extend_from_slice(&rows[k * width..(k + 1) * width]);
+    let mut sorted = true;
+    let mut last = 0;
+    for k in 0..n_rows {
+        let r = dest(k);
+        counts[r] += width as i32;
+        sorted &= r >= last;
+        last = r;
     }
+    // Rows already in rank order (fields routed in index order) are sent as they are.
+    let copy;
+    let send: &[u64] = if sorted {
+        &rows[..n_rows * width]
+    } else {
+        let mut order: Vec<usize> = (0..n_rows).collect();
+        order.sort_by_key(|&k| dest(k));
+        let mut buf = Vec::with_capacity(rows.len());
+        for &k in &order {
+            buf.extend_from_slice(&rows[k * width..(k + 1) * width]);
+        }
+        copy = buf;
+        &copy
+    };
     let mut recv_counts = vec![0i32; size];
     world.all_to_all_into(&counts[..], &mut recv_counts[..]);
     let displs = |c: &[i32]| -> Vec<i32> {
@@ -102,7 +150,7 @@ pub fn all_to_all_rows(
     let (sd, rd) = (displs(&counts), displs(&recv_counts));
     let mut recv = vec![0u64; recv_counts.iter().sum::<i32>() as usize];
     world.all_to_all_varcount_into(
-        &mpi::datatype::Partition::new(&send[..], &counts[..], &sd[..]),
+        &mpi::datatype::Partition::new(send, &counts[..], &sd[..]),
         &mut mpi::datatype::PartitionMut::new(&mut recv[..], &recv_counts[..], &rd[..]),
     );
     recv

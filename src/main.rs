@@ -78,6 +78,9 @@ enum Command {
         /// Output folder (default: the suite file's output, out/suite or out/suite-reduced).
         #[arg(long, short)]
         output: Option<PathBuf>,
+        /// Only write every run's scene (DIR/runs/*.scene.toml), to run them by hand.
+        #[arg(long)]
+        scenes_only: bool,
     },
     /// Overlay the energies and the lowest contact node's pressure of several runs (HDF5
     /// files) in PNG pictures PREFIX-energy.png and PREFIX-pressure.png; with --snapshot, draw
@@ -220,7 +223,7 @@ fn run(
         }
         return Ok(());
     }
-    if let Command::Suite { spec, reduced, ranks, output } = &cli.command {
+    if let Command::Suite { spec, reduced, ranks, output, scenes_only } = &cli.command {
         // Like a study: separate mpirun runs, driven by rank 0.
         if universe.world().rank() == 0 {
             let spec = spec.clone().unwrap_or_else(default_suite);
@@ -229,6 +232,7 @@ fn run(
                 reduced: *reduced,
                 ranks: *ranks,
                 output: output.clone(),
+                scenes_only: *scenes_only,
             };
             massfree::suite::run(&opts)?;
         }

@@ -24,6 +24,10 @@ pub struct Timings {
     /// Building the mass-free layer (its part of `assembly`).
     #[serde(default)]
     pub layer: f64,
+    /// The stiffness `A` alone (its part of `assembly`; the node graph, built once for every
+    /// matrix, included).
+    #[serde(default)]
+    pub stiffness: f64,
     pub setup: f64,
     pub stepping: f64,
     /// Writing the output (the stress-type fields' computation excluded).

@@ -2,12 +2,14 @@
 //! integrated loads; assembled matrices have the exact preallocation; the stiffness kills
 //! rigid motions and the mass matrix carries the body's mass.
 
-use massfree::assembly::{assemble_matrix, interpolate, new_vector, Loads};
+use massfree::assembly::{assemble_matrix, assemble_matrix_blocked, interpolate, new_vector, Loads};
 use massfree::fem::{kernels, Material};
 use massfree::mesh::gmsh::mesh_geo;
 use massfree::mesh::msh::read_msh;
 use massfree::partition::Partition;
-use massfree::petsc::Petsc;
+use massfree::mass::mass_matrix;
+use massfree::petsc::{Pattern, Petsc};
+use massfree::scene::MassKind;
 use massfree::scene::expr::{Expr, VecExpr};
 use std::path::Path;
 
@@ -66,6 +68,28 @@ fn assembly_on_one_rank() {
         k.mult(&r, &mut y).unwrap();
         assert!(y.norm2().unwrap() < 1e-10 * r.norm2().unwrap(), "rigid mode {rigid:?}");
     }
+    // The run stores A as block AIJ: its products equal AIJ's to round-off, and converted
+    // back to AIJ (K's storage) it has the same pattern and values.
+    let kb = assemble_matrix_blocked(&mesh, &part, |c, xy, out| {
+        kernels::stiffness(mesh.cells[c].kind, xy, &mat, out)
+    })
+    .unwrap();
+    assert!(kb.is_baij().unwrap() && !k.is_baij().unwrap());
+    let back = kb.to_aij().unwrap();
+    assert_eq!(back.nonzero_info().unwrap().used, info.used);
+    let lo = back.ownership_range().0;
+    for row in lo..lo + 40 {
+        let a = k.get_row(row).unwrap();
+        assert_eq!(back.get_row(row).unwrap(), a, "row {row}");
+    }
+    let r = interpolate(&mesh, &part, &vexpr(&["x*y + sin(y)", "x - 2*y*y"]), 0.0).unwrap();
+    let mut yb = new_vector(&part).unwrap();
+    k.mult(&r, &mut y).unwrap();
+    kb.mult(&r, &mut yb).unwrap();
+    let scale = y.norm_inf().unwrap();
+    yb.axpy(-1.0, &y).unwrap();
+    assert!(yb.norm_inf().unwrap() <= 1e-14 * scale, "BAIJ product {:e}", yb.norm_inf().unwrap());
+
     // Mass: 1^T M e_x = rho |Omega| = 2 * 10.
     let m = assemble_matrix(&mesh, &part, |c, xy, out| {
         kernels::mass(mesh.cells[c].kind, xy, mat.rho, out);
@@ -75,4 +99,47 @@ fn assembly_on_one_rank() {
     let ex = interpolate(&mesh, &part, &vexpr(&["1", "0"]), 0.0).unwrap();
     m.mult(&ex, &mut y).unwrap();
     assert!((y.sum().unwrap() - 20.0).abs() < 1e-12);
+
+    // The run's mass is stored as the node matrix M_s with M = M_s x I_dim (MAIJ): its
+    // diagonal equals the DOF matrix's, its products and K = A + c M equal the DOF matrix's to
+    // round-off (the same terms; PETSc's kernels may group a row's terms differently).
+    let x = interpolate(&mesh, &part, &vexpr(&["sin(3*x) + y", "cos(x*y) - 0.3*x"]), 0.0).unwrap();
+    for (kind, kernel) in [
+        (MassKind::Consistent, kernels::mass as fn(_, &_, f64, &mut [f64])),
+        (MassKind::Lumped, kernels::mass_lumped),
+    ] {
+        let full = assemble_matrix(&mesh, &part, |c, xy, out| {
+            kernel(mesh.cells[c].kind, xy, mat.rho, out);
+            Ok(())
+        })
+        .unwrap();
+        let nodes = mass_matrix(&mesh, &part, |_| (mat.rho, kind), None).unwrap();
+        let bits = |v: &massfree::petsc::Vector| -> Vec<u64> {
+            v.with_local_slice(|s| s.iter().map(|x| x.to_bits()).collect()).unwrap()
+        };
+        let close = |a: &massfree::petsc::Vector, b: &massfree::petsc::Vector, what: &str| {
+            let (a, b) = (a.with_local_slice(|s| s.to_vec()).unwrap(), b.with_local_slice(|s| s.to_vec()).unwrap());
+            let scale = a.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+            let diff = a.iter().zip(&b).fold(0.0f64, |m, (x, y)| m.max((x - y).abs()));
+            assert!(diff <= 4.0 * f64::EPSILON * scale, "{kind:?}: {what}: {diff:e} of {scale:e}");
+        };
+        let mut y1 = new_vector(&part).unwrap();
+        let mut y2 = new_vector(&part).unwrap();
+        full.mult(&x, &mut y1).unwrap();
+        nodes.mult(&x, &mut y2).unwrap();
+        close(&y1, &y2, "M x");
+        full.get_diagonal(&mut y1).unwrap();
+        nodes.get_diagonal(&mut y2).unwrap();
+        assert_eq!(bits(&y1), bits(&y2), "{kind:?}: diagonal");
+        let c = 4.0 / 0.01f64.powi(2);
+        let mut k1 = k.duplicate(true).unwrap();
+        k1.axpy(c, &full, Pattern::Subset).unwrap();
+        let mut k2 = k.duplicate(true).unwrap();
+        nodes.add_to(&mut k2, c).unwrap();
+        k1.mult(&x, &mut y1).unwrap();
+        k2.mult(&x, &mut y2).unwrap();
+        close(&y1, &y2, "(A + c M) x");
+        let info = k2.nonzero_info().unwrap();
+        assert_eq!((info.mallocs, info.allocated), (0.0, info.used), "{kind:?}: K's pattern kept");
+    }
 }

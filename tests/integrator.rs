@@ -4,6 +4,7 @@
 //! so both checks live in the single test below.
 
 use massfree::error::Result;
+use massfree::mass::MassMatrix;
 use massfree::petsc::{Matrix, Petsc, Vector};
 use massfree::time::midpoint::NoForces;
 use massfree::time::{Dirichlet, Forces, Midpoint, StepOperator, StepSolverDefaults};
@@ -39,7 +40,7 @@ fn integrator(
     v0: &[f64],
     forces: &dyn Forces,
 ) -> Result<Midpoint> {
-    let (mm, aa) = (matrix(n, m)?, matrix(n, a)?);
+    let (mm, aa) = (MassMatrix::dofs(matrix(n, m)?), matrix(n, a)?);
     let defaults = StepSolverDefaults { rtol: 1e-14, ..Default::default() };
     let op = StepOperator::new(&mm, &aa, tau, vec![], false, None, &defaults)?;
     Midpoint::new(op, mm, aa, Dirichlet::none(), tau, vector(u0)?, vector(v0)?, 0.0, forces)

@@ -67,12 +67,55 @@ where
 /// the mass-free layer's `E_K^T M_K E_K`, and writes the matching dense block into `vals`
 /// ((nodes.len() dim)^2, row-major, interlaced). The matrix pattern is that of nodes sharing a
 /// cell: a block coupling other node pairs is a PETSc error (new nonzero), which asserts it.
-pub fn assemble_blocks<F>(mesh: &Mesh, part: &Partition, mut kernel: F) -> Result<Matrix>
+pub fn assemble_blocks<F>(mesh: &Mesh, part: &Partition, kernel: F) -> Result<Matrix>
 where
     F: FnMut(usize, &[[f64; 3]], &mut Vec<usize>, &mut Vec<f64>) -> Result<()>,
 {
-    let mat = new_matrix(mesh, part)?;
-    let mut sums = rows::RowSums::new(part.graph(mesh), mesh, part);
+    assemble_components(mesh, part, part.dim, false, kernel)
+}
+
+/// [`assemble_matrix`] stored as block AIJ (`dim x dim` blocks, `Matrix::new_baij`): for an
+/// operator used in products, such as the stiffness `A` (about 30% less memory in 3D).
+pub fn assemble_matrix_blocked<F>(mesh: &Mesh, part: &Partition, mut kernel: F) -> Result<Matrix>
+where
+    F: FnMut(usize, &[[f64; 3]], &mut [f64]) -> Result<()>,
+{
+    assemble_components(mesh, part, part.dim, true, |c, xy, _nodes, vals| {
+        let nd = xy.len() * part.dim;
+        vals.resize(nd * nd, 0.0);
+        kernel(c, xy, vals)
+    })
+}
+
+/// [`assemble_blocks`] for a node matrix (one component per node): the kernel writes
+/// `nodes.len()^2` values. Its rows are the owned nodes, numbered as the DOFs' nodes.
+pub fn assemble_node_blocks<F>(mesh: &Mesh, part: &Partition, kernel: F) -> Result<Matrix>
+where
+    F: FnMut(usize, &[[f64; 3]], &mut Vec<usize>, &mut Vec<f64>) -> Result<()>,
+{
+    assemble_components(mesh, part, 1, false, kernel)
+}
+
+fn assemble_components<F>(
+    mesh: &Mesh,
+    part: &Partition,
+    dim: usize,
+    blocked: bool,
+    mut kernel: F,
+) -> Result<Matrix>
+where
+    F: FnMut(usize, &[[f64; 3]], &mut Vec<usize>, &mut Vec<f64>) -> Result<()>,
+{
+    let owned = part.n_owned_nodes() * dim;
+    let global = part.n_global_nodes() * dim;
+    let mat = if blocked {
+        let (d_nnz, o_nnz) = part.graph(mesh).preallocation_for(part, 1);
+        Matrix::new_baij(owned, global, dim, &d_nnz, &o_nnz)?
+    } else {
+        let (d_nnz, o_nnz) = part.graph(mesh).preallocation_for(part, dim);
+        Matrix::new_aij(owned, global, dim, &d_nnz, &o_nnz)?
+    };
+    let mut sums = rows::RowSums::with_components(part.graph(mesh), mesh, part, dim);
     let mut xy = [[0.0; 3]; 8];
     let mut nodes = Vec::with_capacity(8);
     let mut vals = Vec::with_capacity(MAX_EDOFS * MAX_EDOFS);
@@ -87,7 +130,7 @@ where
             failed = Some(e);
             break;
         }
-        debug_assert_eq!(vals.len(), (nodes.len() * part.dim).pow(2));
+        debug_assert_eq!(vals.len(), (nodes.len() * dim).pow(2));
         sums.add(part, part.cell_original[c], &nodes, &vals)?;
     }
     let world = SimpleCommunicator::world();

@@ -38,6 +38,16 @@ pub struct RowSums<'g> {
 
 impl<'g> RowSums<'g> {
     pub fn new(graph: &'g NodeGraph, mesh: &Mesh, part: &Partition) -> RowSums<'g> {
+        RowSums::with_components(graph, mesh, part, part.dim)
+    }
+
+    /// Rows of `dim` components per node (1: a node matrix, such as the scalar mass).
+    pub fn with_components(
+        graph: &'g NodeGraph,
+        mesh: &Mesh,
+        part: &Partition,
+        dim: usize,
+    ) -> RowSums<'g> {
         let mut seam = vec![false; graph.n_rows()];
         for (c, e) in mesh.cells.iter().enumerate() {
             if part.cell_rank[c] != part.rank {
@@ -48,7 +58,6 @@ impl<'g> RowSums<'g> {
                 }
             }
         }
-        let dim = part.dim;
         RowSums {
             graph,
             dim,
@@ -63,31 +72,64 @@ impl<'g> RowSums<'g> {
     /// Add the dense block `vals` ((nodes.len() dim)^2, row-major, interlaced) coupling
     /// `nodes` (local node indices), the contribution of the cell of original index `cell`.
     pub fn add(&mut self, part: &Partition, cell: usize, nodes: &[usize], vals: &[f64]) -> Result<()> {
-        let d = self.dim;
-        let nd = nodes.len() * d;
+        // The block loops with the block size known to the compiler (unrolled).
+        match self.dim {
+            1 => self.add_dim::<1>(part, cell, nodes, vals),
+            2 => self.add_dim::<2>(part, cell, nodes, vals),
+            3 => self.add_dim::<3>(part, cell, nodes, vals),
+            d => Err(Error::Internal(format!("assembly: {d} components per node"))),
+        }
+    }
+
+    #[inline(always)]
+    fn add_dim<const D: usize>(
+        &mut self,
+        part: &Partition,
+        cell: usize,
+        nodes: &[usize],
+        vals: &[f64],
+    ) -> Result<()> {
+        let nd = nodes.len() * D;
+        // The cell's global node numbers, once (on the stack for cells; the mass-free
+        // layer's blocks may couple more source nodes).
+        let mut stack = [0usize; 32];
+        let mut heap = Vec::new();
+        let global: &mut [usize] = if nodes.len() <= stack.len() {
+            &mut stack[..nodes.len()]
+        } else {
+            heap.resize(nodes.len(), 0);
+            &mut heap
+        };
+        for (g, &v) in global.iter_mut().zip(nodes) {
+            *g = part.node_global[v];
+        }
         for (a, &v) in nodes.iter().enumerate() {
-            let g = part.node_global[v];
+            let g = global[a];
             let row = g.wrapping_sub(self.graph.first);
             if part.owns(v) && !self.seam[row] {
-                for (b, &w) in nodes.iter().enumerate() {
-                    let slot = self.graph.slot(row, part.node_global[w]).ok_or_else(|| {
-                        Error::Internal(format!("assembly: node pair ({g}, {}) outside the pattern", part.node_global[w]))
+                let (lo, hi) = (self.graph.start[row], self.graph.start[row + 1]);
+                let cols = &self.graph.cols[lo..hi];
+                for (b, &h) in global.iter().enumerate() {
+                    let k = cols.binary_search(&h).map_err(|_| {
+                        Error::Internal(format!("assembly: node pair ({g}, {h}) outside the pattern"))
                     })?;
-                    let out = &mut self.blocks[slot * d * d..(slot + 1) * d * d];
-                    for i in 0..d {
-                        for j in 0..d {
-                            out[i * d + j] += vals[(a * d + i) * nd + b * d + j];
+                    let slot = lo + k;
+                    let out = &mut self.blocks[slot * D * D..(slot + 1) * D * D];
+                    for i in 0..D {
+                        let src = &vals[(a * D + i) * nd + b * D..(a * D + i) * nd + b * D + D];
+                        for j in 0..D {
+                            out[i * D + j] += src[j];
                         }
                     }
                 }
             } else {
                 let own = part.owns(v);
                 let out = if own { &mut self.deferred } else { &mut self.away };
-                for (b, &w) in nodes.iter().enumerate() {
-                    out.extend([g as u64, part.node_global[w] as u64, cell as u64]);
-                    for i in 0..d {
-                        for j in 0..d {
-                            out.push(vals[(a * d + i) * nd + b * d + j].to_bits());
+                for (b, &h) in global.iter().enumerate() {
+                    out.extend([g as u64, h as u64, cell as u64]);
+                    for i in 0..D {
+                        for j in 0..D {
+                            out.push(vals[(a * D + i) * nd + b * D + j].to_bits());
                         }
                     }
                     if !own {
@@ -124,6 +166,24 @@ impl<'g> RowSums<'g> {
         let mut rows = vec![0i32; d];
         let mut cols = Vec::new();
         let mut vals = Vec::new();
+        if mat.is_baij()? {
+            // One block row per node: the blocks as they are (row-major `d x d` each, the
+            // layout `MatSetValuesBlocked` takes for one block row is the same interlaced one).
+            for i in 0..self.graph.n_rows() {
+                let (a, b) = (self.graph.start[i], self.graph.start[i + 1]);
+                cols.clear();
+                cols.extend(self.graph.cols[a..b].iter().map(|&h| h as i32));
+                vals.clear();
+                for ci in 0..d {
+                    for s in a..b {
+                        vals.extend_from_slice(&self.blocks[(s * d + ci) * d..(s * d + ci + 1) * d]);
+                    }
+                }
+                mat.add_values_blocked(&[(self.graph.first + i) as i32], &cols, &vals)?;
+            }
+            mat.assemble()?;
+            return Ok(mat);
+        }
         for i in 0..self.graph.n_rows() {
             let (a, b) = (self.graph.start[i], self.graph.start[i + 1]);
             cols.clear();

@@ -319,6 +319,29 @@ pub fn mass(kind: ElementKind, coords: &[[f64; 3]], rho: f64, out: &mut [f64]) {
     }
 }
 
+/// The node block of [`mass`]: `m[a n + b] = int_K rho N_a N_b dx` (`n x n`, row-major;
+/// `mass = m ⊗ I_d`). `out` (length >= n^2) is overwritten.
+pub fn mass_nodes(kind: ElementKind, coords: &[[f64; 3]], rho: f64, out: &mut [f64]) {
+    let mut m = [0.0; MAX_NODES * MAX_NODES];
+    let n = scalar_mass(kind, coords, rho, &mut m);
+    check_len("mass_nodes out", kind, out.len(), n * n);
+    out[..n * n].copy_from_slice(&m[..n * n]);
+}
+
+/// The node block of [`mass_lumped`]: `int_K rho N_a dx` on the diagonal of an `n x n` block
+/// (row-major). `out` (length >= n^2) is overwritten.
+pub fn mass_lumped_nodes(kind: ElementKind, coords: &[[f64; 3]], rho: f64, out: &mut [f64]) {
+    let n = kind.n_nodes();
+    let d = kind.dim();
+    check_len("mass_lumped_nodes out", kind, out.len(), n * n);
+    let mut diag = [0.0; MAX_DOFS];
+    mass_lumped_diag(kind, coords, rho, &mut diag);
+    out[..n * n].fill(0.0);
+    for a in 0..n {
+        out[a * n + a] = diag[a * d];
+    }
+}
+
 /// Row-sum lumped mass diagonal: diag[a d + i] = sum_b int_K rho N_a N_b dx = int_K rho N_a dx
 /// (same quadrature as [`mass`], so it equals the row sums of the consistent mass exactly up to
 /// rounding). `out` has length >= n d and is overwritten. For P1 this is rho |K| / (d + 1) per

@@ -906,3 +906,29 @@ fn high_orders_use_cached_and_uncached_tables() {
         assert!((f1[i] - f2[i]).abs() < 1e-12 * norm_inf(&f1));
     }
 }
+
+#[test]
+fn node_mass_blocks_are_the_mass_per_component() {
+    // mass = mass_nodes ⊗ I_d and mass_lumped = mass_lumped_nodes ⊗ I_d, exactly: the run
+    // stores only the node blocks (mass::MassMatrix).
+    for kind in [ElementKind::Tri3, ElementKind::Quad4, ElementKind::Tet4, ElementKind::Hex8] {
+        let coords = cell_coords(kind, true);
+        let (n, d) = (kind.n_nodes(), kind.dim());
+        let nd = n * d;
+        type Kernel = fn(ElementKind, &[[f64; 3]], f64, &mut [f64]);
+        let pairs: [(Kernel, Kernel); 2] =
+            [(mass, mass_nodes), (mass_lumped, mass_lumped_nodes)];
+        for (full_kernel, node_kernel) in pairs {
+            let mut full = vec![0.0; nd * nd];
+            let mut node = vec![0.0; n * n];
+            full_kernel(kind, &coords, 2.5, &mut full);
+            node_kernel(kind, &coords, 2.5, &mut node);
+            for r in 0..nd {
+                for c in 0..nd {
+                    let want = if r % d == c % d { node[(r / d) * n + c / d] } else { 0.0 };
+                    assert_eq!(full[r * nd + c], want, "{kind:?} ({r}, {c})");
+                }
+            }
+        }
+    }
+}

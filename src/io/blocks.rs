@@ -15,9 +15,10 @@ pub struct MeshBlocks {
     /// Coordinates and gmsh tags of the nodes of `natural_range(n_nodes, rank, size)`.
     pub coords: Vec<[f64; 3]>,
     pub tags: Vec<u64>,
-    /// The cells of `natural_range(n_cells, rank, size)`: their nodes (original indices) and
-    /// ranks.
-    pub cells: Vec<Vec<u64>>,
+    /// The cells of `natural_range(n_cells, rank, size)`: their nodes (original indices), one
+    /// cell after the other (each with its kind's number of nodes, kinds in file order), and
+    /// their ranks.
+    pub cells: Vec<u64>,
     pub cell_rank: Vec<i32>,
     /// Per physical group (mesh order): its name, the offset of this rank's part of its sorted
     /// node list, the part, and the list's length.
@@ -56,7 +57,7 @@ impl MeshBlocks {
             coords: mesh.coords[lo..hi].to_vec(),
             tags: mesh.node_tags[lo..hi].to_vec(),
             cells: (by_natural[clo..chi].iter())
-                .map(|&c| mesh.cells[c].nodes().iter().map(|&v| v as u64).collect())
+                .flat_map(|&c| mesh.cells[c].nodes().iter().map(|&v| v as u64))
                 .collect(),
             cell_rank: by_natural[clo..chi].iter().map(|&c| cell_rank[c] as i32).collect(),
             groups,

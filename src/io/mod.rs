@@ -134,9 +134,9 @@ fn write_mesh(
         .shape((n, 3))
         .create("coordinates")
         .map_err(|e| h5err(path, "create /mesh/coordinates", e))?;
-    let flat: Vec<f64> = mesh.coords.iter().flat_map(|c| c.iter().copied()).collect();
-    let arr = ndarray::Array2::from_shape_vec((hi - lo, 3), flat).expect("shape");
-    coords.write_slice(&arr, ndarray::s![lo..hi, ..]).map_err(|e| h5err(path, "write /mesh/coordinates", e))?;
+    let flat = mesh.coords.as_flattened();
+    let arr = ndarray::ArrayView2::from_shape((hi - lo, 3), flat).expect("shape");
+    coords.write_slice(arr, ndarray::s![lo..hi, ..]).map_err(|e| h5err(path, "write /mesh/coordinates", e))?;
     let tags = g
         .new_dataset::<u64>()
         .shape((n,))
@@ -153,6 +153,8 @@ fn write_mesh(
     // One dataset per kind: this rank's rows are its block's cells of that kind.
     let cg = group(&g, "cells", path)?;
     let mut first = 0;
+    // Where this rank's cells of the current kind start in `mesh.cells`.
+    let mut at = 0;
     for &(k, count) in &mesh.kinds {
         let nn = k.n_nodes();
         let ds = cg
@@ -166,10 +168,12 @@ fn write_mesh(
             first += count;
             continue;
         }
-        let conn: Vec<u64> =
-            mesh.cells[a - clo..b - clo].iter().flat_map(|c| c.iter().copied()).collect();
-        let arr = ndarray::Array2::from_shape_vec((b - a, nn), conn).expect("shape");
-        ds.write_slice(&arr, ndarray::s![a - first..b - first, ..])
+        let conn = mesh.cells.get(at..at + (b - a) * nn).ok_or_else(|| {
+            Error::Internal(format!("/mesh/cells: {} node entries, short of {}", mesh.cells.len(), at + (b - a) * nn))
+        })?;
+        at += (b - a) * nn;
+        let arr = ndarray::ArrayView2::from_shape((b - a, nn), conn).expect("shape");
+        ds.write_slice(arr, ndarray::s![a - first..b - first, ..])
             .map_err(|e| h5err(path, "write /mesh/cells", e))?;
         first += count;
     }

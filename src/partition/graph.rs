@@ -56,8 +56,12 @@ impl NodeGraph {
     /// Exact preallocation per DOF row: columns in the diagonal block (owned by this rank)
     /// and off it, for `dim` components per node.
     pub fn preallocation(&self, part: &Partition) -> (Vec<i32>, Vec<i32>) {
+        self.preallocation_for(part, part.dim)
+    }
+
+    /// The same for `dim` components per node (1: a node matrix).
+    pub fn preallocation_for(&self, part: &Partition, dim: usize) -> (Vec<i32>, Vec<i32>) {
         let (lo, hi) = (part.node_offsets[part.rank], part.node_offsets[part.rank + 1]);
-        let dim = part.dim;
         let mut d_nnz = Vec::with_capacity(self.n_rows() * dim);
         let mut o_nnz = Vec::with_capacity(self.n_rows() * dim);
         for i in 0..self.n_rows() {

@@ -76,6 +76,93 @@ impl Matrix {
         Ok(out)
     }
 
+    /// A square block AIJ matrix (BAIJ): `bs x bs` blocks (one per node pair of a DOF matrix,
+    /// `bs` = components), each stored with one column index, so about 30% less memory than
+    /// AIJ for 3D elasticity, and products without per-entry index loads. `d_nnz`/`o_nnz`
+    /// count blocks per block row. Options as [`Matrix::new_aij`]'s.
+    pub fn new_baij(
+        local_rows: usize,
+        global_rows: usize,
+        bs: usize,
+        d_nnz: &[i32],
+        o_nnz: &[i32],
+    ) -> Result<Matrix> {
+        ensure_live()?;
+        let bsi = to_int(bs.max(1), "Matrix block size")?;
+        check_len("Matrix::new_baij d_nnz", local_rows / bs.max(1), d_nnz.len())?;
+        check_len("Matrix::new_baij o_nnz", local_rows / bs.max(1), o_nnz.len())?;
+        let n = to_int(local_rows, "Matrix local rows")?;
+        let gn = to_int(global_rows, "Matrix global rows")?;
+        let mut m: ffi::Mat = ptr::null_mut();
+        // SAFETY: PETSc is live; `m` is an out-pointer.
+        chk!(ffi::MatCreate(init::Petsc::comm_world(), &mut m))?;
+        let mut out = Matrix { m, range: (0, 0), size: (0, 0) };
+        // SAFETY: `m` is a fresh Mat; sizes are consistent ints.
+        chk!(ffi::MatSetSizes(m, n, n, gn, gn))?;
+        // SAFETY: MATBAIJ is a NUL-terminated type name (Seq on 1 rank, MPI otherwise).
+        chk!(ffi::MatSetType(m, ffi::MATBAIJ.as_ptr().cast()))?;
+        // SAFETY: valid Mat, before preallocation.
+        chk!(ffi::MatSetBlockSize(m, bsi))?;
+        let seq_nnz: Vec<i32> = d_nnz.iter().zip(o_nnz).map(|(d, o)| d + o).collect();
+        // SAFETY: arrays hold one entry per block row; a no-op on MPI matrices.
+        chk!(ffi::MatSeqBAIJSetPreallocation(m, bsi, 0, seq_nnz.as_ptr()))?;
+        // SAFETY: as above; a no-op on sequential matrices.
+        chk!(ffi::MatMPIBAIJSetPreallocation(m, bsi, 0, d_nnz.as_ptr(), 0, o_nnz.as_ptr()))?;
+        out.set_option(ffi::MatOption_MAT_NEW_NONZERO_ALLOCATION_ERR, true)?;
+        out.set_option(ffi::MatOption_MAT_KEEP_NONZERO_PATTERN, true)?;
+        out.read_layout()?;
+        Ok(out)
+    }
+
+    /// Adds the dense block `vals` at block rows `rows` x block columns `cols` (node
+    /// numbers): row-major over the DOFs, `rows.len() bs x cols.len() bs`, as `set_values`
+    /// takes it for the rows' and columns' DOFs. For BAIJ matrices; AIJ ones accept it too.
+    pub fn add_values_blocked(&mut self, rows: &[i32], cols: &[i32], vals: &[f64]) -> Result<()> {
+        let nr = to_int(rows.len(), "Matrix::add_values_blocked rows")?;
+        let nc = to_int(cols.len(), "Matrix::add_values_blocked cols")?;
+        // SAFETY: rows/cols hold nr, nc block indices and vals the (nr bs) x (nc bs) values
+        // (the caller's layout, checked by PETSc's block size); PETSc copies them.
+        chk!(ffi::MatSetValuesBlocked(
+            self.m,
+            nr,
+            rows.as_ptr(),
+            nc,
+            cols.as_ptr(),
+            vals.as_ptr(),
+            ffi::InsertMode_ADD_VALUES
+        ))
+    }
+
+    /// This matrix as AIJ, a new matrix with the same values and pattern (a copy when it
+    /// already is AIJ): what multigrid, factorizations and row edits work on.
+    pub fn to_aij(&self) -> Result<Matrix> {
+        if !self.is_baij()? {
+            return self.duplicate(true);
+        }
+        let mut c: ffi::Mat = ptr::null_mut();
+        // SAFETY: valid assembled handle; `c` is an out-pointer (MAT_INITIAL_MATRIX).
+        chk!(ffi::MatConvert(
+            self.m,
+            ffi::MATAIJ.as_ptr().cast(),
+            ffi::MatReuse_MAT_INITIAL_MATRIX,
+            &mut c
+        ))?;
+        let mut out = Matrix::from_raw(c)?;
+        out.set_option(ffi::MatOption_MAT_NEW_NONZERO_ALLOCATION_ERR, true)?;
+        out.set_option(ffi::MatOption_MAT_KEEP_NONZERO_PATTERN, true)?;
+        Ok(out)
+    }
+
+    /// Whether the storage is block AIJ.
+    pub fn is_baij(&self) -> Result<bool> {
+        let mut t: ffi::MatType = ptr::null();
+        // SAFETY: valid handle; PETSc returns a pointer to its static type name.
+        chk!(ffi::MatGetType(self.m, &mut t))?;
+        // SAFETY: `t` is a NUL-terminated C string owned by PETSc.
+        let name = unsafe { std::ffi::CStr::from_ptr(t) }.to_string_lossy();
+        Ok(name.contains("baij"))
+    }
+
     fn from_raw(m: ffi::Mat) -> Result<Matrix> {
         let mut out = Matrix { m, range: (0, 0), size: (0, 0) };
         out.read_layout()?;
@@ -96,6 +183,16 @@ impl Matrix {
     fn set_option(&mut self, op: ffi::MatOption, flag: bool) -> Result<()> {
         // SAFETY: valid handle; `op` is a MatOption constant from the bindings.
         chk!(ffi::MatSetOption(self.m, op, petsc_bool(flag)))
+    }
+
+    /// `self ⊗ I_dof` with interlaced components (PETSc's MAIJ): the products of a node
+    /// matrix applied to each of `dof` components alike, without storing the DOF matrix. It
+    /// supports products only (`mult`, `mult_add`, `mult_transpose`).
+    pub fn maij(&self, dof: usize) -> Result<Matrix> {
+        let mut out: ffi::Mat = ptr::null_mut();
+        // SAFETY: valid, assembled AIJ matrix; MAIJ takes a reference to it.
+        chk!(ffi::MatCreateMAIJ(self.m, to_int(dof, "MAIJ components")?, &mut out))?;
+        Matrix::from_raw(out)
     }
 
     /// The raw handle, for calls this wrapper does not cover. Ownership stays here.

@@ -17,7 +17,7 @@ use crate::contact::history::History as ContactHistory;
 use crate::contact::ContactSolver;
 use crate::error::Result;
 use crate::fem::kernels;
-use crate::mass::MassFreeLayer;
+use crate::mass::{MassFreeLayer, MassMatrix};
 use crate::petsc::{Matrix, Vector};
 use crate::report::MassCheck;
 
@@ -27,7 +27,7 @@ use crate::report::MassCheck;
 pub fn check_mass(
     d: &Domain,
     views: &mut Views,
-    m: &Matrix,
+    m: &MassMatrix,
     layer: Option<&MassFreeLayer>,
 ) -> Result<MassCheck> {
     let part = &d.part;
@@ -202,7 +202,7 @@ pub fn momentum(d: &Domain, mv: &Vector) -> Result<[f64; 3]> {
 /// The angular momentum about the centre of mass, `sum_v (x_v - x_c) x (M v)_v` with the
 /// current positions `x_v = X_v + u_v` and `x_c = sum_v (M 1)_v x_v / sum_v (M 1)_v` (three
 /// components; in 2D only the third is not zero). Collective.
-pub fn angular_momentum(d: &Domain, m: &Matrix, u: &Vector, mv: &Vector) -> Result<[f64; 3]> {
+pub fn angular_momentum(d: &Domain, m: &MassMatrix, u: &Vector, mv: &Vector) -> Result<[f64; 3]> {
     let dim = d.part.dim;
     let first = d.part.first_dof();
     let disp = u.with_local_slice(|s| s.to_vec())?;

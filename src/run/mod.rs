@@ -247,6 +247,7 @@ impl<'a> Simulation<'a> {
         let physics = Physics::assemble(d, &self.app, self.console)?;
         self.timings.assembly = max_over_ranks(d.world, t0.elapsed().as_secs_f64());
         self.timings.layer = max_over_ranks(d.world, physics.layer_seconds);
+        self.timings.stiffness = max_over_ranks(d.world, physics.stiffness_seconds);
         let layer = physics.layer.as_ref();
         let mass_check = diagnostics::check_mass(d, &mut self.views, &physics.m, layer)?;
         phase::check_signal(d.world)?;
@@ -265,12 +266,14 @@ impl<'a> Simulation<'a> {
         let with_contact = contact.is_some();
         let (op, cfl) =
             start::step_operator(d, &self.app, console, &m, &a, &dirichlet, with_contact)?;
+        crate::phase::trace_memory("step operator");
         if let Some(c) = contact.as_mut() {
             c.prepare(&op.k)?;
         }
         self.timings.setup = max_over_ranks(d.world, t1.elapsed().as_secs_f64());
         let (u0, v0) = start::initial_state(d)?;
         let mut midpoint = Midpoint::new(op, m, a, dirichlet, d.scene.tau, u0, v0, 0.0, &loads)?;
+        crate::phase::trace_memory("integrator");
         let massless_initialized = match self.opts.restart {
             // A restart's state already is consistent.
             Some(_) => None,

@@ -155,7 +155,7 @@ impl RunOutput {
         }
         file.write_meta(d.world, &meta)?;
         let blocks = super::blocks::mesh_blocks(d)?;
-        let mut out = Output::open(file, d.world, &blocks, plan).inspect_err(|e| eprintln!("DEBUG rank {}: {e}", d.rank))?;
+        let mut out = Output::open(file, d.world, &blocks, plan)?;
         let mc = mass_check;
         out.write_mass_check(&mc.total_mass, &mc.first_moment, &mc.second_moment, &mc.probe)?;
         if let Some(c) = contact {
@@ -308,8 +308,8 @@ impl RunOutput {
 /// The `timings` attribute: one `phase = seconds` line per phase.
 fn timings_text(t: &Timings) -> String {
     format!(
-        "mesh = {:e}\npartition = {:e}\nmigration = {:e}\nassembly = {:e}\nlayer = {:e}\nsetup = {:e}\nstepping = {:e}\noutput = {:e}\nstress = {:e}\n",
-        t.mesh, t.partition, t.migration, t.assembly, t.layer, t.setup, t.stepping, t.output, t.stress
+        "mesh = {:e}\npartition = {:e}\nmigration = {:e}\nassembly = {:e}\nlayer = {:e}\nstiffness = {:e}\nsetup = {:e}\nstepping = {:e}\noutput = {:e}\nstress = {:e}\n",
+        t.mesh, t.partition, t.migration, t.assembly, t.layer, t.stiffness, t.setup, t.stepping, t.output, t.stress
     )
 }
 

@@ -13,7 +13,7 @@ use crate::contact::mortar::InterfaceMode;
 use crate::contact::{self, ContactBoundary, ContactSolver, Obstacles};
 use crate::error::{Error, Result};
 use crate::fem::kernels;
-use crate::mass::{build_local_layer, mass_matrix, MassFreeLayer};
+use crate::mass::{build_local_layer, mass_matrix, MassFreeLayer, MassMatrix};
 use crate::mesh::Mesh;
 use crate::partition::Partition;
 use crate::petsc::{Matrix, NullSpace, Vector};
@@ -23,13 +23,15 @@ use crate::time::{Dirichlet, Forces, Midpoint};
 /// The physics of a scene, assembled once.
 pub struct Physics<'a> {
     pub a: Matrix,
-    pub m: Matrix,
+    pub m: MassMatrix,
     pub dirichlet: Dirichlet,
     pub layer: Option<MassFreeLayer>,
     pub contact: Option<Box<dyn ContactSolver + 'a>>,
     pub loads: LoadsAt,
     /// Building the mass-free layer (part of the assembly).
     pub layer_seconds: f64,
+    /// Assembling the stiffness (part of the assembly).
+    pub stiffness_seconds: f64,
 }
 
 impl<'a> Physics<'a> {
@@ -37,10 +39,17 @@ impl<'a> Physics<'a> {
     /// Collective.
     pub fn assemble(d: &Domain<'a>, app: &AppOptions, console: &Console) -> Result<Physics<'a>> {
         let (mesh, part, bodies) = (&d.mesh, &d.part, &d.bodies);
-        let a = assembly::assemble_matrix(mesh, part, |c, xy, out| {
+        let stiffness = |c: usize, xy: &[[f64; 3]], out: &mut [f64]| {
             kernels::stiffness(mesh.cells[c].kind, xy, bodies.material(c), out)
                 .map_err(|e| Error::Mesh(format!("{e} (gmsh element tag {})", mesh.cells[c].tag)))
-        })?;
+        };
+        // A is used in products only: block AIJ, 30% less memory in 3D (K is AIJ).
+        let t_a = std::time::Instant::now();
+        let a = assembly::assemble_matrix_blocked(mesh, part, stiffness)?;
+        let stiffness_seconds = t_a.elapsed().as_secs_f64();
+        // The summed rows (as large as A) are freed: give them back before M and K.
+        crate::phase::release_free_memory();
+        crate::phase::trace_memory("stiffness assembled");
         let t_layer = std::time::Instant::now();
         let layer = match &bodies.layer {
             Some((kind, groups)) => {
@@ -52,6 +61,7 @@ impl<'a> Physics<'a> {
         };
         let layer_seconds = t_layer.elapsed().as_secs_f64();
         let m = mass_matrix(mesh, part, |c| bodies.cell_mass(c), layer.as_ref())?;
+        crate::phase::trace_memory("mass assembled");
         let neumann: Vec<(String, VecExpr)> =
             d.scene.neumann.iter().map(|n| (n.group.clone(), n.traction.clone())).collect();
         let loads = Loads::new(mesh, part, d.scene.body_force.as_ref(), &neumann)?;
@@ -71,7 +81,7 @@ impl<'a> Physics<'a> {
             d.scene.body_acceleration.as_ref(),
             &m,
         )?;
-        Ok(Physics { a, m, dirichlet, layer, contact, loads, layer_seconds })
+        Ok(Physics { a, m, dirichlet, layer, contact, loads, layer_seconds, stiffness_seconds })
     }
 }
 
@@ -155,7 +165,7 @@ enum InertialLoad {
     /// `M a_h`, assembled once.
     Steady(Vector),
     /// `a` depends on `t`: `M a_h(t)` at every evaluation.
-    Varying(VecExpr, Matrix),
+    Varying(VecExpr, MassMatrix),
 }
 
 impl LoadsAt {
@@ -164,12 +174,12 @@ impl LoadsAt {
         mesh: Rc<Mesh>,
         part: Rc<Partition>,
         acceleration: Option<&VecExpr>,
-        m: &Matrix,
+        m: &MassMatrix,
     ) -> Result<LoadsAt> {
         let inertial = match acceleration.filter(|a| !a.is_zero()) {
             None => None,
             Some(a) if a.depends_on_t() => {
-                Some(InertialLoad::Varying(a.clone(), m.duplicate(true)?))
+                Some(InertialLoad::Varying(a.clone(), m.duplicate()?))
             }
             Some(a) => {
                 let ah = assembly::interpolate(&mesh, &part, a, 0.0)?;

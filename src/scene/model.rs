@@ -516,9 +516,14 @@ impl Scene {
 
     /// Every group contact or the mass-free layer looks at, once: the contact groups, then the
     /// layer's. The ranks gather these surfaces whole (`partition::surface`).
+    /// The layer's only when some mass is modified (a consistent run with
+    /// `mass.contact_boundary` set builds no layer and gathers nothing for it).
     pub fn surface_groups(&self) -> Vec<&str> {
         let contact = self.contact.as_ref().map(|c| c.groups()).unwrap_or_default();
-        once_each(contact.into_iter().chain(self.mass.layer_groups()))
+        let modified = self.mass.kind.is_modified()
+            || (0..self.bodies.len()).any(|i| self.body_mass(i).is_modified());
+        let layer = if modified { self.mass.layer_groups() } else { Vec::new() };
+        once_each(contact.into_iter().chain(layer))
     }
 
     /// Checks that every vector-valued key has exactly `dim` components (and that explicitly

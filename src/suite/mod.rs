@@ -38,6 +38,8 @@ pub struct Options {
     pub reduced: bool,
     pub ranks: Option<usize>,
     pub output: Option<PathBuf>,
+    /// Write the runs' scenes and stop.
+    pub scenes_only: bool,
 }
 
 /// Runs the suite; returns its rows (an error when a run failed or hit NaN/inf, after the
@@ -52,6 +54,9 @@ pub fn run(opts: &Options) -> Result<Vec<Row>> {
     }
     if let Some(o) = &opts.output {
         spec.output.clone_from(o);
+    }
+    if opts.scenes_only {
+        return write_scenes(&spec).map(|_| Vec::new());
     }
     let binary = std::env::current_exe()
         .map_err(|e| Error::Io(format!("suite: cannot locate the massfree binary: {e}")))?;
@@ -78,6 +83,20 @@ pub fn run(opts: &Options) -> Result<Vec<Row>> {
 fn write(path: &Path, text: &str) -> Result<()> {
     std::fs::write(path, text)
         .map_err(|e| Error::Io(format!("cannot write {}: {e}", path.display())))
+}
+
+/// Every run's scene, as `execute` writes it, without running (`--scenes-only`).
+fn write_scenes(spec: &Spec) -> Result<()> {
+    let runs = spec.output.join("runs");
+    std::fs::create_dir_all(&runs)
+        .map_err(|e| Error::Io(format!("cannot create {}: {e}", runs.display())))?;
+    let points = spec::points(spec);
+    for p in &points {
+        let (text, _, _) = spec::scene_text(&spec.cases[p.case], p)?;
+        write(&runs.join(format!("{}.scene.toml", p.id)), &text)?;
+    }
+    eprintln!("suite {}: {} scenes written to {}", spec.title, points.len(), runs.display());
+    Ok(())
 }
 
 fn execute(spec: &Spec, binary: &Path) -> Result<Vec<Row>> {

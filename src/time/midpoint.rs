@@ -20,6 +20,7 @@ use super::dirichlet::Dirichlet;
 use super::operator::StepOperator;
 use crate::contact::{ContactSolver, StepContact, StepSystem};
 use crate::error::{Error, Result};
+use crate::mass::MassMatrix;
 use crate::petsc::{Matrix, Vector};
 
 /// The external forces `f(t)` (body forces and tractions, assembled).
@@ -63,7 +64,7 @@ pub struct StepReport {
 pub struct Midpoint {
     tau: f64,
     op: StepOperator,
-    m: Matrix,
+    m: MassMatrix,
     a: Matrix,
     dirichlet: Dirichlet,
     first_dof: usize,
@@ -145,7 +146,7 @@ impl Midpoint {
     /// Start from `u0`, `v0` (Dirichlet values at t = 0 are imposed on `u0`) at time `t0`.
     pub fn new(
         op: StepOperator,
-        m: Matrix,
+        m: MassMatrix,
         a: Matrix,
         dirichlet: Dirichlet,
         tau: f64,
@@ -301,7 +302,7 @@ impl Midpoint {
         let mut rhs = self.u.duplicate()?;
         rhs.pointwise_mult(&r, &mask)?;
         let others: Vec<i32> = (lo..hi).filter(|i| !free[i - lo]).map(|i| i as i32).collect();
-        let mut k = self.a.duplicate(true)?;
+        let mut k = self.a.to_aij()?;
         k.zero_rows_columns(&others, 1.0, None, None)?;
         k.set_option_symmetric(true)?;
         let mut ksp = crate::petsc::Ksp::new("")?;
@@ -805,7 +806,7 @@ impl Midpoint {
     }
     /// `M v` of the current state (the momentum per component is its sum).
     /// The mass matrix of the step (`M` or `M_H`).
-    pub fn mass(&self) -> &Matrix {
+    pub fn mass(&self) -> &MassMatrix {
         &self.m
     }
     pub fn mv(&self) -> &Vector {
