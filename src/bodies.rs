@@ -82,7 +82,7 @@ impl Bodies {
         part: &Partition,
         surface: &Surface,
     ) -> Result<Bodies> {
-        let own = |c: usize| part.cell_rank[c] == part.rank;
+        let own = |c: usize| part.cell_rank[c] as usize == part.rank;
         let sum = |counts: &mut Vec<u64>| {
             let mine = counts.clone();
             world.all_reduce_into(&mine[..], &mut counts[..], SystemOperation::sum());
@@ -195,7 +195,7 @@ impl Bodies {
         let mut body_nodes = vec![Vec::new(); scene.bodies.len()];
         for (c, &r) in mesh.cells.iter().zip(&cell_region) {
             if r > 0 {
-                body_nodes[r as usize - 1].extend_from_slice(c.nodes());
+                body_nodes[r as usize - 1].extend_from_slice(&c.nodes());
             }
         }
         for (i, nodes) in body_nodes.iter_mut().enumerate() {
@@ -215,7 +215,7 @@ impl Bodies {
             let mut on = vec![0u64; surface.n_nodes()];
             for (k, g) in groups.iter().enumerate().take(64) {
                 for e in boundary_group(surface, g)? {
-                    for &n in e.nodes() {
+                    for n in e.nodes() {
                         on[n] |= 1 << k;
                     }
                 }
@@ -302,7 +302,7 @@ impl Bodies {
         let mut nodes = vec![Vec::new(); self.body_nodes.len()];
         for c in &mesh.cells {
             if let Some(&i) = self.entity_body.get(&c.entity) {
-                nodes[i].extend_from_slice(c.nodes());
+                nodes[i].extend_from_slice(&c.nodes());
             }
         }
         for n in &mut nodes {

@@ -41,7 +41,7 @@ fn assemble(mesh: &Mesh, layer: Option<&MassFreeLayer>) -> Vec<f64> {
         let modified = layer.and_then(|l| l.element_matrix(mesh, c, RHO, &mut nodes, &mut out));
         if modified.is_none() {
             nodes.clear();
-            nodes.extend_from_slice(e.nodes());
+            nodes.extend_from_slice(&e.nodes());
             let nd = nodes.len() * d;
             out.clear();
             out.resize(nd * nd, 0.0);
@@ -147,8 +147,8 @@ struct Report {
 fn node_pairs(mesh: &Mesh) -> HashSet<(usize, usize)> {
     let mut s = HashSet::new();
     for e in &mesh.cells {
-        for &a in e.nodes() {
-            for &b in e.nodes() {
+        for a in e.nodes() {
+            for b in e.nodes() {
                 s.insert((a, b));
             }
         }
@@ -368,7 +368,7 @@ fn structured_variant1(mesh: &Mesh, h: f64) {
     let centroid = |c: usize| {
         let e = &mesh.cells[c];
         let mut x = [0.0; 3];
-        for &g in e.nodes() {
+        for g in e.nodes() {
             for i in 0..3 {
                 x[i] += mesh.coords[g][i] / e.nodes().len() as f64;
             }
@@ -566,7 +566,7 @@ fn larger_meshes_elementwise() {
                 let layered = layer.element_matrix(&mesh, c, RHO, &mut nodes, &mut out).is_some();
                 for a in 0..nf {
                     for b in 0..nf {
-                        let std = form(e.nodes(), &mk, a, b);
+                        let std = form(&e.nodes(), &mk, a, b);
                         qm[a * nf + b] += std;
                         qh[a * nf + b] += if layered { form(&nodes, &out, a, b) } else { std };
                     }

@@ -68,7 +68,7 @@ fn parses_small_square() {
     assert_eq!(m.node_tags, vec![1, 2, 3, 4]);
     assert_eq!(m.cells.len(), 2);
     assert!(m.cells.iter().all(|e| e.kind == ElementKind::Tri3));
-    assert_eq!(m.cells[1].nodes(), &[0, 2, 3]);
+    assert_eq!(*m.cells[1].nodes(), [0, 2, 3]);
     assert_eq!(m.cells[1].tag, 2);
     assert_eq!(m.boundary.len(), 1);
     assert_eq!(m.boundary[0].kind, ElementKind::Line2);

@@ -40,7 +40,7 @@ fn partition_is_deterministic_and_balanced() {
         assert_eq!(p.cell_rank, q.cell_rank, "every rank must compute the same partition");
         let mut counts = vec![0usize; size];
         for &r in &p.cell_rank {
-            counts[r] += 1;
+            counts[r as usize] += 1;
         }
         let ideal = mesh.cells.len() as f64 / size as f64;
         for c in counts {
@@ -69,7 +69,7 @@ fn ownership_numbering_is_contiguous_and_a_permutation() {
     // Owner = smallest rank among the cells containing the node; owned block contiguous.
     let (off, list) = node_cells(&mesh);
     for v in 0..n {
-        let min = list[off[v]..off[v + 1]].iter().map(|&c| parts[0].cell_rank[c]).min().unwrap();
+        let min = list[off[v]..off[v + 1]].iter().map(|&c| parts[0].cell_rank[c] as usize).min().unwrap();
         assert_eq!(parts[0].node_owner[v], min);
         let r = min;
         let g = parts[0].node_global[v];
@@ -163,15 +163,15 @@ fn local_views_cover_the_mesh_with_complete_stars() {
                 seen[v] += 1;
                 assert_eq!(loff[l + 1] - loff[l], off[v + 1] - off[v], "star of node {v}");
             }
-            for (lc, &c) in p.cell_original.iter().enumerate() {
+            for (lc, c) in p.cell_original.iter().map(|&c| c as usize).enumerate() {
                 let back: Vec<usize> =
                     local.cells[lc].nodes().iter().map(|&l| p.node_original[l]).collect();
-                assert_eq!(back, mesh.cells[c].nodes());
-                assert_eq!(p.cell_rank[lc], cell_rank[c]);
+                assert_eq!(back, *mesh.cells[c].nodes());
+                assert_eq!(p.cell_rank[lc] as usize, cell_rank[c]);
                 // A ghost cell shares a node with an own cell.
                 if cell_rank[c] != rank {
                     assert!(local.cells[lc].nodes().iter().any(|&l| {
-                        llist[loff[l]..loff[l + 1]].iter().any(|&k| p.cell_rank[k] == rank)
+                        llist[loff[l]..loff[l + 1]].iter().any(|&k| p.cell_rank[k] as usize == rank)
                     }));
                 }
             }

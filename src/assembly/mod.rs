@@ -125,13 +125,13 @@ where
         let cell = &mesh.cells[c];
         let n = cell_coords(mesh, cell, &mut xy);
         nodes.clear();
-        nodes.extend_from_slice(cell.nodes());
+        nodes.extend_from_slice(&cell.nodes());
         if let Err(e) = kernel(c, &xy[..n], &mut nodes, &mut vals) {
             failed = Some(e);
             break;
         }
         debug_assert_eq!(vals.len(), (nodes.len() * dim).pow(2));
-        sums.add(part, part.cell_original[c], &nodes, &vals)?;
+        sums.add(part, part.cell_original[c] as usize, &nodes, &vals)?;
     }
     let world = SimpleCommunicator::world();
     let first = crate::comm::first_failure(&world, failed.as_ref().map(|e| e.to_string()));
@@ -212,7 +212,7 @@ impl LoadIntegrals {
                     LOAD_QUADRATURE_ORDER,
                     &mut fe[..n * dim],
                 );
-                node_dofs(part, cell.nodes(), &mut dofs);
+                node_dofs(part, &cell.nodes(), &mut dofs);
                 out.set_values(&dofs, &fe[..n * dim], true)?;
             }
         }
@@ -229,7 +229,7 @@ impl LoadIntegrals {
                 LOAD_QUADRATURE_ORDER,
                 &mut fe[..n * dim],
             );
-            node_dofs(part, e.nodes(), &mut dofs);
+            node_dofs(part, &e.nodes(), &mut dofs);
             out.set_values(&dofs, &fe[..n * dim], true)?;
         }
         out.assemble()

@@ -50,8 +50,8 @@ impl<'g> RowSums<'g> {
     ) -> RowSums<'g> {
         let mut seam = vec![false; graph.n_rows()];
         for (c, e) in mesh.cells.iter().enumerate() {
-            if part.cell_rank[c] != part.rank {
-                for &v in e.nodes() {
+            if part.cell_rank[c] as usize != part.rank {
+                for v in e.nodes() {
                     if part.owns(v) {
                         seam[part.node_global[v] - graph.first] = true;
                     }
@@ -110,7 +110,7 @@ impl<'g> RowSums<'g> {
                 let (lo, hi) = (self.graph.start[row], self.graph.start[row + 1]);
                 let cols = &self.graph.cols[lo..hi];
                 for (b, &h) in global.iter().enumerate() {
-                    let k = cols.binary_search(&h).map_err(|_| {
+                    let k = cols.binary_search(&(h as u32)).map_err(|_| {
                         Error::Internal(format!("assembly: node pair ({g}, {h}) outside the pattern"))
                     })?;
                     let slot = lo + k;
@@ -189,7 +189,7 @@ impl<'g> RowSums<'g> {
             cols.clear();
             for &h in &self.graph.cols[a..b] {
                 for j in 0..d {
-                    cols.push((h * d + j) as i32);
+                    cols.push((h as usize * d + j) as i32);
                 }
             }
             vals.clear();

@@ -46,7 +46,7 @@ impl ContactBoundary {
             }
         }
         let group = groups.join(", ");
-        let mut nodes: Vec<usize> = elems.iter().flat_map(|e| e.nodes().iter().copied()).collect();
+        let mut nodes: Vec<usize> = elems.iter().flat_map(|e| e.nodes().into_iter()).collect();
         nodes.sort_unstable();
         nodes.dedup();
         let mut slot = std::collections::HashMap::new();

@@ -57,7 +57,7 @@ impl MeshBlocks {
             coords: mesh.coords[lo..hi].to_vec(),
             tags: mesh.node_tags[lo..hi].to_vec(),
             cells: (by_natural[clo..chi].iter())
-                .flat_map(|&c| mesh.cells[c].nodes().iter().map(|&v| v as u64))
+                .flat_map(|&c| mesh.cells[c].nodes().into_iter().map(|v| v as u64))
                 .collect(),
             cell_rank: by_natural[clo..chi].iter().map(|&c| cell_rank[c] as i32).collect(),
             groups,

@@ -220,7 +220,7 @@ impl MassFreeLayer {
         }
         let mut is_contact = vec![false; mesh.n_nodes()];
         for e in &elems {
-            for &n in e.nodes() {
+            for n in e.nodes() {
                 is_contact[n] = true;
             }
         }
@@ -247,7 +247,7 @@ impl MassFreeLayer {
         let mut near = vec![false; mesh.n_nodes()];
         for (l, &c) in layer_cells.iter().enumerate() {
             cell_layer[c] = l as u32;
-            for &n in mesh.cells[c].nodes() {
+            for n in mesh.cells[c].nodes() {
                 near[n] = true;
             }
         }
@@ -390,7 +390,7 @@ impl MassFreeLayer {
         let mut outside = vec![false; mesh.n_nodes()];
         for (c, e) in mesh.cells.iter().enumerate() {
             if self.cell_layer[c] == u32::MAX {
-                for &g in e.nodes() {
+                for g in e.nodes() {
                     outside[g] = true;
                 }
             }
@@ -476,14 +476,14 @@ fn partner(
     let e = &mesh.cells[c];
     let nodes = e.nodes();
     let d = mesh.dim;
-    let tol = TIE_TOL * diameter(mesh, nodes, d);
+    let tol = TIE_TOL * diameter(mesh, &nodes, d);
     let contact: Vec<usize> = nodes.iter().copied().filter(|&g| is_contact[g]).collect();
     let cc = centroid(mesh, &contact);
 
     // 1. Facet neighbours outside the layer, in ascending cell order.
     let mut cands: Vec<(usize, f64)> = Vec::new();
     for f in e.kind.facets() {
-        let Some(&(c0, c1, _)) = facets.get(&facet_key(nodes, f)) else { continue };
+        let Some(&(c0, c1, _)) = facets.get(&facet_key(&nodes, f)) else { continue };
         let other = if c0 == c { c1 } else { c0 };
         if other == usize::MAX || cell_layer[other] != u32::MAX {
             continue;
@@ -513,10 +513,10 @@ fn partner(
         .collect();
     cands.sort_unstable();
     cands.dedup();
-    let ck = centroid(mesh, nodes);
+    let ck = centroid(mesh, &nodes);
     let mut best: Option<(usize, f64)> = None;
     for &o in &cands {
-        let s = dist2(&ck, &centroid(mesh, mesh.cells[o].nodes()), d).sqrt();
+        let s = dist2(&ck, &centroid(mesh, &mesh.cells[o].nodes()), d).sqrt();
         if best.is_none_or(|(_, bs)| s < bs - tol) {
             best = Some((o, s));
         }
@@ -555,7 +555,7 @@ fn map_variant1(mesh: &Mesh, c: usize, k1: usize) -> Result<ElementMap> {
         let chosen: Vec<usize> = if simplex {
             (0..pn.len()).collect()
         } else {
-            extrapolation_simplex(mesh, p.nodes(), &x, d).ok_or_else(|| {
+            extrapolation_simplex(mesh, &p.nodes(), &x, d).ok_or_else(|| {
                 Error::Mesh(format!(
                     "element {} ({}), partner of element {} in the mass-free layer, is \
                      degenerate: no {} of its vertices span a {}D simplex",

@@ -57,7 +57,7 @@ pub fn build_local_layer(
     let is_contact: Vec<bool> = (part.node_original.iter())
         .map(|v| contact_nodes.binary_search(v).is_ok())
         .collect();
-    let own = |c: usize| part.cell_rank[c] == part.rank;
+    let own = |c: usize| part.cell_rank[c] as usize == part.rank;
     let name = contact_groups.join("\" and \"");
     let built = MassFreeLayer::from_contact_nodes(mesh, is_contact, own, variant, &name);
     let failure = crate::comm::first_failure(world, built.as_ref().err().map(|e| e.to_string()));

@@ -16,11 +16,13 @@ use crate::error::{Error, Result};
 pub use crate::fem::element::ElementKind;
 
 /// One mesh element: its kind, its nodes (indices into `Mesh::coords`, gmsh ordering), and
-/// the gmsh entity it belongs to (physical groups are sets of entities).
+/// the gmsh entity it belongs to (physical groups are sets of entities). Node indices are
+/// stored in 32 bits (indices into a rank's part of the mesh): 48 bytes a cell instead of 80,
+/// 0.12 GB per rank at 3.9M DOFs on 2 ranks.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Element {
     pub kind: ElementKind,
-    nodes: [usize; 8],
+    nodes: [u32; 8],
     /// gmsh element tag (for error messages).
     pub tag: u64,
     /// gmsh entity tag (the entity's dimension is `kind.dim()`).
@@ -28,14 +30,46 @@ pub struct Element {
 }
 
 impl Element {
+    /// Panics on a node index beyond 32 bits (a part of a mesh with 4 x 10^9 nodes).
     pub fn new(kind: ElementKind, nodes: &[usize], tag: u64, entity: i32) -> Element {
         assert_eq!(nodes.len(), kind.n_nodes());
-        let mut n = [0usize; 8];
-        n[..nodes.len()].copy_from_slice(nodes);
+        let mut n = [0u32; 8];
+        for (to, &v) in n.iter_mut().zip(nodes) {
+            *to = u32::try_from(v).expect("node index beyond 32 bits");
+        }
         Element { kind, nodes: n, tag, entity }
     }
-    pub fn nodes(&self) -> &[usize] {
-        &self.nodes[..self.kind.n_nodes()]
+    /// The node indices (a small copy; use it as a slice).
+    #[inline]
+    pub fn nodes(&self) -> NodeList {
+        let mut ids = [0usize; 8];
+        for (to, &v) in ids.iter_mut().zip(&self.nodes) {
+            *to = v as usize;
+        }
+        NodeList { ids, n: self.kind.n_nodes() as u8 }
+    }
+}
+
+/// An element's node indices, by value (see [`Element::nodes`]); a slice by `Deref`.
+#[derive(Debug, Clone, Copy)]
+pub struct NodeList {
+    ids: [usize; 8],
+    n: u8,
+}
+
+impl std::ops::Deref for NodeList {
+    type Target = [usize];
+    #[inline]
+    fn deref(&self) -> &[usize] {
+        &self.ids[..self.n as usize]
+    }
+}
+
+impl IntoIterator for NodeList {
+    type Item = usize;
+    type IntoIter = std::iter::Take<std::array::IntoIter<usize, 8>>;
+    fn into_iter(self) -> Self::IntoIter {
+        self.ids.into_iter().take(self.n as usize)
     }
 }
 
@@ -93,7 +127,7 @@ impl Mesh {
     /// Sorted, de-duplicated node indices of the group's elements.
     pub fn group_nodes(&self, name: &str) -> Result<Vec<usize>> {
         let mut nodes: Vec<usize> =
-            self.group_elements(name)?.iter().flat_map(|e| e.nodes().iter().copied()).collect();
+            self.group_elements(name)?.iter().flat_map(|e| e.nodes().into_iter()).collect();
         nodes.sort_unstable();
         nodes.dedup();
         Ok(nodes)

@@ -33,7 +33,7 @@ pub fn facet_map(mesh: &Mesh, cells: &[usize]) -> FacetCells {
     for &c in cells {
         let e = &mesh.cells[c];
         for f in e.kind.facets() {
-            let entry = map.entry(facet_key(e.nodes(), f)).or_insert((c, usize::MAX, 0));
+            let entry = map.entry(facet_key(&e.nodes(), f)).or_insert((c, usize::MAX, 0));
             if entry.2 == 1 {
                 entry.1 = c;
             }
@@ -70,7 +70,7 @@ pub fn boundary_group<'m>(mesh: &'m Mesh, name: &str) -> Result<Vec<&'m Element>
     let facets = facet_map(mesh, &cells_near(mesh, &elems));
     for e in &elems {
         let all: Vec<usize> = (0..e.kind.n_nodes()).collect();
-        let key = facet_key(e.nodes(), &all);
+        let key = facet_key(&e.nodes(), &all);
         match facets.get(&key) {
             Some(&(_, _, 1)) => {}
             Some(&(c0, c1, n)) => {
@@ -104,14 +104,14 @@ pub fn boundary_group<'m>(mesh: &'m Mesh, name: &str) -> Result<Vec<&'m Element>
 pub fn cells_near(mesh: &Mesh, elems: &[&Element]) -> Vec<usize> {
     let mut near_contact = vec![false; mesh.n_nodes()];
     for e in elems {
-        for &n in e.nodes() {
+        for n in e.nodes() {
             near_contact[n] = true;
         }
     }
     let mut near_layer = vec![false; mesh.n_nodes()];
     for cell in &mesh.cells {
         if cell.nodes().iter().any(|&n| near_contact[n]) {
-            for &n in cell.nodes() {
+            for n in cell.nodes() {
                 near_layer[n] = true;
             }
         }
@@ -127,7 +127,7 @@ pub fn node_cells(mesh: &Mesh) -> (Vec<usize>, Vec<usize>) {
     let n = mesh.n_nodes();
     let mut start = vec![0usize; n + 1];
     for e in &mesh.cells {
-        for &v in e.nodes() {
+        for v in e.nodes() {
             start[v + 1] += 1;
         }
     }
@@ -137,7 +137,7 @@ pub fn node_cells(mesh: &Mesh) -> (Vec<usize>, Vec<usize>) {
     let mut fill = start.clone();
     let mut list = vec![0usize; start[n]];
     for (c, e) in mesh.cells.iter().enumerate() {
-        for &v in e.nodes() {
+        for v in e.nodes() {
             list[fill[v]] = c;
             fill[v] += 1;
         }

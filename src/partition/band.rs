@@ -90,7 +90,7 @@ fn build(world: &SimpleCommunicator, share: &Share, part: &[usize]) -> Result<Ba
     for &i in &mine {
         let e = &share.cells[i];
         for f in e.kind.facets() {
-            let key = facet_key(e.nodes(), f).map(|v| v as u64);
+            let key = facet_key(&e.nodes(), f).map(|v| v as u64);
             let to = &mut send[facet_rank(&key, size)];
             to.extend_from_slice(&key);
             to.push((share.cell_first + i) as u64);

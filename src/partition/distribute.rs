@@ -128,7 +128,7 @@ pub(super) fn on_interface(
 
 /// The sorted distinct nodes of some elements.
 fn nodes_of(elements: &[Element]) -> Vec<usize> {
-    let mut v: Vec<usize> = elements.iter().flat_map(|e| e.nodes().iter().copied()).collect();
+    let mut v: Vec<usize> = elements.iter().flat_map(|e| e.nodes().into_iter()).collect();
     v.sort_unstable();
     v.dedup();
     v
@@ -181,7 +181,7 @@ impl NodeDirectory {
         let size = world.size() as usize;
         let dest = block_of(share.n_nodes, size);
         let mut pairs: Vec<(usize, usize)> = (share.cells.iter().zip(cell_rank))
-            .flat_map(|(c, &r)| c.nodes().iter().map(move |&v| (v, r)))
+            .flat_map(|(c, &r)| c.nodes().into_iter().map(move |v| (v, r)))
             .collect();
         pairs.sort_unstable();
         pairs.dedup();
@@ -328,7 +328,7 @@ fn pull_element(w: &[u64], n_ids: usize, local: impl Fn(u64) -> usize) -> Result
 fn receivers(e: &Element, need: &[usize], info: &[NodeInfo], touch: &[usize]) -> Vec<usize> {
     let mut to: Vec<usize> = Vec::with_capacity(8);
     for v in e.nodes() {
-        let n = &info[need.binary_search(v).expect("asked")];
+        let n = &info[need.binary_search(&v).expect("asked")];
         to.extend_from_slice(&touch[n.touch.0..n.touch.1]);
     }
     to.sort_unstable();
@@ -431,13 +431,13 @@ fn assemble(
         dim: share.dim,
         owned_nodes: (0..nodes.len()).filter(|&l| node_owner[l] == rank).collect(),
         local_cells: (0..cells.len()).filter(|&l| cell_rank[l] == rank).collect(),
-        cell_rank,
+        cell_rank: cell_rank.iter().map(|&r| r as u32).collect(),
         node_owner,
         node_global: nodes.iter().map(|r| r[2] as usize).collect(),
         node_offsets: dir.node_offsets.clone(),
         node_original: original.clone(),
-        cell_original: cells.iter().map(|r| r[0] as usize).collect(),
-        cell_natural: cells.iter().map(|r| r[2] as usize).collect(),
+        cell_original: cells.iter().map(|r| r[0] as u32).collect(),
+        cell_natural: cells.iter().map(|r| r[2] as u32).collect(),
         n_global_cells: share.n_cells,
         natural_global: dir.global.clone(),
         graph: std::sync::OnceLock::new(),

@@ -25,7 +25,7 @@ pub fn metis(world: &SimpleCommunicator, share: &Share) -> Result<Vec<usize>> {
     let counts: Vec<metis::Idx> =
         share.cells.iter().map(|c| c.nodes().len() as metis::Idx).collect();
     let nodes: Vec<metis::Idx> =
-        (share.cells.iter()).flat_map(|c| c.nodes().iter().map(|&v| v as metis::Idx)).collect();
+        (share.cells.iter()).flat_map(|c| c.nodes().into_iter().map(|v| v as metis::Idx)).collect();
     let counts = gather(world, &counts)?;
     let nodes = gather(world, &nodes)?;
     let parts = match (counts, nodes) {

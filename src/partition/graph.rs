@@ -13,8 +13,9 @@ pub struct NodeGraph {
     /// Row `i` is the owned node of global number `first + i`: its columns are
     /// `cols[start[i]..start[i + 1]]`.
     pub start: Vec<usize>,
-    /// Global node numbers, sorted within each row.
-    pub cols: Vec<usize>,
+    /// Global node numbers, sorted within each row; 32 bits as PETSc's indices are (the
+    /// global DOF count is below 2^31).
+    pub cols: Vec<u32>,
     /// The global number of the first owned node.
     pub first: usize,
 }
@@ -29,10 +30,10 @@ impl NodeGraph {
         for &v in &part.owned_nodes {
             let row0 = cols.len();
             for &c in &list[off[v]..off[v + 1]] {
-                for &w in mesh.cells[c].nodes() {
+                for w in mesh.cells[c].nodes() {
                     if mark[w] != v {
                         mark[w] = v;
-                        cols.push(part.node_global[w]);
+                        cols.push(part.node_global[w] as u32);
                     }
                 }
             }
@@ -50,7 +51,7 @@ impl NodeGraph {
     #[inline]
     pub fn slot(&self, row: usize, col: usize) -> Option<usize> {
         let (a, b) = (self.start[row], self.start[row + 1]);
-        self.cols[a..b].binary_search(&col).ok().map(|k| a + k)
+        self.cols[a..b].binary_search(&(col as u32)).ok().map(|k| a + k)
     }
 
     /// Exact preallocation per DOF row: columns in the diagonal block (owned by this rank)
@@ -66,7 +67,7 @@ impl NodeGraph {
         let mut o_nnz = Vec::with_capacity(self.n_rows() * dim);
         for i in 0..self.n_rows() {
             let row = &self.cols[self.start[i]..self.start[i + 1]];
-            let d = row.iter().filter(|&&g| g >= lo && g < hi).count() as i32;
+            let d = row.iter().filter(|&&g| (lo..hi).contains(&(g as usize))).count() as i32;
             let o = row.len() as i32 - d;
             for _ in 0..dim {
                 d_nnz.push(d * dim as i32);

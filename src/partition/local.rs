@@ -27,7 +27,7 @@ pub fn localize(mesh: &Mesh, cell_rank: &[usize], rank: usize, size: usize) -> (
     let mut touched = vec![false; n];
     for (c, e) in mesh.cells.iter().enumerate() {
         if cell_rank[c] == rank {
-            for &v in e.nodes() {
+            for v in e.nodes() {
                 touched[v] = true;
             }
         }
@@ -37,7 +37,7 @@ pub fn localize(mesh: &Mesh, cell_rank: &[usize], rank: usize, size: usize) -> (
         .collect();
     let mut local_of = vec![usize::MAX; n];
     for &c in &cells {
-        for &v in mesh.cells[c].nodes() {
+        for v in mesh.cells[c].nodes() {
             local_of[v] = 0;
         }
     }
@@ -49,7 +49,7 @@ pub fn localize(mesh: &Mesh, cell_rank: &[usize], rank: usize, size: usize) -> (
         }
     }
     let relabel = |e: &Element| {
-        let l: Vec<usize> = e.nodes().iter().map(|&v| local_of[v]).collect();
+        let l: Vec<usize> = e.nodes().into_iter().map(|v| local_of[v]).collect();
         Element::new(e.kind, &l, e.tag, e.entity)
     };
     let boundary: Vec<Element> = (mesh.boundary.iter())
@@ -70,7 +70,7 @@ pub fn localize(mesh: &Mesh, cell_rank: &[usize], rank: usize, size: usize) -> (
         rank,
         size,
         dim: mesh.dim,
-        cell_rank: cells.iter().map(|&c| cell_rank[c]).collect(),
+        cell_rank: cells.iter().map(|&c| cell_rank[c] as u32).collect(),
         node_owner: nodes.iter().map(|&v| whole.node_owner[v]).collect(),
         node_global: nodes.iter().map(|&v| whole.node_global[v]).collect(),
         node_offsets: whole.node_offsets.clone(),
@@ -78,8 +78,8 @@ pub fn localize(mesh: &Mesh, cell_rank: &[usize], rank: usize, size: usize) -> (
         owned_nodes: (0..nodes.len()).filter(|&l| whole.node_owner[nodes[l]] == rank).collect(),
         local_cells: (0..cells.len()).filter(|&l| cell_rank[cells[l]] == rank).collect(),
         node_original: nodes,
-        cell_natural: cells.iter().map(|&c| natural[c]).collect(),
-        cell_original: cells,
+        cell_natural: cells.iter().map(|&c| natural[c] as u32).collect(),
+        cell_original: cells.iter().map(|&c| c as u32).collect(),
         n_global_cells: mesh.cells.len(),
         natural_global: whole.node_global[lo..hi].to_vec(),
         graph: std::sync::OnceLock::new(),

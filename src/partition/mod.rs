@@ -28,8 +28,9 @@ pub struct Partition {
     pub rank: usize,
     pub size: usize,
     pub dim: usize,
-    /// Rank of each cell (METIS part).
-    pub cell_rank: Vec<usize>,
+    /// Rank of each cell (METIS part). The per-cell arrays are 32-bit (12 bytes a cell less:
+    /// 46 MB per rank at 3.9M DOFs on 2 ranks).
+    pub cell_rank: Vec<u32>,
     /// Owning rank of each node.
     pub node_owner: Vec<usize>,
     /// Global (PETSc) node number of each original node.
@@ -44,10 +45,10 @@ pub struct Partition {
     /// dataset a user sees. The identity when the rank holds the whole mesh.
     pub node_original: Vec<usize>,
     /// Index in the file's cell order of each cell of this rank's mesh.
-    pub cell_original: Vec<usize>,
+    pub cell_original: Vec<u32>,
     /// Row of each cell of this rank's mesh in the file's cell datasets (kinds one after the
     /// other, see `io::natural_cell_index`).
-    pub cell_natural: Vec<usize>,
+    pub cell_natural: Vec<u32>,
     /// Cells of the whole mesh.
     pub n_global_cells: usize,
     /// Global node number of each node of this rank's natural block
@@ -71,7 +72,7 @@ pub fn partition_cells(mesh: &Mesh, nparts: usize) -> Result<Vec<usize>> {
     let mut eind: Vec<metis::Idx> = Vec::new();
     eptr.push(0);
     for c in &mesh.cells {
-        eind.extend(c.nodes().iter().map(|&v| v as metis::Idx));
+        eind.extend(c.nodes().into_iter().map(|v| v as metis::Idx));
         eptr.push(eind.len() as metis::Idx);
     }
     metis_parts(&eptr, &eind, mesh.dim, nparts)
@@ -156,7 +157,7 @@ pub fn slabs(mesh: &Mesh, nparts: usize, axis: usize) -> Vec<usize> {
         .cells
         .iter()
         .map(|c| {
-            c.nodes().iter().map(|&v| mesh.coords[v][axis]).sum::<f64>() / c.nodes().len() as f64
+            c.nodes().into_iter().map(|v| mesh.coords[v][axis]).sum::<f64>() / c.nodes().len() as f64
         })
         .collect();
     slab_cut(&cx, nparts)
@@ -199,7 +200,7 @@ impl Partition {
         let n = mesh.n_nodes();
         let mut node_owner = vec![usize::MAX; n];
         for (ci, c) in mesh.cells.iter().enumerate() {
-            for &v in c.nodes() {
+            for v in c.nodes() {
                 node_owner[v] = node_owner[v].min(cell_rank[ci]);
             }
         }
@@ -227,15 +228,15 @@ impl Partition {
             rank,
             size,
             dim: mesh.dim,
-            cell_rank,
+            cell_rank: cell_rank.iter().map(|&r| r as u32).collect(),
             node_owner,
             node_global,
             node_offsets,
             owned_nodes,
             local_cells,
             node_original: (0..n).collect(),
-            cell_original: (0..mesh.cells.len()).collect(),
-            cell_natural: crate::mesh::natural_cell_index(mesh),
+            cell_original: (0..mesh.cells.len() as u32).collect(),
+            cell_natural: crate::mesh::natural_cell_index(mesh).into_iter().map(|c| c as u32).collect(),
             n_global_cells: mesh.cells.len(),
             natural_global,
             graph: std::sync::OnceLock::new(),

@@ -186,7 +186,7 @@ fn whole_band(mesh: &Mesh, part: &[usize]) -> Band {
     let n = mesh.n_nodes();
     let (mut lo, mut hi) = (vec![usize::MAX; n], vec![0usize; n]);
     for (c, e) in mesh.cells.iter().enumerate() {
-        for &v in e.nodes() {
+        for v in e.nodes() {
             lo[v] = lo[v].min(part[c]);
             hi[v] = hi[v].max(part[c]);
         }

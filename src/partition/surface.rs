@@ -31,7 +31,7 @@ impl Surface {
         let mut nodes = Vec::new();
         for g in groups {
             for e in crate::mesh::topology::boundary_group(&self.mesh, g)? {
-                nodes.extend(e.nodes().iter().map(|&v| self.part.node_original[v]));
+                nodes.extend(e.nodes().into_iter().map(|v| self.part.node_original[v]));
             }
         }
         nodes.sort_unstable();
@@ -104,7 +104,7 @@ pub fn gather(
     let mut near = vec![false; mesh.n_nodes()];
     for e in &mesh.cells {
         if e.nodes().iter().any(|&v| on_contact[v]) {
-            for &v in e.nodes() {
+            for v in e.nodes() {
                 near[v] = true;
             }
         }
@@ -113,7 +113,12 @@ pub fn gather(
     for &c in &part.local_cells {
         let e = &mesh.cells[c];
         if e.nodes().iter().any(|&v| near[v]) {
-            pack(&mut words, e, [part.cell_original[c], part.cell_natural[c], part.rank], orig);
+            pack(
+                &mut words,
+                e,
+                [part.cell_original[c] as usize, part.cell_natural[c] as usize, part.rank],
+                orig,
+            );
         }
     }
     let all = gather_all(world, &words);
@@ -147,7 +152,7 @@ pub fn gather(
     }
     let local = |v: usize| nodes.binary_search(&v).expect("surface node");
     let relabel = |e: &Element| {
-        let l: Vec<usize> = e.nodes().iter().map(|&v| local(v)).collect();
+        let l: Vec<usize> = e.nodes().into_iter().map(|v| local(v)).collect();
         Element::new(e.kind, &l, e.tag, e.entity)
     };
     let node_global: Vec<usize> = order.iter().map(|&i| ids[3 * i + 2] as usize).collect();
@@ -166,15 +171,15 @@ pub fn gather(
         rank: part.rank,
         size: part.size,
         dim: part.dim,
-        cell_rank: cells.iter().map(|c| c.1[2]).collect(),
+        cell_rank: cells.iter().map(|c| c.1[2] as u32).collect(),
         owned_nodes: (0..nodes.len()).filter(|&l| node_owner[l] == part.rank).collect(),
         node_owner,
         node_global,
         node_offsets: part.node_offsets.clone(),
         local_cells: (0..cells.len()).filter(|&l| cells[l].1[2] == part.rank).collect(),
         node_original: nodes,
-        cell_original: cells.iter().map(|c| c.1[0]).collect(),
-        cell_natural: cells.iter().map(|c| c.1[1]).collect(),
+        cell_original: cells.iter().map(|c| c.1[0] as u32).collect(),
+        cell_natural: cells.iter().map(|c| c.1[1] as u32).collect(),
         n_global_cells: part.n_global_cells,
         natural_global: Vec::new(),
         graph: std::sync::OnceLock::new(),

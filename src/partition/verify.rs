@@ -177,7 +177,7 @@ fn partition_quality(
     let mut first = vec![usize::MAX; whole.n_nodes()];
     let mut shared = vec![false; whole.n_nodes()];
     for (c, e) in whole.cells.iter().enumerate() {
-        for &v in e.nodes() {
+        for v in e.nodes() {
             shared[v] |= first[v] != usize::MAX && first[v] != ranks[c];
             first[v] = ranks[c];
         }

@@ -51,7 +51,7 @@ pub fn mesh_blocks(d: &Domain) -> Result<MeshBlocks> {
     for &c in &part.local_cells {
         let at = rows.len();
         rows.extend([part.cell_natural[c] as u64, part.rank as u64]);
-        rows.extend(mesh.cells[c].nodes().iter().map(|&v| part.node_original[v] as u64));
+        rows.extend(mesh.cells[c].nodes().into_iter().map(|v| part.node_original[v] as u64));
         rows.resize(at + width, u64::MAX);
     }
     let placed = route_to_blocks_dense(world, part.n_global_cells, width, rows)?;

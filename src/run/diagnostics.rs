@@ -177,7 +177,7 @@ pub fn body_layers(d: &Domain, layer: Option<&MassFreeLayer>) -> Vec<(usize, usi
             .filter(|&&v| part.owns(v) && nodes.binary_search(&v).is_ok())
             .count() as u64;
         counts[2 * i + 1] = (layer.layer_cells.iter())
-            .filter(|&&c| part.cell_rank[c] == part.rank && d.bodies.region_of(c) == i + 1)
+            .filter(|&&c| part.cell_rank[c] as usize == part.rank && d.bodies.region_of(c) == i + 1)
             .count() as u64;
     }
     let mut total = vec![0u64; 2 * n];

@@ -149,7 +149,7 @@ impl StressOutput {
         slot: &[usize],
     ) -> Result<StressOutput> {
         let t0 = Instant::now();
-        let natural = part.local_cells.iter().map(|&c| part.cell_natural[c]).collect();
+        let natural = part.local_cells.iter().map(|&c| part.cell_natural[c] as usize).collect();
         let mut out = StressOutput {
             mesh: Rc::clone(&mesh),
             part: Rc::clone(&part),

@@ -99,7 +99,7 @@ impl<'a> Views<'a> {
     fn local_view(&self, x: &Vector) -> Result<LocalView> {
         let dim = self.part.dim;
         let mut nodes: Vec<usize> = (self.part.local_cells.iter())
-            .flat_map(|&c| self.mesh.cells[c].nodes().iter().copied())
+            .flat_map(|&c| self.mesh.cells[c].nodes().into_iter())
             .collect();
         nodes.sort_unstable();
         nodes.dedup();

@@ -50,7 +50,7 @@ pub fn oriented_facets(mesh: &Mesh, group: &str) -> Result<Vec<SurfaceFacet>> {
     let mut out = Vec::with_capacity(elems.len());
     for e in &elems {
         let all: Vec<usize> = (0..e.kind.n_nodes()).collect();
-        let cell = facets[&facet_key(e.nodes(), &all)].0;
+        let cell = facets[&facet_key(&e.nodes(), &all)].0;
         let mut nodes = e.nodes().to_vec();
         let x: Vec<[f64; 3]> = nodes.iter().map(|&v| mesh.coords[v]).collect();
         let n = facet_normal(mesh.dim, &x)
@@ -146,7 +146,7 @@ impl MortarInterface {
         let m_of: HashMap<usize, u32> =
             master.iter().enumerate().map(|(k, &v)| (v, k as u32)).collect();
         let mine: Vec<&SurfaceFacet> =
-            slave_facets.iter().filter(|f| part.cell_rank[f.cell] == part.rank).collect();
+            slave_facets.iter().filter(|f| part.cell_rank[f.cell] as usize == part.rank).collect();
         let pos = |f: &SurfaceFacet| -> Vec<[f64; 3]> { f.nodes.iter().map(|&v| x(v)).collect() };
         let ns = slave.len();
 

@@ -108,7 +108,7 @@ impl MortarActiveSet<'_> {
         (0..self.pair.slave.len())
             .filter(|&i| {
                 let f = &self.pair.slave[i];
-                self.pair.part.cell_rank[f.cell] == self.pair.part.rank
+                self.pair.part.cell_rank[f.cell] as usize == self.pair.part.rank
                     && f.nodes.iter().any(|v| nodes.contains(v))
             })
             .collect()
