@@ -193,13 +193,31 @@ struct LoadIntegrals {
 const LOAD_QUADRATURE_ORDER: usize = 4;
 
 impl LoadIntegrals {
-    /// Assemble f(t) into `out` (overwritten).
+    /// Assemble f(t) into `out` (overwritten). Contributions to other ranks' rows are sent
+    /// in one all-to-all and added in rank order, not in the order messages arrive (PETSc's
+    /// `VecAssembly`): with three or more ranks a row can get them from two ranks, and runs
+    /// then did not repeat to the last bit.
     fn assemble(&self, mesh: &Mesh, part: &Partition, t: f64, out: &mut Vector) -> Result<()> {
-        out.zero()?;
         let dim = part.dim;
+        let first = part.first_dof();
+        let mut own = vec![0.0; part.n_owned_dofs()];
+        let mut away: Vec<u64> = Vec::new();
+        let mut away_rank: Vec<usize> = Vec::new();
+        let mut add = |nodes: &[usize], fe: &[f64]| {
+            for (a, &v) in nodes.iter().enumerate() {
+                for c in 0..dim {
+                    let dof = part.dof(v, c);
+                    if part.owns(v) {
+                        own[dof - first] += fe[a * dim + c];
+                    } else {
+                        away.extend([dof as u64, fe[a * dim + c].to_bits()]);
+                        away_rank.push(part.node_owner[v]);
+                    }
+                }
+            }
+        };
         let mut xy = [[0.0; 3]; 8];
         let mut fe = [0.0; MAX_EDOFS];
-        let mut dofs = Vec::with_capacity(MAX_EDOFS);
         if let Some(f) = &self.body_force {
             let func = |x: [f64; 3]| f.eval(x, t);
             for &c in &part.local_cells {
@@ -212,8 +230,7 @@ impl LoadIntegrals {
                     LOAD_QUADRATURE_ORDER,
                     &mut fe[..n * dim],
                 );
-                node_dofs(part, &cell.nodes(), &mut dofs);
-                out.set_values(&dofs, &fe[..n * dim], true)?;
+                add(&cell.nodes(), &fe[..n * dim]);
             }
         }
         for &(bi, k) in &self.tractions {
@@ -229,10 +246,17 @@ impl LoadIntegrals {
                 LOAD_QUADRATURE_ORDER,
                 &mut fe[..n * dim],
             );
-            node_dofs(part, &e.nodes(), &mut dofs);
-            out.set_values(&dofs, &fe[..n * dim], true)?;
+            add(&e.nodes(), &fe[..n * dim]);
         }
-        out.assemble()
+        let world = SimpleCommunicator::world();
+        let came = crate::comm::all_to_all_rows(&world, 2, &away, |k| away_rank[k]);
+        for r in came.chunks_exact(2) {
+            let i = (r[0] as usize).checked_sub(first).filter(|&i| i < own.len()).ok_or_else(|| {
+                Error::Internal(format!("loads: DOF {} sent to a rank that does not own it", r[0]))
+            })?;
+            own[i] += f64::from_bits(r[1]);
+        }
+        out.with_local_slice_mut(|x| x.copy_from_slice(&own))
     }
 }
 
