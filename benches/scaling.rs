@@ -793,24 +793,31 @@ fn setup_section(quick: bool) -> String {
     let mut md = String::from(
         "\nSet-up phases (1 step, no output; seconds are the slowest rank's; assembly is A, M and the loads together, the stiffness A alone is its part (node graph included); rates are cells / (ranks x seconds); peak MiB of the largest rank):\n\n| case | path | ranks | DOFs | cells | read s | partition s | migration s | assembly s | stiffness s | stiffness cells/s/rank | layer s | solver set-up s | peak MiB/rank |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n",
     );
-    let blocks: &[(&str, &[usize])] = if quick {
-        &[("0.1", &[1, 2, 4])]
-    } else {
-        &[("0.03", &[1, 2, 4]), ("0.02", &[2, 4])]
-    };
+    let blocks: &[(&str, &[usize])] =
+        if quick { &[("0.1", &[1, 2, 4])] } else { &[("0.03", &[1, 2, 4]), ("0.02", &[2, 4])] };
     let mut runs: Vec<(String, &str, Vec<String>, usize)> = vec![];
     for &(h, ranks) in blocks {
         for &r in ranks {
-            runs.push((format!("block P1 h = {h}"), "block_tet.toml", vec!["--param".into(), format!("h={h}")], r));
+            runs.push((
+                format!("block P1 h = {h}"),
+                "block_tet.toml",
+                vec!["--param".into(), format!("h={h}")],
+                r,
+            ));
         }
     }
-    for (label, scene) in [("ball on plane (contact, M_H)", "sphere.toml"), ("two spheres (mortar)", "two_spheres.toml")] {
+    for (label, scene) in [
+        ("ball on plane (contact, M_H)", "sphere.toml"),
+        ("two spheres (mortar)", "two_spheres.toml"),
+    ] {
         for r in [1, 2, 4] {
             runs.push((label.to_string(), scene, vec![], r));
         }
     }
     for (label, scene, args, ranks) in runs {
-        for (path, extra) in [("blocks", vec![]), ("replicated", vec!["--replicated-mesh", "--partition", "metis"])] {
+        for (path, extra) in
+            [("blocks", vec![]), ("replicated", vec!["--replicated-mesh", "--partition", "metis"])]
+        {
             let mut a = args.clone();
             a.extend(["--steps", "1"].map(String::from));
             a.extend(extra.iter().map(|s| s.to_string()));

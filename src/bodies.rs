@@ -22,11 +22,11 @@ use crate::mesh::topology::boundary_group;
 use crate::mesh::Mesh;
 use crate::partition::surface::Surface;
 use crate::partition::Partition;
+use crate::scene::{MassKind, MaterialSpec, Scene};
+use crate::time::Regime;
 use mpi::collective::SystemOperation;
 use mpi::topology::SimpleCommunicator;
 use mpi::traits::*;
-use crate::scene::{MassKind, MaterialSpec, Scene};
-use crate::time::Regime;
 
 /// Cells with one material and one mass treatment: the cells outside every body, or a body.
 #[derive(Debug, Clone, PartialEq)]

@@ -65,7 +65,12 @@ where
 /// its first word (a global index below `n`; blocks as [`block_range`]); returns the rows this rank received, sorted by
 /// that index (collective: one all-to-all). What each rank sends and receives is its share:
 /// nothing here is as large as the whole.
-pub fn route_to_blocks(world: &SimpleCommunicator, n: usize, width: usize, rows: &[u64]) -> Vec<u64> {
+pub fn route_to_blocks(
+    world: &SimpleCommunicator,
+    n: usize,
+    width: usize,
+    rows: &[u64],
+) -> Vec<u64> {
     let size = world.size() as usize;
     let starts: Vec<usize> = (0..size).map(|r| block_range(n, r, size).0).collect();
     let dest = |i: u64| starts.partition_point(|&s| s <= i as usize).max(1) - 1;
@@ -99,12 +104,17 @@ pub fn route_to_blocks_dense(
     for r in got.chunks_exact(width) {
         let i = (r[0] as usize).wrapping_sub(lo);
         if i >= hi - lo || std::mem::replace(&mut seen[i], true) {
-            return Err(Error::Internal(format!("route_to_blocks_dense: index {} twice or outside {lo}..{hi}", r[0])));
+            return Err(Error::Internal(format!(
+                "route_to_blocks_dense: index {} twice or outside {lo}..{hi}",
+                r[0]
+            )));
         }
         placed[i * width..(i + 1) * width].copy_from_slice(r);
     }
     if seen.iter().any(|&s| !s) {
-        return Err(Error::Internal(format!("route_to_blocks_dense: an index of {lo}..{hi} is missing")));
+        return Err(Error::Internal(format!(
+            "route_to_blocks_dense: an index of {lo}..{hi} is missing"
+        )));
     }
     Ok(placed)
 }

@@ -101,7 +101,7 @@ pub fn enter(phase: Phase) {
 /// free large temporaries (the mesh's exchange buffers, the summed rows); kept by the
 /// allocator, they fragment the heap and the next phase's matrices land beside them, so the
 /// resident memory grows by what was freed (measured: 4 ranks at 10^6 DOFs, 452 MiB per
-/// rank against 414 with the trim). A few milliseconds per phase change.
+/// rank against 409 with the trim). A few milliseconds per phase change.
 pub fn release_free_memory() {
     #[cfg(all(target_os = "linux", target_env = "gnu"))]
     {
@@ -120,22 +120,27 @@ pub fn trace_memory(at: &str) {
     if !*ON.get_or_init(|| std::env::var_os("MASSFREE_TRACE_MEMORY").is_some()) {
         return;
     }
-    let status = std::fs::read_to_string("/proc/self/status").unwrap_or_default();
-    let field = |name: &str| {
-        status
-            .lines()
-            .find_map(|l| l.strip_prefix(name))
-            .and_then(|v| v.split_whitespace().next()?.parse::<f64>().ok())
-            .map_or(0.0, |kib| kib / 1024.0)
-    };
     static T0: OnceLock<Instant> = OnceLock::new();
     eprintln!(
         "memory [pid {}] at {at} ({:.2} s): resident {:.0} MiB, peak {:.0} MiB",
         std::process::id(),
         T0.get_or_init(Instant::now).elapsed().as_secs_f64(),
-        field("VmRSS:"),
-        field("VmHWM:")
+        status_mib("VmRSS:"),
+        status_mib("VmHWM:")
     );
+}
+
+/// A memory field of `/proc/self/status` (`"VmRSS:"` resident, `"VmHWM:"` peak resident) in
+/// MiB; 0 where /proc is unavailable.
+pub fn status_mib(name: &str) -> f64 {
+    std::fs::read_to_string("/proc/self/status")
+        .ok()
+        .and_then(|s| {
+            s.lines()
+                .find_map(|l| l.strip_prefix(name))
+                .and_then(|v| v.split_whitespace().next()?.parse::<f64>().ok())
+        })
+        .map_or(0.0, |kib| kib / 1024.0)
 }
 
 /// The phase this rank is in.

@@ -2,15 +2,17 @@
 //! integrated loads; assembled matrices have the exact preallocation; the stiffness kills
 //! rigid motions and the mass matrix carries the body's mass.
 
-use massfree::assembly::{assemble_matrix, assemble_matrix_blocked, interpolate, new_vector, Loads};
+use massfree::assembly::{
+    assemble_matrix, assemble_matrix_blocked, interpolate, new_vector, Loads,
+};
 use massfree::fem::{kernels, Material};
+use massfree::mass::mass_matrix;
 use massfree::mesh::gmsh::mesh_geo;
 use massfree::mesh::msh::read_msh;
 use massfree::partition::Partition;
-use massfree::mass::mass_matrix;
 use massfree::petsc::{Pattern, Petsc};
-use massfree::scene::MassKind;
 use massfree::scene::expr::{Expr, VecExpr};
+use massfree::scene::MassKind;
 use std::path::Path;
 
 fn vexpr(v: &[&str]) -> VecExpr {
@@ -118,7 +120,10 @@ fn assembly_on_one_rank() {
             v.with_local_slice(|s| s.iter().map(|x| x.to_bits()).collect()).unwrap()
         };
         let close = |a: &massfree::petsc::Vector, b: &massfree::petsc::Vector, what: &str| {
-            let (a, b) = (a.with_local_slice(|s| s.to_vec()).unwrap(), b.with_local_slice(|s| s.to_vec()).unwrap());
+            let (a, b) = (
+                a.with_local_slice(|s| s.to_vec()).unwrap(),
+                b.with_local_slice(|s| s.to_vec()).unwrap(),
+            );
             let scale = a.iter().fold(0.0f64, |m, x| m.max(x.abs()));
             let diff = a.iter().zip(&b).fold(0.0f64, |m, (x, y)| m.max((x - y).abs()));
             assert!(diff <= 4.0 * f64::EPSILON * scale, "{kind:?}: {what}: {diff:e} of {scale:e}");

@@ -69,7 +69,8 @@ fn ownership_numbering_is_contiguous_and_a_permutation() {
     // Owner = smallest rank among the cells containing the node; owned block contiguous.
     let (off, list) = node_cells(&mesh);
     for v in 0..n {
-        let min = list[off[v]..off[v + 1]].iter().map(|&c| parts[0].cell_rank[c] as usize).min().unwrap();
+        let min =
+            list[off[v]..off[v + 1]].iter().map(|&c| parts[0].cell_rank[c] as usize).min().unwrap();
         assert_eq!(parts[0].node_owner[v], min);
         let r = min;
         let g = parts[0].node_global[v];
@@ -176,7 +177,8 @@ fn local_views_cover_the_mesh_with_complete_stars() {
                 }
             }
             own_cells += p.local_cells.len();
-            let owned_global: Vec<usize> = p.owned_nodes.iter().map(|&l| p.node_global[l]).collect();
+            let owned_global: Vec<usize> =
+                p.owned_nodes.iter().map(|&l| p.node_global[l]).collect();
             let lo = p.node_offsets[rank];
             assert_eq!(owned_global, (lo..lo + owned_global.len()).collect::<Vec<_>>());
             if size > 1 {

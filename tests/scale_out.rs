@@ -40,7 +40,13 @@ fn datasets(h5: &Path) -> Vec<(String, Vec<f64>)> {
 fn file_difference(a: &Path, b: &Path) -> (f64, String) {
     let (da, db) = (datasets(a), datasets(b));
     let names = |d: &[(String, Vec<f64>)]| d.iter().map(|x| x.0.clone()).collect::<Vec<_>>();
-    assert_eq!(names(&da), names(&db), "{} and {} hold different datasets", a.display(), b.display());
+    assert_eq!(
+        names(&da),
+        names(&db),
+        "{} and {} hold different datasets",
+        a.display(),
+        b.display()
+    );
     let mut worst = (0.0, String::new());
     for ((name, x), (_, y)) in da.iter().zip(&db) {
         assert_eq!(x.len(), y.len(), "{name}: sizes differ");
@@ -85,9 +91,15 @@ fn reading_by_blocks_gives_the_replicated_paths_files_on_1_to_4_ranks() {
             let args = ["--steps", n.as_str(), "--partition", "metis"];
             run_scene(ranks, &blocks, &args);
             run_scene(ranks, &whole, &[&args[..], &["--replicated-mesh"]].concat());
-            let (a, b) = (dir.join(format!("{stem}-blocks-{ranks}.h5")), dir.join(format!("{stem}-whole-{ranks}.h5")));
+            let (a, b) = (
+                dir.join(format!("{stem}-blocks-{ranks}.h5")),
+                dir.join(format!("{stem}-whole-{ranks}.h5")),
+            );
             let (d, name) = file_difference(&a, &b);
-            assert!(d <= 1e-12, "{scene} on {ranks} rank(s): {name} differs by {d:e} between the paths");
+            assert!(
+                d <= 1e-12,
+                "{scene} on {ranks} rank(s): {name} differs by {d:e} between the paths"
+            );
         }
     }
 }
@@ -131,7 +143,14 @@ fn the_reduced_suites_scenes_give_the_replicated_paths_files() {
     let spec = common::repo().join("studies/suite.toml");
     let o = common::massfree(
         0,
-        &["suite", spec.to_str().unwrap(), "--reduced", "--scenes-only", "-o", dir.to_str().unwrap()],
+        &[
+            "suite",
+            spec.to_str().unwrap(),
+            "--reduced",
+            "--scenes-only",
+            "-o",
+            dir.to_str().unwrap(),
+        ],
     );
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let runs = dir.join("runs");
@@ -147,7 +166,12 @@ fn the_reduced_suites_scenes_give_the_replicated_paths_files() {
         let steps: toml::Table = toml::from_str(&text).unwrap();
         let steps = steps["time"].get("steps").and_then(|s| s.as_integer()).unwrap_or(100);
         let n = steps.min(100).to_string();
-        let stem = scene.file_name().unwrap().to_string_lossy().trim_end_matches(".scene.toml").to_string();
+        let stem = scene
+            .file_name()
+            .unwrap()
+            .to_string_lossy()
+            .trim_end_matches(".scene.toml")
+            .to_string();
         let blocks = runs.join(format!("{stem}-blocks.toml"));
         let whole = runs.join(format!("{stem}-whole.toml"));
         std::fs::write(&blocks, &text).unwrap();

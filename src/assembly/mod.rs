@@ -251,9 +251,13 @@ impl LoadIntegrals {
         let world = SimpleCommunicator::world();
         let came = crate::comm::all_to_all_rows(&world, 2, &away, |k| away_rank[k]);
         for r in came.chunks_exact(2) {
-            let i = (r[0] as usize).checked_sub(first).filter(|&i| i < own.len()).ok_or_else(|| {
-                Error::Internal(format!("loads: DOF {} sent to a rank that does not own it", r[0]))
-            })?;
+            let i =
+                (r[0] as usize).checked_sub(first).filter(|&i| i < own.len()).ok_or_else(|| {
+                    Error::Internal(format!(
+                        "loads: DOF {} sent to a rank that does not own it",
+                        r[0]
+                    ))
+                })?;
             own[i] += f64::from_bits(r[1]);
         }
         out.with_local_slice_mut(|x| x.copy_from_slice(&own))

@@ -15,8 +15,8 @@ use mpi::topology::SimpleCommunicator;
 
 use crate::comm::all_to_all_rows;
 use crate::error::{Error, Result};
-use crate::partition::graph::NodeGraph;
 use crate::mesh::Mesh;
+use crate::partition::graph::NodeGraph;
 use crate::partition::Partition;
 use crate::petsc::Matrix;
 
@@ -71,7 +71,13 @@ impl<'g> RowSums<'g> {
 
     /// Add the dense block `vals` ((nodes.len() dim)^2, row-major, interlaced) coupling
     /// `nodes` (local node indices), the contribution of the cell of original index `cell`.
-    pub fn add(&mut self, part: &Partition, cell: usize, nodes: &[usize], vals: &[f64]) -> Result<()> {
+    pub fn add(
+        &mut self,
+        part: &Partition,
+        cell: usize,
+        nodes: &[usize],
+        vals: &[f64],
+    ) -> Result<()> {
         // The block loops with the block size known to the compiler (unrolled).
         match self.dim {
             1 => self.add_dim::<1>(part, cell, nodes, vals),
@@ -111,7 +117,9 @@ impl<'g> RowSums<'g> {
                 let cols = &self.graph.cols[lo..hi];
                 for (b, &h) in global.iter().enumerate() {
                     let k = cols.binary_search(&(h as u32)).map_err(|_| {
-                        Error::Internal(format!("assembly: node pair ({g}, {h}) outside the pattern"))
+                        Error::Internal(format!(
+                            "assembly: node pair ({g}, {h}) outside the pattern"
+                        ))
                     })?;
                     let slot = lo + k;
                     let out = &mut self.blocks[slot * D * D..(slot + 1) * D * D];
@@ -151,13 +159,16 @@ impl<'g> RowSums<'g> {
         // The seam rows: every contribution, own and received, in (entry, cell) order.
         came.append(&mut self.deferred);
         let mut order: Vec<usize> = (0..came.len() / width).collect();
-        order.sort_unstable_by_key(|&k| (came[k * width], came[k * width + 1], came[k * width + 2]));
+        order
+            .sort_unstable_by_key(|&k| (came[k * width], came[k * width + 1], came[k * width + 2]));
         for k in order {
             let r = &came[k * width..(k + 1) * width];
             let (g, h) = (r[0] as usize, r[1] as usize);
             let row = g.checked_sub(self.graph.first).filter(|&x| x < self.graph.n_rows());
             let slot = row.and_then(|row| self.graph.slot(row, h)).ok_or_else(|| {
-                Error::Internal(format!("assembly: received node pair ({g}, {h}) outside this rank's rows"))
+                Error::Internal(format!(
+                    "assembly: received node pair ({g}, {h}) outside this rank's rows"
+                ))
             })?;
             for (k, &bits) in r[3..].iter().enumerate() {
                 self.blocks[slot * d * d + k] += f64::from_bits(bits);
@@ -176,7 +187,9 @@ impl<'g> RowSums<'g> {
                 vals.clear();
                 for ci in 0..d {
                     for s in a..b {
-                        vals.extend_from_slice(&self.blocks[(s * d + ci) * d..(s * d + ci + 1) * d]);
+                        vals.extend_from_slice(
+                            &self.blocks[(s * d + ci) * d..(s * d + ci + 1) * d],
+                        );
                     }
                 }
                 mat.add_values_blocked(&[(self.graph.first + i) as i32], &cols, &vals)?;

@@ -916,8 +916,7 @@ fn node_mass_blocks_are_the_mass_per_component() {
         let (n, d) = (kind.n_nodes(), kind.dim());
         let nd = n * d;
         type Kernel = fn(ElementKind, &[[f64; 3]], f64, &mut [f64]);
-        let pairs: [(Kernel, Kernel); 2] =
-            [(mass, mass_nodes), (mass_lumped, mass_lumped_nodes)];
+        let pairs: [(Kernel, Kernel); 2] = [(mass, mass_nodes), (mass_lumped, mass_lumped_nodes)];
         for (full_kernel, node_kernel) in pairs {
             let mut full = vec![0.0; nd * nd];
             let mut node = vec![0.0; n * n];

@@ -136,13 +136,16 @@ fn write_mesh(
         .map_err(|e| h5err(path, "create /mesh/coordinates", e))?;
     let flat = mesh.coords.as_flattened();
     let arr = ndarray::ArrayView2::from_shape((hi - lo, 3), flat).expect("shape");
-    coords.write_slice(arr, ndarray::s![lo..hi, ..]).map_err(|e| h5err(path, "write /mesh/coordinates", e))?;
+    coords
+        .write_slice(arr, ndarray::s![lo..hi, ..])
+        .map_err(|e| h5err(path, "write /mesh/coordinates", e))?;
     let tags = g
         .new_dataset::<u64>()
         .shape((n,))
         .create("node_tags")
         .map_err(|e| h5err(path, "create /mesh/node_tags", e))?;
-    tags.write_slice(&mesh.tags, ndarray::s![lo..hi]).map_err(|e| h5err(path, "write /mesh/node_tags", e))?;
+    tags.write_slice(&mesh.tags, ndarray::s![lo..hi])
+        .map_err(|e| h5err(path, "write /mesh/node_tags", e))?;
     let cr = g
         .new_dataset::<i32>()
         .shape((mesh.n_cells(),))
@@ -169,7 +172,11 @@ fn write_mesh(
             continue;
         }
         let conn = mesh.cells.get(at..at + (b - a) * nn).ok_or_else(|| {
-            Error::Internal(format!("/mesh/cells: {} node entries, short of {}", mesh.cells.len(), at + (b - a) * nn))
+            Error::Internal(format!(
+                "/mesh/cells: {} node entries, short of {}",
+                mesh.cells.len(),
+                at + (b - a) * nn
+            ))
         })?;
         at += (b - a) * nn;
         let arr = ndarray::ArrayView2::from_shape((b - a, nn), conn).expect("shape");

@@ -37,9 +37,7 @@ use crate::error::{Error, Result};
 use crate::fem::element::ElementKind;
 use crate::fem::kernels::{mass, MAX_DOFS, MAX_NODES};
 use crate::fem::shape::det3;
-use crate::mesh::topology::{
-    boundary_group, facet_key, facet_map, node_cells, FacetCells,
-};
+use crate::mesh::topology::{boundary_group, facet_key, facet_map, node_cells, FacetCells};
 use crate::mesh::Mesh;
 
 /// Which interpolation operator defines the layer (METHOD.md section 3).

@@ -54,9 +54,8 @@ pub fn build_local_layer(
         MassKind::Modified1 => Variant::One,
         _ => return Ok(None),
     };
-    let is_contact: Vec<bool> = (part.node_original.iter())
-        .map(|v| contact_nodes.binary_search(v).is_ok())
-        .collect();
+    let is_contact: Vec<bool> =
+        (part.node_original.iter()).map(|v| contact_nodes.binary_search(v).is_ok()).collect();
     let own = |c: usize| part.cell_rank[c] as usize == part.rank;
     let name = contact_groups.join("\" and \"");
     let built = MassFreeLayer::from_contact_nodes(mesh, is_contact, own, variant, &name);
@@ -171,11 +170,6 @@ impl MassMatrix {
             Storage::Nodes { nodes, dim, .. } => MassMatrix::kron(nodes.duplicate(true)?, *dim)?,
         })
     }
-
-    /// Vectors with `M`'s DOF layout.
-    pub fn create_vecs(&self) -> Result<(Vector, Vector)> {
-        self.product().create_vecs()
-    }
 }
 
 /// Assemble the mass matrix, cell by cell: `cell_mass(c)` gives the density and the mass
@@ -230,7 +224,11 @@ fn to_node_block(full: &[f64], n: usize, dim: usize, out: &mut Vec<f64>) -> Resu
     let kron = (0..nd).all(|r| {
         (0..nd).all(|c| {
             let v = full[r * nd + c];
-            if r % dim == c % dim { v == out[(r / dim) * n + c / dim] } else { v == 0.0 }
+            if r % dim == c % dim {
+                v == out[(r / dim) * n + c / dim]
+            } else {
+                v == 0.0
+            }
         })
     });
     if kron {

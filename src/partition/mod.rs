@@ -157,7 +157,8 @@ pub fn slabs(mesh: &Mesh, nparts: usize, axis: usize) -> Vec<usize> {
         .cells
         .iter()
         .map(|c| {
-            c.nodes().into_iter().map(|v| mesh.coords[v][axis]).sum::<f64>() / c.nodes().len() as f64
+            c.nodes().into_iter().map(|v| mesh.coords[v][axis]).sum::<f64>()
+                / c.nodes().len() as f64
         })
         .collect();
     slab_cut(&cx, nparts)
@@ -236,7 +237,10 @@ impl Partition {
             local_cells,
             node_original: (0..n).collect(),
             cell_original: (0..mesh.cells.len() as u32).collect(),
-            cell_natural: crate::mesh::natural_cell_index(mesh).into_iter().map(|c| c as u32).collect(),
+            cell_natural: crate::mesh::natural_cell_index(mesh)
+                .into_iter()
+                .map(|c| c as u32)
+                .collect(),
             n_global_cells: mesh.cells.len(),
             natural_global,
             graph: std::sync::OnceLock::new(),

@@ -191,15 +191,9 @@ fn partition_quality(
     ))
 }
 
-/// Peak resident memory of this process (VmHWM), in MB.
+/// Peak resident memory of this process (VmHWM), in MiB.
 pub fn peak_memory_mb() -> f64 {
-    let status = std::fs::read_to_string("/proc/self/status").unwrap_or_default();
-    let kb = status
-        .lines()
-        .find_map(|l| l.strip_prefix("VmHWM:"))
-        .and_then(|v| v.trim().trim_end_matches("kB").trim().parse::<f64>().ok())
-        .unwrap_or(0.0);
-    kb / 1024.0
+    crate::phase::status_mib("VmHWM:")
 }
 
 /// Times (max over the ranks) on rank 0, peak memory on every rank.

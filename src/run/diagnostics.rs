@@ -366,13 +366,5 @@ pub fn time_matmult(d: &Domain, k: &Matrix, x: &Vector, y: &mut Vector) -> Resul
 
 /// Peak resident set size of this process (VmHWM), in MiB; 0 where /proc is unavailable.
 pub fn peak_rss_mib() -> f64 {
-    std::fs::read_to_string("/proc/self/status")
-        .ok()
-        .and_then(|s| {
-            s.lines()
-                .find(|l| l.starts_with("VmHWM:"))
-                .and_then(|l| l.split_whitespace().nth(1).and_then(|k| k.parse::<f64>().ok()))
-        })
-        .map(|kib| kib / 1024.0)
-        .unwrap_or(0.0)
+    crate::phase::status_mib("VmHWM:")
 }

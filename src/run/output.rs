@@ -18,9 +18,7 @@ use super::views::Views;
 use crate::contact::ContactSolver;
 use crate::error::{Error, Result};
 use crate::fem::stress::Quantity;
-use crate::io::{
-    group_key, layout, Checkpoint, Meta, Output, OutputPlan, PlannedField, RunFile,
-};
+use crate::io::{group_key, layout, Checkpoint, Meta, Output, OutputPlan, PlannedField, RunFile};
 use crate::mass::MassFreeLayer;
 use crate::phase::{self, Phase};
 use crate::report::{MassCheck, RunSummary, Timings};

@@ -178,9 +178,7 @@ impl LoadsAt {
     ) -> Result<LoadsAt> {
         let inertial = match acceleration.filter(|a| !a.is_zero()) {
             None => None,
-            Some(a) if a.depends_on_t() => {
-                Some(InertialLoad::Varying(a.clone(), m.duplicate()?))
-            }
+            Some(a) if a.depends_on_t() => Some(InertialLoad::Varying(a.clone(), m.duplicate()?)),
             Some(a) => {
                 let ah = assembly::interpolate(&mesh, &part, a, 0.0)?;
                 let mut f = ah.duplicate()?;

@@ -181,7 +181,8 @@ pub fn check_no_penetration(
     // The first obstacle that intersects the body, and its nodes.
     let Some(first) = hits.iter().map(|&(_, o)| o).min() else { return Ok(()) };
     let bad: Vec<usize> = hits.iter().filter(|&&(_, o)| o == first).map(|&(v, _)| v).collect();
-    let tags: Vec<String> = bad.iter().take(10).map(|&v| d.surface.mesh.node_tags[v].to_string()).collect();
+    let tags: Vec<String> =
+        bad.iter().take(10).map(|&v| d.surface.mesh.node_tags[v].to_string()).collect();
     // Past the obstacles: a slave node's plane (the master body).
     let what = if first < spec.obstacles.len() {
         spec.obstacle_key(first)

@@ -92,11 +92,18 @@ fn write_scenes(spec: &Spec) -> Result<()> {
         .map_err(|e| Error::Io(format!("cannot create {}: {e}", runs.display())))?;
     let points = spec::points(spec);
     for p in &points {
-        let (text, _, _) = spec::scene_text(&spec.cases[p.case], p)?;
-        write(&runs.join(format!("{}.scene.toml", p.id)), &text)?;
+        write_scene(&runs, &spec.cases[p.case], p)?;
     }
     eprintln!("suite {}: {} scenes written to {}", spec.title, points.len(), runs.display());
     Ok(())
+}
+
+/// A point's scene written to `runs/<id>.scene.toml`: its path, steps and time step.
+fn write_scene(runs: &Path, case: &spec::Case, p: &spec::Point) -> Result<(PathBuf, usize, f64)> {
+    let (text, steps, tau) = spec::scene_text(case, p)?;
+    let path = runs.join(format!("{}.scene.toml", p.id));
+    write(&path, &text)?;
+    Ok((path, steps, tau))
 }
 
 fn execute(spec: &Spec, binary: &Path) -> Result<Vec<Row>> {
@@ -130,11 +137,7 @@ fn execute(spec: &Spec, binary: &Path) -> Result<Vec<Row>> {
     for p in &points {
         let case = &spec.cases[p.case];
         let h5 = runs.join(format!("{}.h5", p.id));
-        let scene = spec::scene_text(case, p).and_then(|(text, steps, tau)| {
-            let path = runs.join(format!("{}.scene.toml", p.id));
-            write(&path, &text)?;
-            Ok((path, steps, tau))
-        });
+        let scene = write_scene(&runs, case, p);
         let mut row = Row {
             case: case.name.clone(),
             group: case.group.clone(),
