@@ -7,7 +7,7 @@ use std::path::PathBuf;
 use crate::contact::history::ContactSummary;
 use crate::io::layout::RunReader;
 use crate::stability::{body_size, ContactColumns, RunSeries, Stability};
-use crate::time::Corrections;
+use crate::time::{Corrections, ReuseReport};
 
 /// Wall time of the phases of a run, in seconds (max over ranks).
 #[derive(Debug, Clone, Default, serde::Serialize, serde::Deserialize)]
@@ -36,6 +36,9 @@ pub struct Timings {
     /// run that writes none.
     #[serde(default)]
     pub stress: f64,
+    /// Errors against the scene's exact solution at its error steps (not part of `stepping`).
+    #[serde(default)]
+    pub errors: f64,
 }
 
 /// Errors of the displacement against the scene's exact solution at one step.
@@ -118,6 +121,10 @@ pub struct RunSummary {
     /// What the level scheme's energy correction did.
     #[serde(default)]
     pub energy_corrections: Corrections,
+    /// What the step's own CG and its kept products did (`time::cg`; zero steps when PETSc's
+    /// KSP solved every step).
+    #[serde(default)]
+    pub step_reuse: ReuseReport,
     /// The largest number of KSP iterations of one step (`ksp_iterations` is the sum).
     #[serde(default)]
     pub ksp_iterations_step_max: usize,

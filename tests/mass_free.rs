@@ -409,7 +409,11 @@ every = 50
         let pot = values(&dir.join(format!("accel-{ranks}.h5")), "energy/potential");
         let kin = values(&dir.join(format!("accel-{ranks}.h5")), "energy/kinetic");
         let pmax = pot.iter().fold(0.0f64, |a, &x| a.max(x.abs()));
-        assert!(pmax <= 1e-14 * kin.last().unwrap(), "potential energy {pmax:e}");
+        // A rigid fall has A u = 0. The step's own CG updates A u from its products
+        // (`time::cg`): round-off of about 4 k/(2 tau) |u|/|v| eps = 2k eps of the kinetic
+        // energy k steps after a refresh (every 16 steps; u/v = t/2 in a fall from rest),
+        // so 1e-12 (the products recomputed every step, `-step_reuse false`: 1e-14).
+        assert!(pmax <= 1e-12 * kin.last().unwrap(), "potential energy {pmax:e}");
     }
     let s = run_scene(2, &value, &[]);
     let change = s.massless_initialization.expect("massless DOFs");

@@ -126,6 +126,14 @@ impl Ksp {
         Ok(rtol)
     }
 
+    /// The largest number of iterations in force.
+    pub fn max_it(&self) -> Result<usize> {
+        let (mut rtol, mut atol, mut dtol, mut its) = (0.0, 0.0, 0.0, 0);
+        // SAFETY: valid handle; out-pointers.
+        chk!(ffi::KSPGetTolerances(self.ksp, &mut rtol, &mut atol, &mut dtol, &mut its))?;
+        Ok(to_usize(its))
+    }
+
     /// Convergence tolerances; `None` keeps PETSc's current value (`PETSC_DEFAULT`).
     pub fn set_tolerances(
         &mut self,
@@ -226,6 +234,14 @@ impl Ksp {
             )));
         }
         Ok(info)
+    }
+
+    /// Applies the preconditioner (set up with the solver) to `r`: `z = B r`. For Krylov
+    /// loops written outside PETSc (`time::cg`).
+    pub fn pc_apply(&self, r: &Vector, z: &mut Vector) -> Result<()> {
+        let pc = self.pc()?;
+        // SAFETY: valid PC and vectors; `r` and `z` are distinct by the borrow rules.
+        chk!(ffi::PCApply(pc, r.raw(), z.raw()))
     }
 
     /// The Krylov method in use (empty before it is set or defaulted at setup).

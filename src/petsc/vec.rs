@@ -177,6 +177,69 @@ impl Vector {
         Ok(r)
     }
 
+    /// Reads the owned entries of `read` and writes those of `write` in one closure: loops that
+    /// fuse several vector operations into one pass over memory (the step's CG and state
+    /// update). The arrays are restored even if `f` panics; all vectors must have the same
+    /// local size. The borrow rules keep a vector from being both read and written.
+    pub fn with_slices<const R: usize, const W: usize, T>(
+        read: [&Vector; R],
+        write: [&mut Vector; W],
+        f: impl FnOnce([&[f64]; R], [&mut [f64]; W]) -> T,
+    ) -> Result<T> {
+        struct Restore(Vec<(ffi::Vec, *mut f64, bool)>);
+        impl Drop for Restore {
+            fn drop(&mut self) {
+                for (v, p, w) in self.0.iter_mut() {
+                    // SAFETY: restores exactly the arrays obtained below, once each.
+                    unsafe {
+                        if *w {
+                            ffi::VecRestoreArray(*v, p);
+                        } else {
+                            let mut q = *p as *const f64;
+                            ffi::VecRestoreArrayRead(*v, &mut q);
+                        }
+                    }
+                }
+            }
+        }
+        let n = read.first().map(|v| v.local).or(write.first().map(|v| v.local)).unwrap_or(0);
+        for l in read.iter().map(|v| v.local).chain(write.iter().map(|v| v.local)) {
+            check_len("Vector::with_slices local sizes", n, l)?;
+        }
+        let mut guard = Restore(Vec::with_capacity(R + W));
+        for v in &read {
+            let mut p: *const f64 = ptr::null();
+            // SAFETY: valid handle; `p` is an out-pointer; restored by the guard.
+            chk!(ffi::VecGetArrayRead(v.v, &mut p))?;
+            guard.0.push((v.v, p as *mut f64, false));
+        }
+        for v in &write {
+            let mut p: *mut f64 = ptr::null_mut();
+            // SAFETY: as above, for writing.
+            chk!(ffi::VecGetArray(v.v, &mut p))?;
+            guard.0.push((v.v, p, true));
+        }
+        let ptrs: Vec<*mut f64> = guard.0.iter().map(|g| g.1).collect();
+        let slice = |p: *mut f64| -> *mut f64 {
+            if n == 0 || p.is_null() {
+                ptr::NonNull::dangling().as_ptr()
+            } else {
+                p
+            }
+        };
+        // SAFETY: PETSc returned `n` contiguous owned entries per vector, valid until the
+        // guard restores them after `f`; the written vectors are distinct `&mut` borrows, so
+        // no slice aliases another that is written.
+        let reads: [&[f64]; R] =
+            std::array::from_fn(|i| unsafe { std::slice::from_raw_parts(slice(ptrs[i]), n) });
+        let writes: [&mut [f64]; W] = std::array::from_fn(|i| unsafe {
+            std::slice::from_raw_parts_mut(slice(ptrs[R + i]), n)
+        });
+        let r = f(reads, writes);
+        drop(guard);
+        Ok(r)
+    }
+
     /// Dot product `self . x` (collective).
     pub fn dot(&self, x: &Vector) -> Result<f64> {
         let mut d = 0.0;

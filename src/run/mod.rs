@@ -83,17 +83,24 @@ struct Stepping<'a> {
     first: usize,
 }
 
-/// The time loop's clock: its start and the output and stress work inside it, which the
+/// The time loop's clock: its start and the output, error and stress work inside it, which the
 /// stepping time excludes.
 struct LoopClock {
     start: Instant,
     output: f64,
+    /// The errors against the scene's exact solution (diagnostics, like the output).
+    errors: f64,
     stress_before: f64,
 }
 
 impl LoopClock {
     fn start(stress: &StressFields) -> LoopClock {
-        LoopClock { start: Instant::now(), output: 0.0, stress_before: stress.seconds() }
+        LoopClock {
+            start: Instant::now(),
+            output: 0.0,
+            errors: 0.0,
+            stress_before: stress.seconds(),
+        }
     }
 }
 
@@ -213,7 +220,9 @@ impl<'a> Simulation<'a> {
                         report.time
                     )));
                 }
+                let t_errors = Instant::now();
                 run.record.errors_at(&self.domain, &mut self.views, n + 1, &run.midpoint)?;
+                clock.errors += t_errors.elapsed().as_secs_f64();
                 progress.update(n + 1, report.time, run.record.balance);
             }
             progress.finish();
@@ -395,7 +404,9 @@ impl<'a> Simulation<'a> {
         // Stepping is the loop without its output and stress work (each timed on its own).
         let stepping = clock.start.elapsed().as_secs_f64()
             - clock.output
+            - clock.errors
             - (self.stress.seconds() - clock.stress_before);
+        self.timings.errors = max_over_ranks(world, clock.errors);
         self.timings.stepping = max_over_ranks(world, stepping);
         self.timings.output = max_over_ranks(world, self.timings.output + clock.output);
         self.timings.stress = max_over_ranks(world, self.stress.seconds());

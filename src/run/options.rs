@@ -91,6 +91,10 @@ pub struct AppOptions {
     /// options; default not given): PETSc's value holds. Without them a multigrid step
     /// preconditioner is built once and kept when the contact rewrites the operator.
     pub user_reuse_preconditioner: bool,
+    /// The step's own CG and its kept products (`time::cg`): `-step_reuse true|false`
+    /// (default true; used by CG steps without contact), `-step_reuse_refresh N` (default 16),
+    /// `-step_predictor zero|last|extrapolate`, `-step_energy_rtol X`. `None`: off.
+    pub step_reuse: Option<crate::time::Reuse>,
 }
 
 impl AppOptions {
@@ -134,6 +138,12 @@ impl AppOptions {
             )?,
             user_reuse_preconditioner: Petsc::options_has("-ksp_reuse_preconditioner")?
                 || Petsc::options_has("-step_ksp_reuse_preconditioner")?,
+            step_reuse: step_reuse(
+                Petsc::options_get_string("-step_reuse")?.as_deref(),
+                Petsc::options_get_real("-step_reuse_refresh")?,
+                Petsc::options_get_string("-step_predictor")?.as_deref(),
+                Petsc::options_get_real("-step_energy_rtol")?,
+            )?,
         })
     }
 }
@@ -187,6 +197,42 @@ fn mortar_normal(value: Option<String>) -> Result<NormalKind> {
     }
 }
 
+fn step_reuse(
+    on: Option<&str>,
+    refresh: Option<f64>,
+    predictor: Option<&str>,
+    energy_rtol: Option<f64>,
+) -> Result<Option<crate::time::Reuse>> {
+    let on = match on {
+        None | Some("1" | "true" | "yes") => true,
+        Some("0" | "false" | "no") => false,
+        Some(other) => {
+            return Err(Error::Usage(format!("-step_reuse {other}: give true or false")));
+        }
+    };
+    let mut r = crate::time::Reuse::default();
+    if let Some(n) = refresh {
+        if !(n >= 1.0 && n.fract() == 0.0 && n < 1e9) {
+            return Err(Error::Usage(format!(
+                "-step_reuse_refresh {n}: give a whole number of steps, at least 1"
+            )));
+        }
+        r.refresh = n as usize;
+    }
+    if let Some(p) = predictor {
+        r.predictor = crate::time::Predictor::parse(p).ok_or_else(|| {
+            Error::Usage(format!("-step_predictor {p}: give zero, last or extrapolate"))
+        })?;
+    }
+    if let Some(e) = energy_rtol {
+        if !(e > 0.0) {
+            return Err(Error::Usage(format!("-step_energy_rtol {e}: give a positive number")));
+        }
+        r.energy_rtol = e;
+    }
+    Ok(on.then_some(r))
+}
+
 fn massless_energy_correction(value: Option<&str>) -> Result<bool> {
     match value {
         None | Some("1" | "true" | "yes") => Ok(true),
@@ -209,6 +255,15 @@ mod tests {
         assert_eq!(mortar_normal(Some("average".into())), Ok(NormalKind::Average));
         assert_eq!(massless_energy_correction(None), Ok(true));
         assert_eq!(massless_energy_correction(Some("no")), Ok(false));
+        let r = step_reuse(None, None, None, None).unwrap().expect("on by default");
+        assert_eq!(r.refresh, 16);
+        assert_eq!(r.predictor, crate::time::Predictor::Extrapolate);
+        assert!(step_reuse(Some("false"), None, None, None).unwrap().is_none());
+        let r = step_reuse(None, Some(100.0), Some("last"), Some(1e-12)).unwrap().unwrap();
+        assert_eq!(
+            (r.refresh, r.predictor, r.energy_rtol),
+            (100, crate::time::Predictor::Last, 1e-12)
+        );
     }
 
     #[test]
@@ -219,5 +274,14 @@ mod tests {
         assert_eq!(e, "scene error: -mortar_normal x: give slave (the default) or average");
         let e = massless_energy_correction(Some("")).unwrap_err().to_string();
         assert_eq!(e, "usage error: -massless_energy_correction : give true or false");
+        let e = step_reuse(None, Some(0.5), None, None).unwrap_err().to_string();
+        assert_eq!(
+            e,
+            "usage error: -step_reuse_refresh 0.5: give a whole number of steps, at least 1"
+        );
+        let e = step_reuse(None, None, Some("quadratic"), None).unwrap_err().to_string();
+        assert_eq!(e, "usage error: -step_predictor quadratic: give zero, last or extrapolate");
+        let e = step_reuse(Some("maybe"), None, None, None).unwrap_err().to_string();
+        assert_eq!(e, "usage error: -step_reuse maybe: give true or false");
     }
 }

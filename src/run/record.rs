@@ -321,6 +321,7 @@ pub fn summarize(
         release_projections: midpoint.release_projections().0,
         release_energy: midpoint.release_projections().1,
         energy_corrections: midpoint.corrections(),
+        step_reuse: midpoint.reuse(),
         ksp_iterations_step_max: record.ksp_step_max,
         cfl: facts.cfl,
         stability: Some(stability),
@@ -359,8 +360,8 @@ pub fn summary_lines(d: &Domain, layer: Option<(usize, usize)>, s: &RunSummary) 
             s.ksp_iterations as f64 / s.steps.max(1) as f64
         ),
         format!(
-            "time: mesh {:.3} s, partition {:.3} s, assembly {:.3} s, solver setup {:.3} s, output {:.3} s, stress {:.3} s",
-            t.mesh, t.partition, t.assembly, t.setup, t.output, t.stress
+            "time: mesh {:.3} s, partition {:.3} s, assembly {:.3} s, solver setup {:.3} s, output {:.3} s, stress {:.3} s, errors {:.3} s",
+            t.mesh, t.partition, t.assembly, t.setup, t.output, t.stress, t.errors
         ),
         format!(
             "energy: initial {:.10e}, final {:.10e}, external work {:.6e}; balance |E^n - E^0 - W^n|/max E = {:.2e} (W: loads, contact less friction's dissipation, boundary reactions)",

@@ -50,6 +50,8 @@ pub fn step_operator(
         defaults.rtol = r;
     }
     defaults.user_reuse_preconditioner = app.user_reuse_preconditioner;
+    // The step's own CG serves steps without contact (a contact solver rewrites K's rows).
+    defaults.reuse = if with_contact { None } else { app.step_reuse };
     let op = StepOperator::new(
         m,
         a,

@@ -1096,6 +1096,7 @@ mod tests {
             release_projections: 0,
             release_energy: 0.0,
             energy_corrections: Default::default(),
+            step_reuse: Default::default(),
             ksp_iterations_step_max: 7,
             cfl: 0.5,
             stability: None,

@@ -13,10 +13,12 @@
 //! `E^{n+1} - E^n = f^{n+1/2} . du` (dot the first equation with du = tau (v^{n+1}+v^n)/2), so the
 //! energy balance is a built-in check of the integrator at every step.
 
+pub mod cg;
 pub mod dirichlet;
 pub mod midpoint;
 pub mod operator;
 
+pub use cg::Predictor;
 pub use dirichlet::Dirichlet;
-pub use midpoint::{Corrections, Energy, Forces, Midpoint, StepReport};
-pub use operator::{Regime, StepOperator, StepSolverDefaults};
+pub use midpoint::{Corrections, Energy, Forces, Midpoint, ReuseReport, StepReport};
+pub use operator::{Regime, Reuse, StepOperator, StepSolverDefaults};

@@ -2,6 +2,7 @@
 //! eliminated, and its solver, set up once per run (PETSc tutorials' order: defaults, then
 //! `KSPSetFromOptions`, then the `step_` prefix).
 
+use super::cg::{Predictor, StepCg};
 use crate::error::Result;
 use crate::mass::MassMatrix;
 use crate::petsc::{Ksp, Matrix, NullSpace};
@@ -20,6 +21,27 @@ pub struct StepSolverDefaults {
     pub user_reuse_preconditioner: bool,
     /// The operator stays symmetric (no friction): PETSc is told so.
     pub symmetric: bool,
+    /// The step's CG written out with its products kept (`time::cg`), for steps without
+    /// contact; `None`: PETSc's `KSPSolve` and the products recomputed every step.
+    pub reuse: Option<Reuse>,
+}
+
+/// The options of the step's own CG (`-step_reuse`, `-step_reuse_refresh`,
+/// `-step_predictor`, `-step_energy_rtol`).
+#[derive(Debug, Clone, Copy)]
+pub struct Reuse {
+    /// Every this many steps `K x_0`, `A u` and `M v` are computed afresh, so that round-off
+    /// in the updated products cannot build up (`Midpoint::DRIFT_TARGET`).
+    pub refresh: usize,
+    pub predictor: Predictor,
+    /// The energy error a solve may leave, relative to the energy (`time::cg`).
+    pub energy_rtol: f64,
+}
+
+impl Default for Reuse {
+    fn default() -> Self {
+        Reuse { refresh: 16, predictor: Predictor::Extrapolate, energy_rtol: 1e-13 }
+    }
 }
 
 /// How stiff a step is: the CFL number `c_p tau / h_min` of the pressure wave,
@@ -78,6 +100,7 @@ impl Default for StepSolverDefaults {
             factor_solver: None,
             user_reuse_preconditioner: false,
             symmetric: true,
+            reuse: Some(Reuse::default()),
         }
     }
 }
@@ -94,6 +117,10 @@ pub struct StepOperator {
     /// Diagonal value placed on Dirichlet rows (the operator's scale, keeps it well conditioned).
     pub dirichlet_diag: f64,
     pub ksp: Ksp,
+    /// The step's own CG (steps without contact), when the KSP is CG and reuse is on.
+    pub cg: Option<StepCg>,
+    /// How often the kept products are computed afresh.
+    pub refresh: usize,
 }
 
 impl StepOperator {
@@ -148,7 +175,14 @@ impl StepOperator {
         let iterative = ksp.ksp_type()? != "preonly";
         ksp.set_initial_guess_nonzero(iterative)?;
         ksp.set_up()?;
-        Ok(StepOperator { k, k_free, dirichlet_dofs, dirichlet_diag, ksp })
+        let cg = match defaults.reuse {
+            Some(r) if ksp.ksp_type()? == "cg" => {
+                Some(StepCg::new(&k, &ksp, ksp.rtol()?, r.energy_rtol, r.predictor)?)
+            }
+            _ => None,
+        };
+        let refresh = defaults.reuse.map_or(1, |r| r.refresh.max(1));
+        Ok(StepOperator { k, k_free, dirichlet_dofs, dirichlet_diag, ksp, cg, refresh })
     }
 }
 
