@@ -96,7 +96,14 @@ fn a_stiffer_body_vibrates_faster_and_sets_the_regime() {
     // CFL 6 and the right at 12, above the crossover (10): multigrid only if the right counts.
     let scene = two_bars(&dir, "regime", "n = 20, ny = 2, gap = 1.0", 0.0, &rest("0.3", 1));
     let s = run_scene(1, &scene, &["--no-output"]);
-    assert_eq!(s.pc_type, "gamg", "the fast body's CFL 12 > 10 must select multigrid");
+    assert!((s.cfl - 12.0).abs() < 1e-9, "the regime's CFL is the fast body's: {}", s.cfl);
+    // A stiff-regime solver: multigrid, or a factorization where the run is long enough for
+    // it to pay back (`time::choice`: this small problem factors in milliseconds).
+    assert!(
+        s.pc_type == "gamg" || s.pc_type == "cholesky",
+        "the fast body's CFL 12 > 10 must select a stiff-regime solver, not {}",
+        s.pc_type
+    );
 }
 
 /// The two discs with the lower one's mass consistent and the upper one's modified: the layer

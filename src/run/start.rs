@@ -15,6 +15,7 @@ use crate::contact::ContactSolver;
 use crate::error::{Error, Result};
 use crate::io::{read_checkpoint, Checkpoint};
 use crate::petsc::Matrix;
+use crate::time::choice::RunFacts;
 use crate::time::{Dirichlet, Energy, Forces, Midpoint, StepOperator, StepSolverDefaults};
 
 /// The step operator `K = 4/tau^2 M + A` and its solver, set up once. The solver's defaults
@@ -50,6 +51,26 @@ pub fn step_operator(
         defaults.rtol = r;
     }
     defaults.user_reuse_preconditioner = app.user_reuse_preconditioner;
+    // Knowing the run's length, a factorization may pay back (`time::choice`), unless the
+    // scene or the command line names the solver (friction's GMRES stays).
+    let named = solver.ksp_type.is_some()
+        || solver.pc_type.is_some()
+        || ["-ksp_type", "-pc_type", "-step_ksp_type", "-step_pc_type"]
+            .iter()
+            .map(|o| crate::petsc::Petsc::options_has(o))
+            .collect::<Result<Vec<bool>>>()?
+            .contains(&true);
+    if !named && defaults.symmetric {
+        defaults.run = Some(RunFacts {
+            dofs: d.part.n_global_dofs(),
+            dim: d.part.dim,
+            ranks: d.size,
+            steps: d.n_steps,
+            cfl: regime.cfl,
+            contact: with_contact,
+            memory_per_rank: memory_per_rank(d),
+        });
+    }
     // The step's own CG serves steps without contact (a contact solver rewrites K's rows).
     defaults.reuse = if with_contact { None } else { app.step_reuse };
     let op = StepOperator::new(
@@ -62,13 +83,29 @@ pub fn step_operator(
         &defaults,
     )?;
     let (ksp_type, pc_type) = (op.ksp.ksp_type()?, op.ksp.pc_type()?);
-    let chosen = if pc_type == defaults.pc_type && solver.pc_type.is_none() {
-        why
-    } else {
-        "set by the scene or the command line".to_string()
+    let chosen = match &op.choice {
+        Some((_, _, reason, _)) if !named => reason.clone(),
+        _ if pc_type == defaults.pc_type && solver.pc_type.is_none() => why,
+        _ => "set by the scene or the command line".to_string(),
     };
     console.say(format!("step solver: {ksp_type} + {pc_type} ({chosen})"));
     Ok((op, regime.cfl))
+}
+
+/// The memory a rank may still use: the node's available memory (`MemAvailable`) shared by
+/// the ranks on the node. Collective.
+fn memory_per_rank(d: &Domain) -> f64 {
+    let available = std::fs::read_to_string("/proc/meminfo")
+        .ok()
+        .and_then(|s| {
+            s.lines()
+                .find(|l| l.starts_with("MemAvailable:"))
+                .and_then(|l| l.split_whitespace().nth(1)?.parse::<f64>().ok())
+        })
+        .map_or(f64::INFINITY, |kib| kib * 1024.0);
+    use mpi::traits::*;
+    let node = d.world.split_shared(0);
+    available / node.size().max(1) as f64
 }
 
 /// The initial state: the nodal interpolants of the scene's initial displacement and

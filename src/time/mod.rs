@@ -14,6 +14,7 @@
 //! energy balance is a built-in check of the integrator at every step.
 
 pub mod cg;
+pub mod choice;
 pub mod dirichlet;
 pub mod midpoint;
 pub mod operator;

@@ -3,6 +3,7 @@
 //! `KSPSetFromOptions`, then the `step_` prefix).
 
 use super::cg::{Predictor, StepCg};
+use super::choice::{self, Estimate, RunFacts, Solver};
 use crate::error::Result;
 use crate::mass::MassMatrix;
 use crate::petsc::{Ksp, Matrix, NullSpace};
@@ -24,6 +25,10 @@ pub struct StepSolverDefaults {
     /// The step's CG written out with its products kept (`time::cg`), for steps without
     /// contact; `None`: PETSc's `KSPSolve` and the products recomputed every step.
     pub reuse: Option<Reuse>,
+    /// The run, when the solver is chosen knowing it (`time::choice`; not when the scene or
+    /// the command line names the solver): the choice is made once `K` is assembled and one
+    /// product with it timed.
+    pub run: Option<RunFacts>,
 }
 
 /// The options of the step's own CG (`-step_reuse`, `-step_reuse_refresh`,
@@ -101,6 +106,7 @@ impl Default for StepSolverDefaults {
             user_reuse_preconditioner: false,
             symmetric: true,
             reuse: Some(Reuse::default()),
+            run: None,
         }
     }
 }
@@ -121,6 +127,9 @@ pub struct StepOperator {
     pub cg: Option<StepCg>,
     /// How often the kept products are computed afresh.
     pub refresh: usize,
+    /// The choice made knowing the run (`StepSolverDefaults::run`): the solver, its
+    /// estimates, the reason, and the seconds of the product with `K` it was based on.
+    pub choice: Option<(Solver, Estimate, String, f64)>,
 }
 
 impl StepOperator {
@@ -144,6 +153,26 @@ impl StepOperator {
         let dirichlet_diag = diag.norm_inf()?.max(f64::MIN_POSITIVE);
         k.zero_rows_columns(&dirichlet_dofs, dirichlet_diag, None, None)?;
         k.set_option_symmetric(defaults.symmetric)?;
+        // The solver for the run's length, once one product with K is timed.
+        let mut defaults = defaults.clone();
+        let choice = match defaults.run {
+            Some(run) => {
+                let matmult = time_product(&k)?;
+                let (solver, estimate, why) = choice::choose(&run, matmult);
+                match solver {
+                    Solver::Jacobi => defaults.pc_type = "jacobi".into(),
+                    Solver::Multigrid => defaults.pc_type = "gamg".into(),
+                    Solver::Cholesky => {
+                        defaults.ksp_type = "preonly".into();
+                        defaults.pc_type = "cholesky".into();
+                        defaults.factor_solver = Some("mumps".into());
+                    }
+                }
+                Some((solver, estimate, why, matmult))
+            }
+            None => None,
+        };
+        let defaults = &defaults;
         // Built without a prefix first so the plain -ksp_*/-pc_* options (the main solver's)
         // apply; then the prefix step_ is set and -step_ksp_*/-step_pc_* override them.
         let mut ksp = Ksp::new("")?;
@@ -182,8 +211,29 @@ impl StepOperator {
             _ => None,
         };
         let refresh = defaults.reuse.map_or(1, |r| r.refresh.max(1));
-        Ok(StepOperator { k, k_free, dirichlet_dofs, dirichlet_diag, ksp, cg, refresh })
+        Ok(StepOperator { k, k_free, dirichlet_dofs, dirichlet_diag, ksp, cg, refresh, choice })
     }
+}
+
+/// Seconds of one product with `k` (the slowest rank's, the mean of five after one).
+/// Collective.
+fn time_product(k: &Matrix) -> Result<f64> {
+    use mpi::collective::SystemOperation;
+    use mpi::traits::*;
+    let (x, mut y) = k.create_vecs()?;
+    let mut x = x;
+    x.set(1.0)?;
+    k.mult(&x, &mut y)?;
+    let world = mpi::topology::SimpleCommunicator::world();
+    world.barrier();
+    let t0 = std::time::Instant::now();
+    for _ in 0..5 {
+        k.mult(&x, &mut y)?;
+    }
+    let local = t0.elapsed().as_secs_f64() / 5.0;
+    let mut t = 0.0;
+    world.all_reduce_into(&local, &mut t, SystemOperation::max());
+    Ok(t)
 }
 
 #[cfg(test)]

@@ -1,0 +1,260 @@
+//! The step solver chosen knowing the run (issue 27): for an operator used unchanged for many
+//! steps, a sparse Cholesky factorization (MUMPS) pays back its set-up after some number of
+//! steps. [`choose`] compares the run's estimated cost both ways, from the operator's size, the
+//! run's length and regime and the time of one product with `K` (timed at set-up), and takes
+//! the factorization when it is cheaper over the run and fits in memory.
+//!
+//! The model, fitted to MUMPS 5.5 through PETSc 3.18 on this machine (AMD EPYC, 1 rank;
+//! README "Step solver by run length"), nested-dissection orderings:
+//!
+//! ```text
+//!   factor flops   3D: 4.2 n^2        2D: 26.5 n^1.5           (n = DOFs)
+//!   factor entries 3D: 12.2e6 (n/36663)^1.43   2D: 25.7e6 (n/330498)^1.16
+//!   factor seconds flops / (6e9 p^0.5) + 4e-6 n / p          (p = ranks)
+//!   factor memory  12 bytes an entry (MUMPS's INFOG(16): 10.5-13.2), 1.25 / p per rank on p > 1
+//!   a solve        35 products with K (measured 27-42 on five problems, 2D and 3D)
+//! ```
+//! and the iterative solvers in products with `K` per step (KSP iterations times the products
+//! an iteration costs): CG + Jacobi `2 + 20 CFL` (1.2-1.6 iterations on the beam at CFL 0.05,
+//! 621 on the 3D block at CFL 33), CG + GAMG `8 (2 + 0.8 CFL)` (29 iterations of 8 products at
+//! CFL 33 in 3D) plus a set-up of 400 products.
+
+use super::operator::{GAMG_ABOVE_CFL, GAMG_ABOVE_CFL_CONTACT};
+
+/// What the choice knows of the run.
+#[derive(Debug, Clone, Copy)]
+pub struct RunFacts {
+    /// Unknowns of the step operator.
+    pub dofs: usize,
+    pub dim: usize,
+    pub ranks: usize,
+    /// Steps the run will take.
+    pub steps: usize,
+    pub cfl: f64,
+    /// A contact solver rewrites rows of `K` when the active set changes: a factorization
+    /// would be redone (not chosen for such runs yet).
+    pub contact: bool,
+    /// Memory a rank may still use, in bytes.
+    pub memory_per_rank: f64,
+}
+
+/// The step solver chosen.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Solver {
+    /// CG + Jacobi.
+    Jacobi,
+    /// CG + GAMG.
+    Multigrid,
+    /// A sparse Cholesky factorization (MUMPS), one solve a step.
+    Cholesky,
+}
+
+/// The estimates behind a choice (seconds, bytes).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Estimate {
+    pub factor_seconds: f64,
+    pub factor_bytes_per_rank: f64,
+    /// The whole run's step solves with the factorization (its set-up included) and with the
+    /// iterative solver.
+    pub cholesky_seconds: f64,
+    pub iterative_seconds: f64,
+    /// Steps after which the factorization has paid for itself (infinite: never).
+    pub payback_steps: f64,
+}
+
+/// Products with `K` a factorization's solve costs.
+pub const CHOLESKY_SOLVE_PRODUCTS: f64 = 35.0;
+/// A factorization may take this share of the memory a rank may still use.
+pub const MEMORY_SHARE: f64 = 0.5;
+
+/// The factorization's entries (nested dissection fill, fitted).
+pub fn factor_entries(dofs: usize, dim: usize) -> f64 {
+    let n = dofs as f64;
+    if dim >= 3 {
+        12.2e6 * (n / 36663.0).powf(1.43)
+    } else {
+        25.7e6 * (n / 330498.0).powf(1.16)
+    }
+}
+
+/// The factorization's floating-point operations (fitted).
+pub fn factor_flops(dofs: usize, dim: usize) -> f64 {
+    let n = dofs as f64;
+    if dim >= 3 {
+        4.2 * n * n
+    } else {
+        26.5 * n.powf(1.5)
+    }
+}
+
+/// Products with `K` a step of the iterative solver costs, and its set-up in products.
+pub fn iterative_products(solver: Solver, cfl: f64) -> (f64, f64) {
+    match solver {
+        Solver::Multigrid => (8.0 * (2.0 + 0.8 * cfl), 400.0),
+        _ => (2.0 + 20.0 * cfl, 0.0),
+    }
+}
+
+/// The iterative solver the regime picks (README "Step solver by regime": measured crossovers).
+pub fn iterative(cfl: f64, contact: bool) -> Solver {
+    let limit = if contact { GAMG_ABOVE_CFL_CONTACT } else { GAMG_ABOVE_CFL };
+    if cfl > limit {
+        Solver::Multigrid
+    } else {
+        Solver::Jacobi
+    }
+}
+
+/// The estimates for a run, `matmult` the seconds of one product with `K`.
+pub fn estimate(f: &RunFacts, matmult: f64) -> Estimate {
+    let p = f.ranks.max(1) as f64;
+    let n = f.dofs as f64;
+    let factor_seconds = factor_flops(f.dofs, f.dim) / (6e9 * p.sqrt()) + 4e-6 * n / p;
+    let spread = if f.ranks > 1 { 1.25 } else { 1.0 };
+    let factor_bytes_per_rank = 12.0 * factor_entries(f.dofs, f.dim) * spread / p;
+    let (per_step, setup) = iterative_products(iterative(f.cfl, f.contact), f.cfl);
+    let steps = f.steps as f64;
+    let iterative_seconds = (setup + steps * per_step) * matmult;
+    let cholesky_seconds = factor_seconds + steps * CHOLESKY_SOLVE_PRODUCTS * matmult;
+    let saved = (per_step - CHOLESKY_SOLVE_PRODUCTS) * matmult;
+    let payback_steps =
+        if saved > 0.0 { (factor_seconds - setup * matmult) / saved } else { f64::INFINITY };
+    Estimate {
+        factor_seconds,
+        factor_bytes_per_rank,
+        cholesky_seconds,
+        iterative_seconds,
+        payback_steps,
+    }
+}
+
+/// The step solver for the run, its estimates and the reason (for the run's report).
+pub fn choose(f: &RunFacts, matmult: f64) -> (Solver, Estimate, String) {
+    let it = iterative(f.cfl, f.contact);
+    let e = estimate(f, matmult);
+    let name = match it {
+        Solver::Multigrid => "multigrid",
+        _ => "Jacobi",
+    };
+    let mib = e.factor_bytes_per_rank / 1048576.0;
+    if f.contact {
+        return (it, e, format!("CFL {:.3}, contact: {name}", f.cfl));
+    }
+    if e.payback_steps.is_infinite() {
+        return (
+            it,
+            e,
+            format!("CFL {:.3}: {name} (a factorization's solve costs more than a step)", f.cfl),
+        );
+    }
+    if e.cholesky_seconds >= e.iterative_seconds {
+        return (
+            it,
+            e,
+            format!(
+                "CFL {:.3}: {name}; a Cholesky factorization (est. {:.1} s) would pay back after {:.0} steps, the run has {}",
+                f.cfl, e.factor_seconds, e.payback_steps, f.steps
+            ),
+        );
+    }
+    if e.factor_bytes_per_rank > MEMORY_SHARE * f.memory_per_rank {
+        return (
+            it,
+            e,
+            format!(
+                "CFL {:.3}: {name}; a Cholesky factorization would pay back after {:.0} of {} steps but needs est. {mib:.0} MiB per rank, more than half of the {:.0} MiB free",
+                f.cfl,
+                e.payback_steps,
+                f.steps,
+                f.memory_per_rank / 1048576.0
+            ),
+        );
+    }
+    (
+        Solver::Cholesky,
+        e,
+        format!(
+            "CFL {:.3}, {} steps: Cholesky (MUMPS), est. {:.1} s and {mib:.0} MiB per rank to factor, paid back after {:.0} steps ({name}: est. {:.0} s of solves, Cholesky {:.0} s)",
+            f.cfl, f.steps, e.factor_seconds, e.payback_steps, e.iterative_seconds, e.cholesky_seconds
+        ),
+    )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The 3D block of the benchmark: 265923 DOFs, CFL 32.8, one product 6.5 ms (1 rank).
+    fn block(steps: usize) -> RunFacts {
+        RunFacts {
+            dofs: 265923,
+            dim: 3,
+            ranks: 1,
+            steps,
+            cfl: 32.8,
+            contact: false,
+            memory_per_rank: 20e9,
+        }
+    }
+
+    #[test]
+    fn the_model_reproduces_the_measurements_it_was_fitted_to() {
+        // Measured (1 rank): factor + analysis 50.5 s, 210.4e6 entries, 2204 MB (MUMPS's
+        // INFOG(16)) for the 3D block; 8.9 s, 93.4e6 entries, 1231 MB for the 2D beam at
+        // 1008450 DOFs.
+        let e = estimate(&block(1), 6.5e-3);
+        assert!((e.factor_seconds / 50.5 - 1.0).abs() < 0.1, "{}", e.factor_seconds);
+        assert!((factor_entries(265923, 3) / 210.4e6 - 1.0).abs() < 0.1);
+        assert!((e.factor_bytes_per_rank / 2204e6 - 1.0).abs() < 0.2);
+        let beam = RunFacts { dofs: 1008450, dim: 2, cfl: 0.05, ..block(1) };
+        let e = estimate(&beam, 8.6e-3);
+        assert!((e.factor_seconds / 8.9 - 1.0).abs() < 0.1, "{}", e.factor_seconds);
+        assert!((factor_entries(1008450, 2) / 93.4e6 - 1.0).abs() < 0.1);
+    }
+
+    #[test]
+    fn a_long_stiff_run_factors_and_a_short_one_does_not() {
+        let e = estimate(&block(1), 6.5e-3);
+        let crossover = e.payback_steps;
+        // (50.5 - 2.6) s / ((230 - 35) * 6.5 ms): about 40 steps.
+        assert!(crossover > 20.0 && crossover < 80.0, "payback after {crossover} steps");
+        let below = (crossover * 0.9) as usize;
+        let above = (crossover * 1.1) as usize + 1;
+        assert_eq!(choose(&block(below), 6.5e-3).0, Solver::Multigrid);
+        assert_eq!(choose(&block(above), 6.5e-3).0, Solver::Cholesky);
+    }
+
+    #[test]
+    fn the_factorization_must_fit() {
+        let mut f = block(10_000);
+        assert_eq!(choose(&f, 6.5e-3).0, Solver::Cholesky);
+        let need = estimate(&f, 6.5e-3).factor_bytes_per_rank;
+        f.memory_per_rank = need / MEMORY_SHARE * 0.99;
+        assert_eq!(choose(&f, 6.5e-3).0, Solver::Multigrid);
+        f.memory_per_rank = need / MEMORY_SHARE * 1.01;
+        assert_eq!(choose(&f, 6.5e-3).0, Solver::Cholesky);
+    }
+
+    #[test]
+    fn mass_dominated_steps_never_factor() {
+        // The beam at CFL 0.05: a step costs 3 products, a solve 35.
+        let beam = RunFacts { dofs: 1008450, dim: 2, cfl: 0.05, ..block(1_000_000) };
+        let (s, e, _) = choose(&beam, 8.6e-3);
+        assert_eq!(s, Solver::Jacobi);
+        assert!(e.payback_steps.is_infinite());
+        // At the Jacobi-to-multigrid crossover a long run factors.
+        let stiff = RunFacts { cfl: GAMG_ABOVE_CFL, ..beam };
+        assert_eq!(choose(&stiff, 8.6e-3).0, Solver::Cholesky);
+        // Just where Jacobi's steps cost as much as a solve, never.
+        let even = RunFacts { cfl: (CHOLESKY_SOLVE_PRODUCTS - 2.0) / 20.0, ..beam };
+        assert!(estimate(&even, 8.6e-3).payback_steps.is_infinite());
+    }
+
+    #[test]
+    fn contact_runs_keep_the_iterative_solver() {
+        let f = RunFacts { contact: true, ..block(1_000_000) };
+        assert_eq!(choose(&f, 6.5e-3).0, Solver::Multigrid);
+        let f = RunFacts { contact: true, cfl: 20.0, ..block(1_000_000) };
+        assert_eq!(choose(&f, 6.5e-3).0, Solver::Jacobi);
+    }
+}
