@@ -11,6 +11,9 @@ use std::process::Command;
 
 use massfree::report::RunSummary;
 
+#[path = "scaling/step_floor.rs"]
+mod step_floor;
+
 struct Case {
     scene: &'static str,
     h: &'static str,
@@ -131,7 +134,7 @@ fn main() {
         std::process::exit(1);
     }
     let quick = args.iter().any(|a| a == "--quick");
-    // --only scaling|solvers|mass|disc|contact3d|two_body|friction|output|stress|suite|setup runs one
+    // --only scaling|solvers|mass|disc|contact3d|two_body|friction|output|stress|suite|setup|step runs one
     // section.
     let only = args.iter().position(|a| a == "--only").and_then(|i| args.get(i + 1)).cloned();
     let want = |section: &str| only.as_deref().is_none_or(|o| o == section);
@@ -779,6 +782,11 @@ fn main() {
     }
     if want("setup") {
         md += &setup_section(quick);
+    }
+    if want("step") {
+        // --baseline BIN: the same cases with the build before issue 27, for the ratios.
+        let baseline = args.iter().position(|a| a == "--baseline").and_then(|i| args.get(i + 1));
+        md += &step_floor::section(&repo(), &bench_dir(), quick, baseline.map(Path::new));
     }
     let path = bench_dir().join("scaling.md");
     std::fs::write(&path, &md).unwrap();
