@@ -88,7 +88,7 @@ pub fn factor_flops(dofs: usize, dim: usize) -> f64 {
 }
 
 /// Products with `K` a step of the iterative solver costs, and its set-up in products
-/// (fitted to the table over CFL 0.3-100 of README "Step solver by run length": 2D Q1 and 3D
+/// (fitted to the table over CFL 0.3-100 of README "Benchmark: the step floor": 2D Q1 and 3D
 /// P1, free vibration, 1 rank).
 pub fn iterative_products(solver: Solver, cfl: f64, dim: usize) -> (f64, f64) {
     let three = dim >= 3;
