@@ -153,6 +153,70 @@ impl Matrix {
         Ok(out)
     }
 
+    /// Whether the storage is (non-symmetric) block AIJ: `seqbaij` or `mpibaij`.
+    fn is_plain_baij(&self) -> Result<bool> {
+        let mut t: ffi::MatType = ptr::null();
+        // SAFETY: valid handle; PETSc returns a pointer to its static type name.
+        chk!(ffi::MatGetType(self.m, &mut t))?;
+        // SAFETY: `t` is a NUL-terminated C string owned by PETSc.
+        let name = unsafe { std::ffi::CStr::from_ptr(t) }.to_string_lossy();
+        Ok(name == "seqbaij" || name == "mpibaij")
+    }
+
+    /// A BAIJ copy built as [`new_baij`](Matrix::new_baij) builds one, with exact
+    /// preallocation, instead of `MatDuplicate`: PETSc's `MatDuplicate_SeqBAIJ` (3.18, and
+    /// still on main) creates the copy with `MatSetType(MATSEQBAIJ)`, whose operation table
+    /// has the generic `MatMult_SeqBAIJ_N`, and never runs the block-size switch of
+    /// `MatSeqBAIJSetPreallocation_SeqBAIJ` that selects `MatMult_SeqBAIJ_3` and friends. A
+    /// duplicated 3 x 3 BAIJ matrix multiplied 6.5 times slower than its original.
+    fn baij_copy(&self, copy_values: bool) -> Result<Matrix> {
+        let (mut rbs, mut cbs) = (0, 0);
+        // SAFETY: valid handle; out-pointers are locals.
+        chk!(ffi::MatGetBlockSizes(self.m, &mut rbs, &mut cbs))?;
+        let bs = to_usize(rbs).max(1);
+        let (lo, hi) = self.range;
+        let (mut clo, mut chi) = (0, 0);
+        // SAFETY: valid handle; out-pointers are locals.
+        chk!(ffi::MatGetOwnershipRangeColumn(self.m, &mut clo, &mut chi))?;
+        let nb = (hi - lo) / bs;
+        let (mut d_nnz, mut o_nnz) = (vec![0i32; nb], vec![0i32; nb]);
+        for ib in 0..nb {
+            // BAIJ rows list whole blocks: one column in `bs` starts a block.
+            self.with_row(lo + ib * bs, |cols, _| {
+                for &c in cols.iter().filter(|&&c| c % rbs == 0) {
+                    if c >= clo && c < chi {
+                        d_nnz[ib] += 1;
+                    } else {
+                        o_nnz[ib] += 1;
+                    }
+                }
+            })?;
+        }
+        let mut out = Matrix::new_baij(hi - lo, self.size.0, bs, &d_nnz, &o_nnz)?;
+        for r in lo..hi {
+            let row = [to_int(r, "Matrix::duplicate row")?];
+            self.with_row(r, |cols, vals| {
+                // SAFETY: `out` is a preallocated BAIJ with this row's blocks; PETSc copies
+                // the `cols.len()` indices and values.
+                chk!(ffi::MatSetValues(
+                    out.m,
+                    1,
+                    row.as_ptr(),
+                    cols.len() as i32,
+                    cols.as_ptr(),
+                    vals.as_ptr(),
+                    ffi::InsertMode_INSERT_VALUES
+                ))
+            })??;
+        }
+        out.assemble()?;
+        if !copy_values {
+            // SAFETY: valid assembled handle; keeps the pattern.
+            chk!(ffi::MatZeroEntries(out.m))?;
+        }
+        Ok(out)
+    }
+
     /// Whether the storage is block AIJ.
     pub fn is_baij(&self) -> Result<bool> {
         let mut t: ffi::MatType = ptr::null();
@@ -262,6 +326,9 @@ impl Matrix {
     /// A matrix with the same layout and nonzero pattern; values copied if `copy_values`,
     /// zero otherwise.
     pub fn duplicate(&self, copy_values: bool) -> Result<Matrix> {
+        if self.is_plain_baij()? {
+            return self.baij_copy(copy_values);
+        }
         let op = if copy_values {
             ffi::MatDuplicateOption_MAT_COPY_VALUES
         } else {
