@@ -103,6 +103,19 @@ fn sum_over_ranks<const N: usize>(local: [f64; N]) -> [f64; N] {
     all
 }
 
+/// This rank's `[r.z, x.b, x.r]`.
+fn local_sums(r: &Vector, z: &Vector, x: &Vector, b: &Vector) -> Result<[f64; 3]> {
+    Vector::with_slices([r, z, x, b], [], |[r, z, x, b], []| {
+        let (mut rz, mut xb, mut xr) = (0.0, 0.0, 0.0);
+        for i in 0..r.len() {
+            rz += r[i] * z[i];
+            xb += x[i] * b[i];
+            xr += x[i] * r[i];
+        }
+        [rz, xb, xr]
+    })
+}
+
 impl StepCg {
     /// For the operator `k` whose KSP `ksp` is set up: Jacobi inside the passes when the
     /// KSP's preconditioner is `jacobi`, else PETSc's through `PCApply`.
@@ -323,16 +336,7 @@ impl StepCg {
                 })?;
                 ksp.pc_apply(&self.r, z)?;
                 self.p.copy_from(z)?;
-                let [rz, xb, xr] =
-                    Vector::with_slices([&self.r, z, x, b], [], |[r, z, x, b], []| {
-                        let (mut rz, mut xb, mut xr) = (0.0, 0.0, 0.0);
-                        for i in 0..r.len() {
-                            rz += r[i] * z[i];
-                            xb += x[i] * b[i];
-                            xr += x[i] * r[i];
-                        }
-                        [rz, xb, xr]
-                    })?;
+                let [rz, xb, xr] = local_sums(&self.r, z, x, b)?;
                 [rz, xb, xr, bb]
             }
         };
@@ -377,15 +381,7 @@ impl StepCg {
                     }
                 })?;
                 ksp.pc_apply(&self.r, z)?;
-                Vector::with_slices([&self.r, z, x, b], [], |[r, z, x, b], []| {
-                    let (mut rz, mut xb, mut xr) = (0.0, 0.0, 0.0);
-                    for i in 0..r.len() {
-                        rz += r[i] * z[i];
-                        xb += x[i] * b[i];
-                        xr += x[i] * r[i];
-                    }
-                    [rz, xb, xr]
-                })?
+                local_sums(&self.r, z, x, b)?
             }
         };
         Ok(sum_over_ranks(local))

@@ -142,10 +142,20 @@ impl StepOperator {
         near_null_space: Option<&dyn Fn() -> Result<NullSpace>>,
         defaults: &StepSolverDefaults,
     ) -> Result<StepOperator> {
-        // K is AIJ whatever A's storage: multigrid, factorizations and the contact solvers'
-        // row edits need it, and PETSc's AIJ products (inodes) were 1.7 times faster than
-        // block AIJ's with 3 x 3 blocks (266k DOFs, 2 ranks; README "Scale out").
-        let mut k = a.to_aij()?;
+        // K is AIJ first: multigrid, factorizations and the contact solvers' row edits need
+        // it (issue 26's "block AIJ 1.7 times slower" was a MatDuplicate copy of A, which
+        // keeps PETSc's generic block kernel: `Matrix::duplicate` now rebuilds such copies).
+        // In 3D without contact, where the regime's solver is CG + Jacobi, K in A's 3 x 3
+        // blocks: its products were 1.4-1.5 times faster than AIJ's (4.6 against 6.6 ms at
+        // 266k DOFs; README "A step near the floor"). In 2D AIJ is as fast.
+        let blocked = defaults.reuse.is_some()
+            && defaults.ksp_type == "cg"
+            && defaults.pc_type == "jacobi"
+            && defaults.run.is_some_and(|r| {
+                r.dim == 3 && choice::iterative(r.cfl, r.contact) == Solver::Jacobi
+            })
+            && a.is_baij()?;
+        let mut k = if blocked { a.duplicate(true)? } else { a.to_aij()? };
         m.add_to(&mut k, 4.0 / (tau * tau))?;
         let k_free = if keep_free { Some(k.duplicate(true)?) } else { None };
         let mut diag = k.create_vecs()?.0;
@@ -173,6 +183,12 @@ impl StepOperator {
             None => None,
         };
         let defaults = &defaults;
+        // K in A's blocks stays only for CG + Jacobi (the choice may have factored).
+        if k.is_baij()? && !(defaults.ksp_type == "cg" && defaults.pc_type == "jacobi") {
+            k = k.to_aij()?;
+            k.set_option_symmetric(defaults.symmetric)?;
+            crate::phase::release_free_memory();
+        }
         // Built without a prefix first so the plain -ksp_*/-pc_* options (the main solver's)
         // apply; then the prefix step_ is set and -step_ksp_*/-step_pc_* override them.
         let mut ksp = Ksp::new("")?;
