@@ -4,8 +4,6 @@
 //! operator and the peak memory. Free functions of the run's [`Domain`]; collective where
 //! they reduce over the ranks.
 
-use std::time::Instant;
-
 use mpi::collective::SystemOperation;
 use mpi::traits::*;
 
@@ -18,7 +16,7 @@ use crate::contact::ContactSolver;
 use crate::error::Result;
 use crate::fem::kernels;
 use crate::mass::{MassFreeLayer, MassMatrix};
-use crate::petsc::{Matrix, Vector};
+use crate::petsc::Vector;
 use crate::report::MassCheck;
 
 /// Mass-matrix diagnostics, computed once: total mass, first and second moments per component
@@ -348,20 +346,6 @@ pub fn exact_errors(
     let l2 = sum_over_ranks(d.world, l2).sqrt();
     let h1 = sum_over_ranks(d.world, h1).sqrt();
     Ok(Some((l2, h1)))
-}
-
-/// Mean wall time of one `y = K x` (max over ranks), timed after the run: the unit in which
-/// the benchmark expresses the cost of a step.
-pub fn time_matmult(d: &Domain, k: &Matrix, x: &Vector, y: &mut Vector) -> Result<f64> {
-    let reps = 20;
-    k.mult(x, y)?;
-    d.world.barrier();
-    let t0 = Instant::now();
-    for _ in 0..reps {
-        k.mult(x, y)?;
-    }
-    let dt = t0.elapsed().as_secs_f64() / reps as f64;
-    Ok(max_over_ranks(d.world, dt))
 }
 
 /// Peak resident set size of this process (VmHWM), in MiB; 0 where /proc is unavailable.

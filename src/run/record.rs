@@ -232,8 +232,12 @@ pub fn summarize(
     pictures: Vec<PathBuf>,
 ) -> Result<RunSummary> {
     let mut scratch = midpoint.u().duplicate()?;
-    let matmult_seconds =
-        diagnostics::time_matmult(d, &midpoint.operator().k, midpoint.v(), &mut scratch)?;
+    let matmult_seconds = crate::time::operator::time_product(
+        &midpoint.operator().k,
+        midpoint.v(),
+        &mut scratch,
+        20,
+    )?;
     let peak_memory_mib = sum_over_ranks(d.world, diagnostics::peak_rss_mib());
     let peak_memory_rank_mib = max_over_ranks(d.world, diagnostics::peak_rss_mib());
     let p1 = diagnostics::momentum(d, midpoint.mv())?;

@@ -93,7 +93,7 @@ pub fn step_operator(
 }
 
 /// The memory a rank may still use: the node's available memory (`MemAvailable`) shared by
-/// the ranks on the node. Collective.
+/// the ranks on the node, the least over the nodes. Collective.
 fn memory_per_rank(d: &Domain) -> f64 {
     let available = std::fs::read_to_string("/proc/meminfo")
         .ok()
@@ -105,7 +105,11 @@ fn memory_per_rank(d: &Domain) -> f64 {
         .map_or(f64::INFINITY, |kib| kib * 1024.0);
     use mpi::traits::*;
     let node = d.world.split_shared(0);
-    available / node.size().max(1) as f64
+    // The smallest over the ranks: every rank must make the same choice.
+    let mine = available / node.size().max(1) as f64;
+    let mut least = mine;
+    d.world.all_reduce_into(&mine, &mut least, mpi::collective::SystemOperation::min());
+    least
 }
 
 /// The initial state: the nodal interpolants of the scene's initial displacement and

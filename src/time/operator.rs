@@ -6,7 +6,7 @@ use super::cg::{Predictor, StepCg};
 use super::choice::{self, Estimate, RunFacts, Solver};
 use crate::error::Result;
 use crate::mass::MassMatrix;
-use crate::petsc::{Ksp, Matrix, NullSpace};
+use crate::petsc::{Ksp, Matrix, NullSpace, Vector};
 
 /// Solver defaults for the step operator, applied before `KSPSetFromOptions` so that the
 /// command line wins: plain `-ksp_*`/`-pc_*` options, and `-step_ksp_*`/`-step_pc_*` over them.
@@ -167,7 +167,9 @@ impl StepOperator {
         let mut defaults = defaults.clone();
         let choice = match defaults.run {
             Some(run) => {
-                let matmult = time_product(&k)?;
+                let (mut x, mut y) = k.create_vecs()?;
+                x.set(1.0)?;
+                let matmult = time_product(&k, &x, &mut y, 5)?;
                 let (solver, estimate, why) = choice::choose(&run, matmult);
                 match solver {
                     Solver::Jacobi => defaults.pc_type = "jacobi".into(),
@@ -231,22 +233,19 @@ impl StepOperator {
     }
 }
 
-/// Seconds of one product with `k` (the slowest rank's, the mean of five after one).
-/// Collective.
-fn time_product(k: &Matrix) -> Result<f64> {
+/// Seconds of one product `y = k x`: the slowest rank's mean of `reps` after one. Collective.
+/// (The run's summary reports it; the choice by run length bases its estimates on it.)
+pub fn time_product(k: &Matrix, x: &Vector, y: &mut Vector, reps: usize) -> Result<f64> {
     use mpi::collective::SystemOperation;
     use mpi::traits::*;
-    let (x, mut y) = k.create_vecs()?;
-    let mut x = x;
-    x.set(1.0)?;
-    k.mult(&x, &mut y)?;
+    k.mult(x, y)?;
     let world = mpi::topology::SimpleCommunicator::world();
     world.barrier();
     let t0 = std::time::Instant::now();
-    for _ in 0..5 {
-        k.mult(&x, &mut y)?;
+    for _ in 0..reps.max(1) {
+        k.mult(x, y)?;
     }
-    let local = t0.elapsed().as_secs_f64() / 5.0;
+    let local = t0.elapsed().as_secs_f64() / reps.max(1) as f64;
     let mut t = 0.0;
     world.all_reduce_into(&local, &mut t, SystemOperation::max());
     Ok(t)
