@@ -104,13 +104,19 @@ fn a_block_sliding_off_the_end_lets_go_triangles() {
 /// release included: the same active sets, and forces to 1e-8 of the peak while the block
 /// slides on the flat (steps up to 300; measured 9e-11 and 2e-10, CG to 1e-14 and the
 /// geometry to 1e-12 of a facet). Tipping over the edge (steps 330-385: the block turns about
-/// its corner on the master's end) amplifies round-off of any kind: there the ranks may differ
-/// by ten times what one rank gives with another solver (Cholesky against CG to 1e-14,
-/// measured 8e-8 of the peak), and the active sets must still agree. The ranks are compared
-/// with CG, which repeats exactly for a given rank count: MUMPS's parallel factorization does
-/// not (dynamic scheduling; two identical 2-rank runs differed by 7e-8 of the peak, and at the
-/// tipping such a difference sometimes flipped a decision of the energy correction and moved
-/// the history by 4e-6, a test that failed now and then).
+/// its corner on the master's end) amplifies round-off of any kind a thousand times, and
+/// there it can flip a decision of the energy correction: when the work of steady steps,
+/// collected up to `-massless_drift_rtol` of the energy, is put back (README "Impacts that
+/// keep their energy"). A flipped decision moves the history by what moving that bound does:
+/// measured 2.6e-6 to 1.1e-5 of the peak for a bound 2-10% off, where another solver on one
+/// rank (Cholesky against CG to 1e-14) moves it by 8e-8. Over the whole run the ranks must
+/// therefore agree to ten times the solver's effect or to the effect of the bound moved by
+/// 10% either way (one rank), whichever is larger; the active sets must agree everywhere.
+/// (CI once saw 3 ranks differ by 4.1e-6: with 3 ranks PETSc adds the off-process entries of
+/// `T^T K T` in the order the messages arrive, so identical runs differ in round-off from
+/// step 122 on, and one of them flipped such a decision.) The ranks are compared with CG,
+/// which repeats exactly for 1 and 2 ranks: MUMPS's parallel factorization does not (dynamic
+/// scheduling; two identical 2-rank runs differed by 7e-8 of the peak).
 #[test]
 fn sliding_does_not_depend_on_the_number_of_ranks() {
     let dir = scratch("slide-off-ranks");
@@ -136,14 +142,26 @@ fn sliding_does_not_depend_on_the_number_of_ranks() {
     // How much the run moves with the solver's round-off alone, on one rank.
     let cg = ["-ksp_rtol", "1e-14"];
     let (f_direct, _) = series(1, &direct);
+    // And with the energy correction's decisions moved: the drift bound (default 1e-7) 10%
+    // lower and higher.
+    let moved: Vec<_> = ["0.9e-7", "1.1e-7"]
+        .iter()
+        .map(|b| series(1, &["-ksp_rtol", "1e-14", "-massless_drift_rtol", b]).0)
+        .collect();
     let runs: Vec<_> = [1, 2, 3].iter().map(|&r| series(r, &cg)).collect();
     let (f1, a1) = &runs[0];
     let fmax = f1.iter().fold(0.0f64, |m, x| m.max(x.abs()));
-    let sensitivity = step_differences(f1, &f_direct).into_iter().fold(0.0f64, f64::max);
+    let largest =
+        |g: &ndarray::Array2<f64>| step_differences(f1, g).into_iter().fold(0.0, f64::max);
+    let sensitivity = largest(&f_direct);
+    let decisions = moved.iter().map(largest).fold(0.0f64, f64::max);
     eprintln!(
-        "one rank, Cholesky against CG: forces differ by {:.2e} of the peak",
-        sensitivity / fmax
+        "one rank, Cholesky against CG: forces differ by {:.2e} of the peak; the drift bound moved by 10%: {:.2e}",
+        sensitivity / fmax,
+        decisions / fmax
     );
+    // The bound moved must move something (else it would not measure the decisions).
+    assert!(decisions > 0.0, "moving -massless_drift_rtol by 10% changed nothing");
     for (k, (f, a)) in runs[1..].iter().enumerate() {
         assert_eq!(a1, a, "{} ranks: active sets differ", k + 2);
         let d = step_differences(f1, f);
@@ -161,8 +179,8 @@ fn sliding_does_not_depend_on_the_number_of_ranks() {
             k + 2
         );
         assert!(
-            all <= (10.0 * sensitivity).max(1e-8 * fmax),
-            "{} ranks: forces differ by {all:e}, one rank with another solver by {sensitivity:e}",
+            all <= (10.0 * sensitivity).max(decisions).max(1e-8 * fmax),
+            "{} ranks: forces differ by {all:e}, one rank with another solver by {sensitivity:e}, with the drift bound moved by {decisions:e}",
             k + 2
         );
     }

@@ -291,7 +291,12 @@ impl<'a> Simulation<'a> {
         // The energy correction of contact steps with massless DOFs (on unless
         // `-massless_energy_correction false`).
         let correct = self.app.massless_energy_correction;
-        midpoint.configure_massless(correct, d.part.dim, diagnostics::node_bodies(d))?;
+        midpoint.configure_massless(
+            correct,
+            self.app.massless_drift_rtol,
+            d.part.dim,
+            diagnostics::node_bodies(d),
+        )?;
         let restart = match &self.opts.restart {
             Some(path) => Some(start::restore(
                 d,

@@ -87,6 +87,10 @@ pub struct AppOptions {
     /// massless DOFs, a contact step whose active set changed gets the force that takes out
     /// the work the contact did (`time::Midpoint::correct_energy`).
     pub massless_energy_correction: bool,
+    /// `-massless_drift_rtol X` (default `time::Midpoint::DRIFT_RTOL`, 1e-7): following the
+    /// bodies, the work of steady contact steps is collected up to this fraction of the
+    /// energy before the correction puts it back.
+    pub massless_drift_rtol: Option<f64>,
     /// `-ksp_reuse_preconditioner` or `-step_ksp_reuse_preconditioner` given (PETSc's own
     /// options; default not given): PETSc's value holds. Without them a multigrid step
     /// preconditioner is built once and kept when the contact rewrites the operator.
@@ -136,6 +140,10 @@ impl AppOptions {
             massless_energy_correction: massless_energy_correction(
                 Petsc::options_get_string("-massless_energy_correction")?.as_deref(),
             )?,
+            massless_drift_rtol: positive(
+                "-massless_drift_rtol",
+                Petsc::options_get_real("-massless_drift_rtol")?,
+            )?,
             user_reuse_preconditioner: Petsc::options_has("-ksp_reuse_preconditioner")?
                 || Petsc::options_has("-step_ksp_reuse_preconditioner")?,
             step_reuse: step_reuse(
@@ -182,7 +190,7 @@ fn mortar_jacobian(value: Option<String>) -> Result<bool> {
 fn positive(name: &str, value: Option<f64>) -> Result<Option<f64>> {
     match value {
         Some(x) if !(x > 0.0 && x.is_finite()) => {
-            Err(Error::Scene(format!("{name} {x}: give a positive length")))
+            Err(Error::Scene(format!("{name} {x}: give a positive number")))
         }
         v => Ok(v),
     }

@@ -107,6 +107,9 @@ pub struct Midpoint {
     /// (the midpoint rule's error on the moving geometry), collected until it exceeds
     /// [`Midpoint::DRIFT_RTOL`] of the energy and then put back like an activation's.
     drift: f64,
+    /// The bound of `drift` as a fraction of the energy ([`Midpoint::DRIFT_RTOL`] unless
+    /// `-massless_drift_rtol` says otherwise).
+    drift_rtol: f64,
     /// Whether the energy of steps whose active set changed is corrected.
     correct: bool,
     /// The energy correction's right-hand side and work vectors `(M du, -2 xi M du)`.
@@ -205,6 +208,7 @@ impl Midpoint {
             corrections: Corrections::default(),
             corrections_this_step: 0,
             drift: 0.0,
+            drift_rtol: Self::DRIFT_RTOL,
             correct: false,
             rhs_corr: None,
             corr: None,
@@ -350,12 +354,14 @@ impl Midpoint {
     }
 
     /// Correct the energy of contact steps from now on ([`Midpoint::correct_energy`]) when
-    /// `correct` and there are massless DOFs; `dim` components per node, `groups` the body of
-    /// each owned node in DOF order (the correction keeps each body's momentum; empty: one
-    /// body). Collective.
+    /// `correct` and there are massless DOFs, steady steps' work collected up to `drift_rtol`
+    /// of the energy (`None`: [`Midpoint::DRIFT_RTOL`]); `dim` components per node, `groups`
+    /// the body of each owned node in DOF order (the correction keeps each body's momentum;
+    /// empty: one body). Collective.
     pub fn configure_massless(
         &mut self,
         correct: bool,
+        drift_rtol: Option<f64>,
         dim: usize,
         groups: Vec<u32>,
     ) -> Result<()> {
@@ -369,6 +375,7 @@ impl Midpoint {
         self.massless()?;
         let any = self.massless.as_ref().expect("found").1;
         self.correct = correct && any;
+        self.drift_rtol = drift_rtol.unwrap_or(Self::DRIFT_RTOL);
         self.corrections.enabled = self.correct;
         Ok(())
     }
@@ -682,7 +689,7 @@ impl Midpoint {
             let mut steady = false;
             if self.correct && follows && !changed && self.corrections.pending == 0.0 {
                 let scale = self.energy.total().abs().max(self.energy.kinetic);
-                steady = (self.drift + c.work).abs() <= Self::DRIFT_RTOL * scale;
+                steady = (self.drift + c.work).abs() <= self.drift_rtol * scale;
                 if steady {
                     self.drift += c.work;
                 }
@@ -692,7 +699,7 @@ impl Midpoint {
                 // Following, what a correction leaves below a tenth of the drift's bound joins
                 // the drift (put back with the next correction) instead of another solve.
                 let slack = if follows {
-                    0.1 * Self::DRIFT_RTOL * self.energy.total().abs().max(self.energy.kinetic)
+                    0.1 * self.drift_rtol * self.energy.total().abs().max(self.energy.kinetic)
                 } else {
                     0.0
                 };
