@@ -135,7 +135,7 @@ fn main() {
     }
     let quick = args.iter().any(|a| a == "--quick");
     // --only scaling|solvers|mass|disc|contact3d|two_body|friction|output|stress|suite|setup|step runs one
-    // section.
+    // section (step:N,M some parts of it).
     let only = args.iter().position(|a| a == "--only").and_then(|i| args.get(i + 1)).cloned();
     let want = |section: &str| only.as_deref().is_none_or(|o| o == section);
     let cg_jacobi: &[&str] = &[];
@@ -783,10 +783,16 @@ fn main() {
     if want("setup") {
         md += &setup_section(quick);
     }
-    if want("step") {
+    // `--only step:3,4` runs parts of the step floor (1 beam, 2 block, 3 CFL table, 4 ball).
+    let step_parts = only
+        .as_deref()
+        .and_then(|o| o.strip_prefix("step:"))
+        .map(|p| p.split(',').filter_map(|x| x.trim().parse::<usize>().ok()).collect::<Vec<_>>());
+    if want("step") || step_parts.is_some() {
         // --baseline BIN: the same cases with the build before issue 27, for the ratios.
         let baseline = args.iter().position(|a| a == "--baseline").and_then(|i| args.get(i + 1));
-        md += &step_floor::section(&repo(), &bench_dir(), quick, baseline.map(Path::new));
+        let parts = step_parts.unwrap_or_else(|| vec![1, 2, 3, 4]);
+        md += &step_floor::section(&repo(), &bench_dir(), quick, baseline.map(Path::new), &parts);
     }
     let path = bench_dir().join("scaling.md");
     std::fs::write(&path, &md).unwrap();

@@ -4,7 +4,9 @@
 //! - the 3D block at 266k DOFs in free vibration at CFL 33, on 1 and 2 ranks, a short run
 //!   (20 steps: multigrid) and a long one (200 steps: the choice factors);
 //! - a table over CFL 0.3-100 of the three step solvers on the beam (2D) and the block (3D),
-//!   with the solver `time::choice` picks for a run of 1000 steps.
+//!   with the solver `time::choice` picks for a run of 1000 steps;
+//! - the ball dropped on the plane (contact) at 162k and 950k DOFs: a run to the contact
+//!   writes a checkpoint, and every build continues it for a few contact steps.
 //!
 //! `--baseline BIN` runs the same cases with another build (the commit before the issue) for
 //! the ratios. Products with `K` per step come from `-log_view`'s `MatMult` count (all levels
@@ -33,8 +35,9 @@ fn run(
         .arg(bin)
         .arg("run")
         .arg(scene)
-        .args(["--quiet", "--no-output", "--overwrite", "--summary"])
+        .args(["--quiet", "--overwrite", "--summary"])
         .arg(&summary)
+        .args(if args.iter().any(|a| a == "--output") { None } else { Some("--no-output") })
         .args(args)
         .env("OMPI_ALLOW_RUN_AS_ROOT", "1")
         .env("OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1")
@@ -135,7 +138,13 @@ fn strings(a: &[&str]) -> Vec<String> {
     a.iter().map(|s| s.to_string()).collect()
 }
 
-pub fn section(repo: &Path, dir: &Path, quick: bool, baseline: Option<&Path>) -> String {
+pub fn section(
+    repo: &Path,
+    dir: &Path,
+    quick: bool,
+    baseline: Option<&Path>,
+    parts: &[usize],
+) -> String {
     let current = repo.join("target/release/massfree");
     let mut builds: Vec<(&str, PathBuf)> = vec![];
     if let Some(b) = baseline {
@@ -145,80 +154,82 @@ pub fn section(repo: &Path, dir: &Path, quick: bool, baseline: Option<&Path>) ->
     let mut md = String::from("\n## Step floor (issue 27)\n");
 
     // 1. The beam, mass-dominated.
-    let h = if quick { "0.015625" } else { "0.004464285714285714" };
-    // The loads kept, the errors against the exact solution dropped (the build before the
-    // issue timed them as part of the stepping).
-    let beam = variant(repo, "beam.toml", None, &["[exact]", "[output]"], dir);
-    md += &format!(
+    if parts.contains(&1) {
+        let h = if quick { "0.015625" } else { "0.004464285714285714" };
+        // The loads kept, the errors against the exact solution dropped (the build before the
+        // issue timed them as part of the stepping).
+        let beam = variant(repo, "beam.toml", None, &["[exact]", "[output]"], dir);
+        md += &format!(
         "\nThe beam (Q1, h = {h}, the loads of section 7.1), 100 steps, no output; products per step from `-log_view` (MatMult calls with `K` and `M`, a run of 200 steps less one of 100):\n\n| build | ranks | DOFs | ms/step | KSP its/step | MatMult calls/step | step / MatMult | ms/step ratio to before |\n|---|---|---|---|---|---|---|---|\n"
     );
-    for ranks in [1, 2] {
-        let mut before = None;
-        for (name, bin) in &builds {
-            eprintln!("bench: step floor, beam, {name}, {ranks} rank(s)");
-            let args = strings(&["--param", &format!("h={h}"), "--steps", "100"]);
-            let Some((s, _)) = run(bin, ranks, &beam, &args, false, dir) else {
-                md += &format!("| {name} | {ranks} | failed |\n");
-                continue;
-            };
-            let calls = products_per_step(
-                bin,
-                ranks,
-                &beam,
-                &strings(&["--param", &format!("h={h}")]),
-                100,
-                dir,
-            );
-            let t = per_step(&s);
-            let ratio = before.map_or("-".to_string(), |b: f64| format!("{:.2}", t / b));
-            if before.is_none() {
-                before = Some(t);
-            }
-            md += &format!(
-                "| {name} | {ranks} | {} | {:.2} | {:.2} | {} | {:.2} | {ratio} |\n",
-                s.n_dofs,
-                1e3 * t,
-                s.ksp_iterations as f64 / s.steps as f64,
-                calls.map_or("-".into(), |c| format!("{c:.2}")),
-                t / s.matmult_seconds
-            );
-            print!("{}", md.lines().last().map(|l| format!("{l}\n")).unwrap_or_default());
-        }
-    }
-
-    // 2. The 3D block at CFL 33: a short and a long run.
-    let block_h = if quick { "0.1" } else { "0.05" };
-    let block = free_vibration(repo, "block_tet.toml", 0.1, dir);
-    md += &format!(
-        "\nThe 3D block (P1 tets, h = {block_h}), free vibration, tau = 0.1 (CFL 33), no output; the default solver of each build for a run of 20 and of 200 steps (`time::choice` factors the long run):\n\n| build | ranks | steps | DOFs | solver | set-up s | ms/step | KSP its/step | (set-up + stepping) / steps, ms | peak MiB/rank | ms/step ratio to before | whole-run ratio to before |\n|---|---|---|---|---|---|---|---|---|---|---|---|\n"
-    );
-    for ranks in [1, 2] {
-        for steps in [20usize, 200] {
-            let mut before: Option<(f64, f64)> = None;
+        for ranks in [1, 2] {
+            let mut before = None;
             for (name, bin) in &builds {
-                // The build before the issue runs 20 steps: its per-step cost does not depend
-                // on the run's length.
-                let n = if before.is_none() && baseline.is_some() { 20 } else { steps };
-                eprintln!("bench: step floor, block, {name}, {ranks} rank(s), {n} steps");
-                let args =
-                    strings(&["--param", &format!("h={block_h}"), "--steps", &n.to_string()]);
-                let Some((s, _)) = run(bin, ranks, &block, &args, false, dir) else {
-                    md += &format!("| {name} | {ranks} | {steps} | failed |\n");
+                eprintln!("bench: step floor, beam, {name}, {ranks} rank(s)");
+                let args = strings(&["--param", &format!("h={h}"), "--steps", "100"]);
+                let Some((s, _)) = run(bin, ranks, &beam, &args, false, dir) else {
+                    md += &format!("| {name} | {ranks} | failed |\n");
                     continue;
                 };
+                let calls = products_per_step(
+                    bin,
+                    ranks,
+                    &beam,
+                    &strings(&["--param", &format!("h={h}")]),
+                    100,
+                    dir,
+                );
                 let t = per_step(&s);
-                let whole = (s.timings.setup + s.timings.stepping) / s.steps as f64;
-                let (r1, r2) = match before {
-                    Some((b, bsetup)) => (
-                        format!("{:.2}", t / b),
-                        format!("{:.2}", whole / ((bsetup + b * steps as f64) / steps as f64)),
-                    ),
-                    None => ("-".into(), "-".into()),
-                };
+                let ratio = before.map_or("-".to_string(), |b: f64| format!("{:.2}", t / b));
                 if before.is_none() {
-                    before = Some((t, s.timings.setup));
+                    before = Some(t);
                 }
                 md += &format!(
+                    "| {name} | {ranks} | {} | {:.2} | {:.2} | {} | {:.2} | {ratio} |\n",
+                    s.n_dofs,
+                    1e3 * t,
+                    s.ksp_iterations as f64 / s.steps as f64,
+                    calls.map_or("-".into(), |c| format!("{c:.2}")),
+                    t / s.matmult_seconds
+                );
+                print!("{}", md.lines().last().map(|l| format!("{l}\n")).unwrap_or_default());
+            }
+        }
+    }
+    // 2. The 3D block at CFL 33: a short and a long run.
+    if parts.contains(&2) {
+        let block_h = if quick { "0.1" } else { "0.05" };
+        let block = free_vibration(repo, "block_tet.toml", 0.1, dir);
+        md += &format!(
+        "\nThe 3D block (P1 tets, h = {block_h}), free vibration, tau = 0.1 (CFL 33), no output; the default solver of each build for a run of 20 and of 200 steps (`time::choice` factors the long run):\n\n| build | ranks | steps | DOFs | solver | set-up s | ms/step | KSP its/step | (set-up + stepping) / steps, ms | peak MiB/rank | ms/step ratio to before | whole-run ratio to before |\n|---|---|---|---|---|---|---|---|---|---|---|---|\n"
+    );
+        for ranks in [1, 2] {
+            for steps in [20usize, 200] {
+                let mut before: Option<(f64, f64)> = None;
+                for (name, bin) in &builds {
+                    // The build before the issue runs 20 steps: its per-step cost does not depend
+                    // on the run's length.
+                    let n = if before.is_none() && baseline.is_some() { 20 } else { steps };
+                    eprintln!("bench: step floor, block, {name}, {ranks} rank(s), {n} steps");
+                    let args =
+                        strings(&["--param", &format!("h={block_h}"), "--steps", &n.to_string()]);
+                    let Some((s, _)) = run(bin, ranks, &block, &args, false, dir) else {
+                        md += &format!("| {name} | {ranks} | {steps} | failed |\n");
+                        continue;
+                    };
+                    let t = per_step(&s);
+                    let whole = (s.timings.setup + s.timings.stepping) / s.steps as f64;
+                    let (r1, r2) = match before {
+                        Some((b, bsetup)) => (
+                            format!("{:.2}", t / b),
+                            format!("{:.2}", whole / ((bsetup + b * steps as f64) / steps as f64)),
+                        ),
+                        None => ("-".into(), "-".into()),
+                    };
+                    if before.is_none() {
+                        before = Some((t, s.timings.setup));
+                    }
+                    md += &format!(
                     "| {name} | {ranks} | {steps} | {} | {} + {} | {:.1} | {:.0} | {:.1} | {:.0} | {:.0} | {r1} | {r2} |\n",
                     s.n_dofs,
                     s.ksp_type,
@@ -229,63 +240,132 @@ pub fn section(repo: &Path, dir: &Path, quick: bool, baseline: Option<&Path>) ->
                     1e3 * whole,
                     s.peak_memory_rank_mib
                 );
+                    print!("{}", md.lines().last().map(|l| format!("{l}\n")).unwrap_or_default());
+                }
+            }
+        }
+    }
+    // 3. The solvers over CFL 0.3-100, 2D and 3D (1 rank, 10 steps), and the choice for a
+    // run of 1000 steps.
+    if parts.contains(&3) {
+        let cases: [(&str, &str, &str); 2] = if quick {
+            [("beam 2D Q1", "beam.toml", "0.0625"), ("block 3D P1", "block_tet.toml", "0.2")]
+        } else {
+            [("beam 2D Q1", "beam.toml", "0.015625"), ("block 3D P1", "block_tet.toml", "0.1")]
+        };
+        md += "\nStep solvers over the CFL number `c_p tau / h_min` (1 rank, 10 steps, free vibration; ms per step, set-up s and peak MiB in brackets; `choice` is what `time::choice` picks for a run of 1000 steps from the measured product):\n\n| case | DOFs | CFL | CG + Jacobi | CG + GAMG | Cholesky (MUMPS) | choice, 1000 steps |\n|---|---|---|---|---|---|---|\n";
+        for (label, scene, h) in cases {
+            // The CFL number of a probe step fixes tau for the others.
+            let probe = free_vibration(repo, scene, 1e-3, dir);
+            let hp = strings(&["--param", &format!("h={h}"), "--steps", "1"]);
+            let Some((p, _)) = run(&current, 1, &probe, &hp, false, dir) else {
+                md += &format!("| {label} | failed |\n");
+                continue;
+            };
+            for cfl in [0.3, 1.0, 3.0, 10.0, 30.0, 100.0] {
+                let scene_at = free_vibration(repo, scene, 1e-3 * cfl / p.cfl, dir);
+                let mut cells = vec![];
+                let mut matmult = None;
+                for solver in [JACOBI, GAMG, CHOLESKY] {
+                    let mut args = strings(&["--param", &format!("h={h}"), "--steps", "10", "--"]);
+                    args.extend(strings(solver));
+                    eprintln!("bench: step floor, {label}, CFL {cfl}, {}", solver[3]);
+                    match run(&current, 1, &scene_at, &args, false, dir) {
+                        Some((s, _)) => {
+                            matmult = Some((s.matmult_seconds, s.n_dofs));
+                            cells.push(format!(
+                                "{:.1} ({:.1}; {:.0})",
+                                1e3 * per_step(&s),
+                                s.timings.setup,
+                                s.peak_memory_rank_mib
+                            ));
+                        }
+                        None => cells.push("failed".into()),
+                    }
+                }
+                let pick = matmult.map_or("-".to_string(), |(mm, dofs)| {
+                    let f = massfree::time::choice::RunFacts {
+                        dofs,
+                        dim: if scene.starts_with("beam") { 2 } else { 3 },
+                        ranks: 1,
+                        steps: 1000,
+                        cfl,
+                        contact: false,
+                        memory_per_rank: 12e9,
+                    };
+                    format!("{:?}", massfree::time::choice::choose(&f, mm).0)
+                });
+                md += &format!(
+                    "| {label} | {} | {cfl} | {} | {} | {} | {pick} |\n",
+                    matmult.map_or(0, |m| m.1),
+                    cells[0],
+                    cells[1],
+                    cells[2]
+                );
                 print!("{}", md.lines().last().map(|l| format!("{l}\n")).unwrap_or_default());
             }
         }
     }
-
-    // 3. The solvers over CFL 0.3-100, 2D and 3D (1 rank, 10 steps), and the choice for a
-    // run of 1000 steps.
-    let cases: [(&str, &str, &str); 2] = if quick {
-        [("beam 2D Q1", "beam.toml", "0.0625"), ("block 3D P1", "block_tet.toml", "0.2")]
-    } else {
-        [("beam 2D Q1", "beam.toml", "0.015625"), ("block 3D P1", "block_tet.toml", "0.1")]
-    };
-    md += "\nStep solvers over the CFL number `c_p tau / h_min` (1 rank, 10 steps, free vibration; ms per step, set-up s in brackets; `choice` is what `time::choice` picks for a run of 1000 steps from the measured product):\n\n| case | DOFs | CFL | CG + Jacobi | CG + GAMG | Cholesky (MUMPS) | choice, 1000 steps |\n|---|---|---|---|---|---|---|\n";
-    for (label, scene, h) in cases {
-        // The CFL number of a probe step fixes tau for the others.
-        let probe = free_vibration(repo, scene, 1e-3, dir);
-        let hp = strings(&["--param", &format!("h={h}"), "--steps", "1"]);
-        let Some((p, _)) = run(&current, 1, &probe, &hp, false, dir) else {
-            md += &format!("| {label} | failed |\n");
-            continue;
+    // 4. The ball on the plane: contact steps. One run of the current build to the contact
+    // (its checkpoint), then each build continues from it for a window of contact steps: at
+    // 162k DOFs the peak of the impact (steps 91-100: 383 active nodes), at 950k the first
+    // contact steps (9-11: the zone growing, 2 ranks only).
+    if parts.contains(&4) {
+        let levels: &[(&str, &str, usize, usize, &[usize])] = if quick {
+            &[("0.2", "0.04", 60, 10, &[1, 2])]
+        } else {
+            &[("0.05", "0.01", 90, 10, &[1, 2]), ("0.027", "0.0055", 8, 3, &[2])]
         };
-        for cfl in [0.3, 1.0, 3.0, 10.0, 30.0, 100.0] {
-            let scene_at = free_vibration(repo, scene, 1e-3 * cfl / p.cfl, dir);
-            let mut cells = vec![];
-            let mut matmult = None;
-            for solver in [JACOBI, GAMG, CHOLESKY] {
-                let mut args = strings(&["--param", &format!("h={h}"), "--steps", "10", "--"]);
-                args.extend(strings(solver));
-                eprintln!("bench: step floor, {label}, CFL {cfl}, {}", solver[3]);
-                match run(&current, 1, &scene_at, &args, false, dir) {
-                    Some((s, _)) => {
-                        matmult = Some((s.matmult_seconds, s.n_dofs));
-                        cells.push(format!("{:.1} ({:.1})", 1e3 * per_step(&s), s.timings.setup));
+        md += "\nThe ball dropped on the plane (P1 tets, M_H^0, tau = 0.01), contact steps continued from a checkpoint of the current build; the default solver of each build:\n\n| build | ranks | DOFs | CFL | steps | solver | ms per contact step | KSP its per contact step | peak MiB/rank | ratio to before |\n|---|---|---|---|---|---|---|---|---|---|\n";
+        for &(h, hc, lead, window, ranks_list) in levels {
+            let ball = variant(repo, "sphere.toml", None, &["[output]"], dir);
+            let mesh = strings(&["--param", &format!("h={h}"), "--param", &format!("hc={hc}")]);
+            let checkpoint = dir.join(format!("ball-{h}.h5"));
+            let mut args = mesh.clone();
+            args.extend(strings(&["--steps", &lead.to_string(), "--every", "1000000", "--output"]));
+            args.push(checkpoint.display().to_string());
+            eprintln!("bench: step floor, ball h = {h}, to step {lead}");
+            let Some((first, _)) = run(&current, 2, &ball, &args, false, dir) else {
+                md += &format!("| ball h = {h} | failed |\n");
+                continue;
+            };
+            for &ranks in ranks_list {
+                let mut before = None;
+                for (name, bin) in &builds {
+                    eprintln!("bench: step floor, ball h = {h}, {name}, {ranks} rank(s)");
+                    let mut args = mesh.clone();
+                    args.extend(strings(&["--steps", &(lead + window).to_string(), "--restart"]));
+                    args.push(checkpoint.display().to_string());
+                    let Some((s, _)) = run(bin, ranks, &ball, &args, false, dir) else {
+                        md += &format!("| {name} | {ranks} | failed |\n");
+                        continue;
+                    };
+                    // (A restart counts the checkpoint's own step among the contact steps.)
+                    let Some(c) = s.contact.as_ref().filter(|c| c.contact_steps >= window) else {
+                        md += &format!("| {name} | {ranks} | not every step in contact |\n");
+                        continue;
+                    };
+                    let n = window as f64;
+                    let t = c.contact_steps_seconds / n;
+                    let ratio = before.map_or("-".to_string(), |b: f64| format!("{:.2}", t / b));
+                    if before.is_none() {
+                        before = Some(t);
                     }
-                    None => cells.push("failed".into()),
+                    md += &format!(
+                    "| {name} | {ranks} | {} | {:.0} | {}-{} | {} + {} | {:.0} | {:.0} | {:.0} | {ratio} |\n",
+                    s.n_dofs,
+                    s.cfl,
+                    lead + 1,
+                    lead + window,
+                    s.ksp_type,
+                    s.pc_type,
+                    1e3 * t,
+                    s.ksp_iterations.saturating_sub(first.ksp_iterations) as f64 / n,
+                    s.peak_memory_rank_mib
+                );
+                    print!("{}", md.lines().last().map(|l| format!("{l}\n")).unwrap_or_default());
                 }
             }
-            let pick = matmult.map_or("-".to_string(), |(mm, dofs)| {
-                let f = massfree::time::choice::RunFacts {
-                    dofs,
-                    dim: if scene.starts_with("beam") { 2 } else { 3 },
-                    ranks: 1,
-                    steps: 1000,
-                    cfl,
-                    contact: false,
-                    memory_per_rank: 12e9,
-                };
-                format!("{:?}", massfree::time::choice::choose(&f, mm).0)
-            });
-            md += &format!(
-                "| {label} | {} | {cfl} | {} | {} | {} | {pick} |\n",
-                matmult.map_or(0, |m| m.1),
-                cells[0],
-                cells[1],
-                cells[2]
-            );
-            print!("{}", md.lines().last().map(|l| format!("{l}\n")).unwrap_or_default());
         }
     }
     md

@@ -297,6 +297,7 @@ impl<'a> Simulation<'a> {
             d.part.dim,
             diagnostics::node_bodies(d),
         )?;
+        midpoint.set_contact_predictor(self.app.step_predictor);
         let restart = match &self.opts.restart {
             Some(path) => Some(start::restore(
                 d,

@@ -99,6 +99,8 @@ pub struct AppOptions {
     /// (default true; used by CG steps without contact), `-step_reuse_refresh N` (default 16),
     /// `-step_predictor zero|last|extrapolate`, `-step_energy_rtol X`. `None`: off.
     pub step_reuse: Option<crate::time::Reuse>,
+    /// `-step_predictor`, for contact steps too (their first solve's guess).
+    pub step_predictor: crate::time::Predictor,
 }
 
 impl AppOptions {
@@ -151,6 +153,9 @@ impl AppOptions {
                 Petsc::options_get_real("-step_reuse_refresh")?,
                 Petsc::options_get_string("-step_predictor")?.as_deref(),
                 Petsc::options_get_real("-step_energy_rtol")?,
+            )?,
+            step_predictor: step_predictor(
+                Petsc::options_get_string("-step_predictor")?.as_deref(),
             )?,
         })
     }
@@ -227,11 +232,7 @@ fn step_reuse(
         }
         r.refresh = n as usize;
     }
-    if let Some(p) = predictor {
-        r.predictor = crate::time::Predictor::parse(p).ok_or_else(|| {
-            Error::Usage(format!("-step_predictor {p}: give zero, last or extrapolate"))
-        })?;
-    }
+    r.predictor = step_predictor(predictor)?;
     if let Some(e) = energy_rtol {
         if !(e > 0.0) {
             return Err(Error::Usage(format!("-step_energy_rtol {e}: give a positive number")));
@@ -239,6 +240,17 @@ fn step_reuse(
         r.energy_rtol = e;
     }
     Ok(on.then_some(r))
+}
+
+/// `-step_predictor zero|last|extrapolate` (default extrapolate): the first guess of a step's
+/// solve, with or without contact.
+fn step_predictor(value: Option<&str>) -> Result<crate::time::Predictor> {
+    match value {
+        None => Ok(crate::time::Predictor::Extrapolate),
+        Some(p) => crate::time::Predictor::parse(p).ok_or_else(|| {
+            Error::Usage(format!("-step_predictor {p}: give zero, last or extrapolate"))
+        }),
+    }
 }
 
 fn massless_energy_correction(value: Option<&str>) -> Result<bool> {

@@ -73,6 +73,7 @@ pub fn step_operator(
     }
     // The step's own CG serves steps without contact (a contact solver rewrites K's rows).
     defaults.reuse = if with_contact { None } else { app.step_reuse };
+    defaults.blocked = d.scene.contact.as_ref().is_none_or(|c| c.pairs.is_empty());
     let op = StepOperator::new(
         m,
         a,
