@@ -79,7 +79,7 @@ pub struct Midpoint {
     /// The first guess of a contact step's solve ([`Midpoint::set_contact_predictor`]) and
     /// the increment of the step before, for the extrapolation.
     contact_predictor: Predictor,
-    du_last: Option<Vector>,
+    du_last: Option<(Vector, usize)>,
     mv: Vector,
     au: Vector,
     rhs: Vector,
@@ -406,34 +406,45 @@ impl Midpoint {
     }
 
     /// The first guess of contact steps' solves (`-step_predictor`; default here the last
-    /// increment, as PETSc's nonzero initial guess gives). The run sets extrapolation: the
-    /// increments change smoothly in time, and `2 du^n - du^{n-1}` took 7% fewer CG
-    /// iterations per contact step on the ball at 162k DOFs.
+    /// increment, as PETSc's nonzero initial guess gives). The run sets extrapolation
+    /// without massless DOFs: the increments change smoothly in time (`2 du^n - du^{n-1}`
+    /// took 7% fewer CG + Jacobi iterations, 2% fewer with block ILU, per contact step on
+    /// the ball at 162k DOFs).
     pub fn set_contact_predictor(&mut self, predictor: Predictor) {
         self.contact_predictor = predictor;
         self.du_last = None;
     }
 
-    /// `du` before a contact step's first solve: zero, kept, or `2 du^n - du^{n-1}` (the
-    /// first contact step after a start keeps it; `du_last` holds `du^n` for the next one).
-    fn predict_contact_step(&mut self) -> Result<()> {
-        match (self.contact_predictor, self.du_last.as_mut()) {
-            (Predictor::Zero, _) => self.du.zero()?,
-            (Predictor::Last, _) => {}
-            (Predictor::Extrapolate, Some(last)) => {
-                Vector::with_slices([], [&mut self.du, last], |[], [du, last]| {
-                    for i in 0..du.len() {
-                        let d = du[i];
-                        du[i] = 2.0 * d - last[i];
-                        last[i] = d;
-                    }
-                })?
-            }
-            (Predictor::Extrapolate, None) => {
-                let mut last = self.du.duplicate()?;
-                last.copy_from(&self.du)?;
-                self.du_last = Some(last);
-            }
+    /// `du` before the first solve of step `n` (`n -> n + 1`) with contact: zero, kept, or
+    /// `2 du^n - du^{n-1}`. `du` holds the last step's increment from `n = 1` on (a restart's
+    /// too); the extrapolation needs the one before, recorded at step `n - 1` (a step without
+    /// the contact solver, or the first of a run, keeps `du` and records it).
+    fn predict_contact_step(&mut self, n: usize) -> Result<()> {
+        match self.contact_predictor {
+            Predictor::Zero => self.du.zero()?,
+            Predictor::Last => {}
+            Predictor::Extrapolate => match self.du_last.as_mut() {
+                Some((last, k)) if *k + 1 == n => {
+                    Vector::with_slices([], [&mut self.du, last], |[], [du, last]| {
+                        for i in 0..du.len() {
+                            let d = du[i];
+                            du[i] = 2.0 * d - last[i];
+                            last[i] = d;
+                        }
+                    })?;
+                    *k = n;
+                }
+                Some((last, k)) => {
+                    last.copy_from(&self.du)?;
+                    *k = n;
+                }
+                None if n >= 1 => {
+                    let mut last = self.du.duplicate()?;
+                    last.copy_from(&self.du)?;
+                    self.du_last = Some((last, n));
+                }
+                None => {}
+            },
         }
         Ok(())
     }
@@ -454,7 +465,7 @@ impl Midpoint {
             other => other,
         };
         if contact.is_some() && !corrected {
-            self.predict_contact_step()?;
+            self.predict_contact_step(n)?;
         }
         let rhs = if corrected { self.rhs_corr.as_ref().expect("allocated") } else { &self.rhs };
         match contact {
