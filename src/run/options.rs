@@ -101,6 +101,11 @@ pub struct AppOptions {
     pub step_reuse: Option<crate::time::Reuse>,
     /// `-step_predictor`, for contact steps too (their first solve's guess).
     pub step_predictor: crate::time::Predictor,
+    /// `-step_choice run|regime` (default run): the step solver chosen knowing the run
+    /// (`time::choice`: a factorization for long runs, block ILU for 3D contact) or by the
+    /// regime alone, as before issue 27 (runs that must repeat to the bit on 2 ranks:
+    /// parallel MUMPS does not).
+    pub choice_by_run: bool,
 }
 
 impl AppOptions {
@@ -157,6 +162,13 @@ impl AppOptions {
             step_predictor: step_predictor(
                 Petsc::options_get_string("-step_predictor")?.as_deref(),
             )?,
+            choice_by_run: match Petsc::options_get_string("-step_choice")?.as_deref() {
+                None | Some("run") => true,
+                Some("regime") => false,
+                Some(other) => {
+                    return Err(Error::Usage(format!("-step_choice {other}: give run or regime")))
+                }
+            },
         })
     }
 }

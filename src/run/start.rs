@@ -60,7 +60,7 @@ pub fn step_operator(
             .map(|o| crate::petsc::Petsc::options_has(o))
             .collect::<Result<Vec<bool>>>()?
             .contains(&true);
-    if !named && defaults.symmetric {
+    if !named && defaults.symmetric && app.choice_by_run {
         defaults.run = Some(RunFacts {
             dofs: d.part.n_global_dofs(),
             dim: d.part.dim,

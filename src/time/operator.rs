@@ -79,9 +79,9 @@ impl Regime {
 pub const GAMG_ABOVE_CFL: f64 = 10.0;
 pub const GAMG_ABOVE_CFL_CONTACT: f64 = 30.0;
 /// Contact against obstacles in 3D: block Jacobi with ILU(0) in K's node blocks up to this
-/// CFL number (measured 2.0 times faster than Jacobi at 20, 1.8 times than GAMG at 33; ILU's iterations
-/// grow in proportion to the CFL number, GAMG's as its logarithm: the crossover estimated
-/// from the measured 3.5 times GAMG's iterations at 33).
+/// CFL number (a contact step 0.57-0.62 of Jacobi's time at 20, 0.57-0.58 of GAMG's at
+/// 33; ILU's iterations grow in proportion to the CFL number, GAMG's as its logarithm: the
+/// crossover estimated from the measured 3.5 times GAMG's iterations at 33).
 pub const CONTACT_ILU_UP_TO_CFL: f64 = 60.0;
 
 impl StepSolverDefaults {
@@ -160,10 +160,10 @@ impl StepOperator {
         // `MatSetValues`; README "A step near the floor"). In 2D AIJ is as fast.
         // Contact against obstacles in 3D up to CFL 60: block Jacobi with ILU(0) in K's node
         // blocks (per rank; the factor as large as K, refactored when the active set
-        // changes): a third to a quarter of Jacobi's iterations for two products' bytes each,
-        // and fewer bytes than multigrid's few costly iterations (a contact step of the ball:
-        // 0.50 of Jacobi's time at CFL 20 and 162k DOFs, 0.56 of GAMG's at CFL 33 and 950k
-        // DOFs with half the memory; README "A step near the floor").
+        // changes): a third of Jacobi's iterations for about two products' bytes each, and
+        // fewer bytes than multigrid's few costly iterations (a contact step of the ball:
+        // 0.57-0.62 of Jacobi's time at CFL 20 and 162k DOFs, 0.57-0.58 of GAMG's at CFL 33
+        // and 950k DOFs with half the memory; README "A step near the floor").
         let contact_ilu = defaults.blocked
             && defaults.ksp_type == "cg"
             && defaults
