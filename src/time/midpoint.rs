@@ -16,7 +16,10 @@ use mpi::collective::SystemOperation;
 use mpi::topology::SimpleCommunicator;
 use mpi::traits::*;
 
+mod correction;
 mod products;
+
+use correction::{model_root, MAX_SOLVES};
 
 pub use products::ReuseReport;
 
@@ -117,9 +120,10 @@ pub struct Midpoint {
     drift_rtol: f64,
     /// Whether the energy of steps whose active set changed is corrected.
     correct: bool,
-    /// The energy correction's right-hand side and work vectors `(M du, -2 xi M du)`.
+    /// The energy correction's right-hand side and work vectors `(P M du0, -2 xi P M du0,
+    /// the increment of the solve before the last)`.
     rhs_corr: Option<Vector>,
-    corr: Option<(Vector, Vector)>,
+    corr: Option<(Vector, Vector, Vector)>,
     /// Components per node (the correction works per component).
     dim: usize,
     /// `M 1` without the Dirichlet rows (built on first use).
@@ -141,6 +145,10 @@ pub struct Corrections {
     pub steps: usize,
     /// Solves beyond each corrected step's first.
     pub extra_solves: usize,
+    /// KSP iterations of those solves (the second of a step starts at its solution and
+    /// mostly takes none).
+    #[serde(default)]
+    pub iterations: usize,
     /// Steps whose motion was too small to carry the correction (their work was handed on).
     pub skipped: usize,
     /// The energy the correction put back (sum of `-xi du.M du`).
@@ -567,23 +575,29 @@ impl Midpoint {
     /// `W = -lambda^{n+1/2} g^n <= 0` (it closes the gap `g^n` under the force of the whole
     /// step): O(tau^2) per node and impact, never a gain, but it adds up over repeated
     /// impacts. Like a discrete gradient (Gonzalez 1996) the massive rows then get the force
-    /// `-xi P M du` with `xi = W / du.P M du`, which does the work `-W`: the step keeps the
-    /// energy exactly. `P` takes out the mean translation per component
-    /// ([`Midpoint::without_translations`]), so the force has no resultant and the momentum
-    /// balance (impulse = momentum change) is untouched. `du` depends on `xi`, so the step is
-    /// solved again until the two works cancel (a fixed point; the force changes `du` by
-    /// O(xi tau^2): two or three solves). Only losses are put back (a gain an unsettled fixed
-    /// point leaves is taken back by the next steps), so the energy never exceeds
-    /// `E^0 + W_loads` beyond the step tolerance (following the bodies, beyond the work collected
-    /// while it stays below [`Midpoint::DRIFT_RTOL`]: a remainder within `slack` joins it
-    /// instead of another solve). A step whose motion is too small to carry the correction
-    /// (`|xi| tau^2 > 1/2`, e.g. a body arriving in pure translation, or tau far beyond the
-    /// contact time) hands the work on to the next steps (`Corrections::pending`), which
-    /// put it back when they can; so does the energy a release projection removes. The
-    /// correction modifies the scheme only in the steps where the active set changes (and
-    /// those that take pending work); `-massless_energy_correction false` turns it off.
-    /// Returns the extra solves' KSP iterations, the last contact data and the step's
-    /// contact work with the correction's.
+    /// `-xi m` along `m = P M du0` (`du0` the step's uncorrected increment; `P` takes out the
+    /// mean translation per component, [`Midpoint::without_translations`], so the force has
+    /// no resultant and the momentum balance, impulse = momentum change, is untouched), with
+    /// `xi` such that the step keeps the energy exactly: `F(xi) = W(xi) - xi m.du(xi) + debt
+    /// = 0`. At a fixed active set the solve is affine in its right-hand side, so `du(xi)`,
+    /// the contact work `W(xi) = -sum lambda_q g_q` and `m.du(xi)` are affine in `xi` and `F`
+    /// is a quadratic known from two solves: the uncorrected one and one at `xi_1 = (W_0 +
+    /// debt) / m.du0` (what a step that did not respond would need). Its root `xi*` and the
+    /// increment `du(xi*)` (interpolated) follow in closed form; one more solve from that
+    /// increment, near its solution already, confirms them and gives the contact data.
+    /// Should the active set change between solves, the same model through the last two
+    /// solves is a secant step (at most [`MAX_SOLVES`] solves). Only losses are put back (a
+    /// gain an unsettled correction leaves is taken back by the next steps), so the energy
+    /// never exceeds `E^0 + W_loads` beyond the step tolerance (following the bodies, beyond
+    /// the work collected while it stays below [`Midpoint::DRIFT_RTOL`]: a remainder within
+    /// `slack` joins it instead of another solve). A step whose motion is too small to carry
+    /// the correction (`|xi| tau^2 > 1/2`, e.g. a body arriving in pure translation, or tau
+    /// far beyond the contact time) hands the work on to the next steps
+    /// (`Corrections::pending`), which put it back when they can; so does the energy a
+    /// release projection removes. The correction modifies the scheme only in the steps where
+    /// the active set changes (and those that take pending work);
+    /// `-massless_energy_correction false` turns it off. Returns the extra solves' KSP
+    /// iterations, the last contact data and the step's contact work with the correction's.
     fn correct_energy<'c>(
         &mut self,
         work: f64,
@@ -592,7 +606,6 @@ impl Midpoint {
         t_next: f64,
         slack: f64,
     ) -> Result<(usize, Option<StepContact>, f64)> {
-        const MAX_SOLVES: usize = 8;
         let scale = self.energy.total().abs().max(self.energy.kinetic).max(f64::MIN_POSITIVE);
         let tol = (1e-10 * scale).max(slack);
         let debt = self.corrections.pending;
@@ -607,51 +620,74 @@ impl Midpoint {
         }
         if self.rhs_corr.is_none() {
             self.rhs_corr = Some(self.u.duplicate()?);
-            self.corr = Some((self.u.duplicate()?, self.u.duplicate()?));
+            self.corr = Some((self.u.duplicate()?, self.u.duplicate()?, self.u.duplicate()?));
         }
-        let (mut its, mut last, mut total) = (0, None, work);
-        let mut w_c = work;
-        let mut corr_work = 0.0;
+        // The direction m = P M du0 (M du without the Dirichlet rows: their increment is
+        // prescribed), and du0 kept as the first sample's increment.
+        let (mut m, force, mut prev) = self.corr.take().expect("allocated");
+        let q0 = (|| -> Result<f64> {
+            self.m.mult(&self.du, &mut m)?;
+            self.without_translations(&mut m)?;
+            prev.copy_from(&self.du)?;
+            m.dot(&self.du)
+        })();
+        self.corr = Some((m, force, prev));
+        let q0 = q0?;
+        // Samples (xi, W, m.du): `a` the solve before the last (its increment in `prev`), `b`
+        // the last (in `du`).
+        let (mut a, mut b) = ((0.0, work, q0), (0.0, work, q0));
+        let mut xi = if q0 > 0.0 { (work + debt) / q0 } else { f64::INFINITY };
+        let (mut its, mut last, mut total, mut corr_work) = (0, None, work, 0.0);
         for k in 0..MAX_SOLVES {
-            // M du without the Dirichlet rows (their increment is prescribed).
-            let (mut mdu, mut force) = self.corr.take().expect("allocated");
-            let r = (|| -> Result<Option<f64>> {
-                self.m.mult(&self.du, &mut mdu)?;
-                self.without_translations(&mut mdu)?;
-                let dmd = mdu.dot(&self.du)?;
-                let xi = if dmd > 0.0 { (w_c + debt) / dmd } else { f64::INFINITY };
-                // Too large (or not a number: no motion relative to the mean): hand it on.
-                if xi.is_nan() || xi.abs() * self.tau * self.tau > 0.5 {
-                    return Ok(None);
-                }
-                // The du form is the midpoint equation times 2.
-                force.copy_from(&mdu)?;
-                force.scale(-2.0 * xi)?;
-                let rc = self.rhs_corr.as_mut().expect("allocated");
-                rc.waxpy(1.0, &force, &self.rhs)?;
-                Ok(Some(xi))
-            })();
-            self.corr = Some((mdu, force));
-            if r?.is_none() {
+            // Too large (or not a number: no motion relative to the mean): hand it on.
+            if !xi.is_finite() || xi.abs() * self.tau * self.tau > 0.5 {
                 if self.corrections_this_step == 0 {
                     self.corrections.skipped += 1;
                 }
                 break;
             }
+            let (m, force, prev) = self.corr.as_mut().expect("allocated");
+            if k > 0 {
+                // Start from the model's increment, du_a + t (du_b - du_a); du_b becomes the
+                // sample before the last.
+                let t = (xi - a.0) / (b.0 - a.0);
+                Vector::with_slices([], [&mut self.du, prev], |[], [du, prev]| {
+                    for i in 0..du.len() {
+                        let d = du[i];
+                        du[i] = prev[i] + t * (d - prev[i]);
+                        prev[i] = d;
+                    }
+                })?;
+            }
+            // The du form is the midpoint equation times 2.
+            force.copy_from(m)?;
+            force.scale(-2.0 * xi)?;
+            self.rhs_corr.as_mut().expect("allocated").waxpy(1.0, force, &self.rhs)?;
             let (i, c) = self.solve_system(true, contact.as_deref_mut(), n, t_next)?;
             its += i;
             self.corrections.extra_solves += 1;
+            self.corrections.iterations += i;
             self.corrections_this_step += 1;
-            w_c = c.as_ref().map_or(0.0, |c| c.work);
-            let (_, force) = self.corr.as_ref().expect("allocated");
-            corr_work = 0.5 * force.dot(&self.du)?;
-            total = w_c + corr_work;
+            let w = c.as_ref().map_or(0.0, |c| c.work);
+            let q = self.corr.as_ref().expect("allocated").0.dot(&self.du)?;
+            // 1/2 force.du, the correction force's work.
+            corr_work = -xi * q;
+            total = w + corr_work;
             last = c;
             if (total + debt).abs() <= tol {
                 break;
             }
             if k + 1 == MAX_SOLVES {
                 self.corrections.unconverged += 1;
+                break;
+            }
+            (a, b) = (b, (xi, w, q));
+            match model_root(a, b, debt) {
+                Some(next) => xi = next,
+                None => {
+                    self.corrections.unconverged += 1;
+                    break;
+                }
             }
         }
         // What is left (a step too slow to carry it, or not converged) waits for the next
