@@ -157,7 +157,7 @@ pub struct Corrections {
     /// to the next steps (they are corrected until it is gone).
     #[serde(default)]
     pub pending: f64,
-    /// Corrected steps whose fixed point did not settle in the solves allowed (the rest is
+    /// Corrected steps whose correction did not settle in the solves allowed (the rest is
     /// pending).
     #[serde(default)]
     pub unconverged: usize,
