@@ -521,10 +521,14 @@ fn one_and_two_ranks_write_the_same_stress() {
         &dir,
         &[("steps = 220", "steps = 30"), ("every = 10", &format!("every = 10\n{ALL_STRESS}"))],
     );
-    for scene in [disc, ball] {
+    // The ball's contact steps use block Jacobi/ILU(0) with a block per rank: 1 and 2 ranks
+    // differ by the solver's error, so its solves go to 1e-13 (the disc's Jacobi is the same on
+    // any rank count).
+    for (scene, rtol) in [(disc, None), (ball, Some("1e-13"))] {
         let stem = scene.file_stem().unwrap().to_string_lossy().to_string();
-        run_scene(1, &scene, &[]);
-        run_scene(2, &scene, &[]);
+        let args: Vec<&str> = rtol.map_or(vec![], |r| vec!["--", "-ksp_rtol", r]);
+        run_scene(1, &scene, &args);
+        run_scene(2, &scene, &args);
         let (a, b) = (dir.join(format!("{stem}-1.h5")), dir.join(format!("{stem}-2.h5")));
         let d = max_rel_diff(&a, &b, &NAMES);
         eprintln!(
