@@ -151,7 +151,7 @@ pub struct Corrections {
     pub iterations: usize,
     /// Steps whose motion was too small to carry the correction (their work was handed on).
     pub skipped: usize,
-    /// The energy the correction put back (sum of `-xi du.M du`).
+    /// The energy the correction put back (sum of `-xi m.du`, `m = P M du0`).
     pub energy: f64,
     /// Contact work not yet taken back: of steps too slow to carry the correction, handed on
     /// to the next steps (they are corrected until it is gone).
