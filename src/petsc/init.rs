@@ -110,6 +110,13 @@ impl Petsc {
         unsafe { ffi::PETSC_COMM_WORLD }
     }
 
+    /// The raw `MPI_COMM_SELF`, for objects private to one rank (e.g. a rank's own
+    /// factorization).
+    pub fn comm_self() -> ffi::MPI_Comm {
+        use mpi::raw::AsRaw;
+        mpi::topology::SimpleCommunicator::self_comm().as_raw().0.cast()
+    }
+
     /// Sets a global option, e.g. `options_set("-ksp_type", Some("cg"))` (the leading `-` is
     /// required). Only objects configured afterwards (`set_from_options`) see it.
     pub fn options_set(name: &str, value: Option<&str>) -> Result<()> {

@@ -47,6 +47,19 @@ impl Ksp {
         Ok(out)
     }
 
+    /// A solver private to this rank (`MPI_COMM_SELF`), with options read with `prefix`.
+    pub fn new_self(prefix: &str) -> Result<Ksp> {
+        ensure_live()?;
+        let mut ksp: ffi::KSP = ptr::null_mut();
+        // SAFETY: PETSc is live; `ksp` is an out-pointer.
+        chk!(ffi::KSPCreate(init::Petsc::comm_self(), &mut ksp))?;
+        let mut out = Ksp { ksp, prefix: String::new(), factor_solver: None };
+        if !prefix.is_empty() {
+            out.set_options_prefix(prefix)?;
+        }
+        Ok(out)
+    }
+
     /// Changes the options prefix (also of the PC); the next `set_from_options` reads options
     /// with the new prefix.
     pub fn set_options_prefix(&mut self, prefix: &str) -> Result<()> {

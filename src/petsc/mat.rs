@@ -76,6 +76,37 @@ impl Matrix {
         Ok(out)
     }
 
+    /// A square sequential AIJ matrix private to this rank (`MPI_COMM_SELF`), from its rows
+    /// in CSR form (`row_start` has `n + 1` entries; PETSc copies the arrays and assembles).
+    pub fn new_seq_csr(row_start: &[i32], cols: &[i32], vals: &[f64]) -> Result<Matrix> {
+        ensure_live()?;
+        let n = row_start.len().saturating_sub(1);
+        check_len("Matrix::new_seq_csr values", cols.len(), vals.len())?;
+        check_len(
+            "Matrix::new_seq_csr columns",
+            row_start.last().map_or(0, |&e| e as usize),
+            cols.len(),
+        )?;
+        let ni = to_int(n, "Matrix::new_seq_csr rows")?;
+        let mut m: ffi::Mat = ptr::null_mut();
+        // SAFETY: PETSc is live; `m` is an out-pointer.
+        chk!(ffi::MatCreate(init::Petsc::comm_self(), &mut m))?;
+        let mut out = Matrix { m, range: (0, 0), size: (0, 0) };
+        // SAFETY: fresh Mat; consistent sizes.
+        chk!(ffi::MatSetSizes(m, ni, ni, ni, ni))?;
+        // SAFETY: MATAIJ on a one-process communicator is SeqAIJ.
+        chk!(ffi::MatSetType(m, ffi::MATAIJ.as_ptr().cast()))?;
+        // SAFETY: the arrays hold n + 1, nnz and nnz entries; PETSc copies them.
+        chk!(ffi::MatSeqAIJSetPreallocationCSR(
+            m,
+            row_start.as_ptr(),
+            cols.as_ptr(),
+            vals.as_ptr()
+        ))?;
+        out.read_layout()?;
+        Ok(out)
+    }
+
     /// A square block AIJ matrix (BAIJ): `bs x bs` blocks (one per node pair of a DOF matrix,
     /// `bs` = components), each stored with one column index, so about 30% less memory than
     /// AIJ for 3D elasticity, and products without per-entry index loads. `d_nnz`/`o_nnz`
@@ -151,6 +182,30 @@ impl Matrix {
         out.set_option(ffi::MatOption_MAT_NEW_NONZERO_ALLOCATION_ERR, true)?;
         out.set_option(ffi::MatOption_MAT_KEEP_NONZERO_PATTERN, true)?;
         Ok(out)
+    }
+
+    /// The row block size (`MatGetBlockSizes`): the DOFs per node of a DOF matrix.
+    pub fn block_size(&self) -> Result<usize> {
+        let (mut rbs, mut cbs) = (0, 0);
+        // SAFETY: valid handle; out-pointers are locals.
+        chk!(ffi::MatGetBlockSizes(self.m, &mut rbs, &mut cbs))?;
+        Ok(to_usize(rbs).max(1))
+    }
+
+    /// The submatrix of the global `rows` x `cols` (each rank gives its part of both; the
+    /// result's rows and columns are distributed as those parts; `MatCreateSubMatrix`).
+    /// Collective.
+    pub fn sub_matrix(&self, rows: &super::IndexSet, cols: &super::IndexSet) -> Result<Matrix> {
+        let mut c: ffi::Mat = ptr::null_mut();
+        // SAFETY: valid assembled handle and index sets; `c` is an out-pointer.
+        chk!(ffi::MatCreateSubMatrix(
+            self.m,
+            rows.raw(),
+            cols.raw(),
+            ffi::MatReuse_MAT_INITIAL_MATRIX,
+            &mut c
+        ))?;
+        Matrix::from_raw(c)
     }
 
     /// Whether the storage is (non-symmetric) block AIJ: `seqbaij` or `mpibaij`.

@@ -39,6 +39,19 @@ impl Vector {
         Ok(out)
     }
 
+    /// A sequential vector of `n` entries private to this rank (`MPI_COMM_SELF`).
+    pub fn new_seq(n: usize) -> Result<Vector> {
+        ensure_live()?;
+        let mut v: ffi::Vec = ptr::null_mut();
+        // SAFETY: PETSc is live; `v` is an out-pointer.
+        chk!(ffi::VecCreateSeq(
+            init::Petsc::comm_self(),
+            to_int(n, "Vector::new_seq size")?,
+            &mut v
+        ))?;
+        Vector::from_raw(v)
+    }
+
     /// Wraps a handle this module just created (takes ownership) and reads its layout.
     pub(crate) fn from_raw(v: ffi::Vec) -> Result<Vector> {
         let mut out = Vector { v, local: 0, global: 0, range: (0, 0) };

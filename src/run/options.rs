@@ -97,7 +97,9 @@ pub struct AppOptions {
     pub user_reuse_preconditioner: bool,
     /// The step's own CG and its kept products (`time::cg`): `-step_reuse true|false`
     /// (default true; used by CG steps without contact), `-step_reuse_refresh N` (default 16),
-    /// `-step_predictor zero|last|extrapolate`, `-step_energy_rtol X`. `None`: off.
+    /// `-step_predictor zero|last|extrapolate`, `-step_energy_rtol X`, `-step_layer
+    /// true|false` (default true: the mass-free layer's rows factored, `time::layer`).
+    /// `None`: off.
     pub step_reuse: Option<crate::time::Reuse>,
     /// `-step_predictor`, for contact steps too (their first solve's guess).
     pub step_predictor: crate::time::Predictor,
@@ -158,6 +160,7 @@ impl AppOptions {
                 Petsc::options_get_real("-step_reuse_refresh")?,
                 Petsc::options_get_string("-step_predictor")?.as_deref(),
                 Petsc::options_get_real("-step_energy_rtol")?,
+                Petsc::options_get_string("-step_layer")?.as_deref(),
             )?,
             step_predictor: step_predictor(
                 Petsc::options_get_string("-step_predictor")?.as_deref(),
@@ -227,6 +230,7 @@ fn step_reuse(
     refresh: Option<f64>,
     predictor: Option<&str>,
     energy_rtol: Option<f64>,
+    layer: Option<&str>,
 ) -> Result<Option<crate::time::Reuse>> {
     let on = match on {
         None | Some("1" | "true" | "yes") => true,
@@ -251,6 +255,13 @@ fn step_reuse(
         }
         r.energy_rtol = e;
     }
+    r.layer = match layer {
+        None | Some("1" | "true" | "yes") => true,
+        Some("0" | "false" | "no") => false,
+        Some(other) => {
+            return Err(Error::Usage(format!("-step_layer {other}: give true or false")));
+        }
+    };
     Ok(on.then_some(r))
 }
 
@@ -287,11 +298,11 @@ mod tests {
         assert_eq!(mortar_normal(Some("average".into())), Ok(NormalKind::Average));
         assert_eq!(massless_energy_correction(None), Ok(true));
         assert_eq!(massless_energy_correction(Some("no")), Ok(false));
-        let r = step_reuse(None, None, None, None).unwrap().expect("on by default");
+        let r = step_reuse(None, None, None, None, None).unwrap().expect("on by default");
         assert_eq!(r.refresh, 16);
         assert_eq!(r.predictor, crate::time::Predictor::Extrapolate);
-        assert!(step_reuse(Some("false"), None, None, None).unwrap().is_none());
-        let r = step_reuse(None, Some(100.0), Some("last"), Some(1e-12)).unwrap().unwrap();
+        assert!(step_reuse(Some("false"), None, None, None, None).unwrap().is_none());
+        let r = step_reuse(None, Some(100.0), Some("last"), Some(1e-12), None).unwrap().unwrap();
         assert_eq!(
             (r.refresh, r.predictor, r.energy_rtol),
             (100, crate::time::Predictor::Last, 1e-12)
@@ -306,14 +317,14 @@ mod tests {
         assert_eq!(e, "scene error: -mortar_normal x: give slave (the default) or average");
         let e = massless_energy_correction(Some("")).unwrap_err().to_string();
         assert_eq!(e, "usage error: -massless_energy_correction : give true or false");
-        let e = step_reuse(None, Some(0.5), None, None).unwrap_err().to_string();
+        let e = step_reuse(None, Some(0.5), None, None, None).unwrap_err().to_string();
         assert_eq!(
             e,
             "usage error: -step_reuse_refresh 0.5: give a whole number of steps, at least 1"
         );
-        let e = step_reuse(None, None, Some("quadratic"), None).unwrap_err().to_string();
+        let e = step_reuse(None, None, Some("quadratic"), None, None).unwrap_err().to_string();
         assert_eq!(e, "usage error: -step_predictor quadratic: give zero, last or extrapolate");
-        let e = step_reuse(Some("maybe"), None, None, None).unwrap_err().to_string();
+        let e = step_reuse(Some("maybe"), None, None, None, None).unwrap_err().to_string();
         assert_eq!(e, "usage error: -step_reuse maybe: give true or false");
     }
 }

@@ -89,7 +89,13 @@ pub fn step_operator(
         _ if pc_type == defaults.pc_type && solver.pc_type.is_none() => why,
         _ => "set by the scene or the command line".to_string(),
     };
-    console.say(format!("step solver: {ksp_type} + {pc_type} ({chosen})"));
+    let layer = match op.cg.as_ref().map(|cg| cg.layer_solver()).transpose()?.flatten() {
+        Some((rows, solver)) => format!(
+            "; the mass-free layer's {rows} massless rows swept with {solver} (-step_layer false: plain Jacobi)"
+        ),
+        None => String::new(),
+    };
+    console.say(format!("step solver: {ksp_type} + {pc_type} ({chosen}){layer}"));
     Ok((op, regime.cfl))
 }
 

@@ -26,6 +26,7 @@ use mpi::collective::SystemOperation;
 use mpi::topology::SimpleCommunicator;
 use mpi::traits::*;
 
+use super::layer::LayerBlock;
 use crate::error::{Error, Result};
 use crate::petsc::{Ksp, Matrix, Vector};
 
@@ -71,8 +72,9 @@ pub struct CgInfo {
 }
 
 enum Precond {
-    /// The inverse of `K`'s diagonal, applied inside the passes.
-    Jacobi(Vec<f64>),
+    /// The inverse of `K`'s diagonal, applied inside the passes; with the mass-free layer's
+    /// block (`time::layer`) zero on its rows, which the block's factor takes instead.
+    Jacobi(Vec<f64>, Option<LayerBlock>),
     /// PETSc's preconditioner of the step's KSP (set up), and `z = B r`.
     Petsc(Vector),
 }
@@ -95,6 +97,16 @@ pub struct StepCg {
     known: usize,
     /// Scale the solution onto its own direction ([`StepCg::set_scale`]).
     scale: bool,
+    /// `K` changed since the layer's block was factored ([`StepCg::forget`]).
+    stale_layer: bool,
+}
+
+/// The layer's block applied to `r` and added onto `p` (whose layer rows Jacobi left zero);
+/// this rank's `r_C . z_C`.
+fn with_layer(layer: &mut LayerBlock, r: &Vector, p: &mut Vector) -> Result<f64> {
+    let rz = r.with_local_slice(|r| layer.apply(r))??;
+    p.with_local_slice_mut(|p| layer.add_last(p))??;
+    Ok(rz)
 }
 
 fn sum_over_ranks<const N: usize>(local: [f64; N]) -> [f64; N] {
@@ -118,22 +130,34 @@ fn local_sums(r: &Vector, z: &Vector, x: &Vector, b: &Vector) -> Result<[f64; 3]
 
 impl StepCg {
     /// For the operator `k` whose KSP `ksp` is set up: Jacobi inside the passes when the
-    /// KSP's preconditioner is `jacobi`, else PETSc's through `PCApply`.
+    /// KSP's preconditioner is `jacobi`, else PETSc's through `PCApply`. With Jacobi, the
+    /// `massless` rows (local indices, sorted; the mass-free layer's) get their block's
+    /// factor instead (`time::layer`), unless empty on every rank. Collective.
     pub fn new(
         k: &Matrix,
         ksp: &Ksp,
         rtol: f64,
         energy_tol: f64,
         predictor: Predictor,
+        massless: Vec<usize>,
+        use_layer: bool,
     ) -> Result<StepCg> {
         let (r, _) = k.create_vecs()?;
         let pc = if ksp.pc_type()? == "jacobi" {
             let mut d = r.duplicate()?;
             k.get_diagonal(&mut d)?;
             // PETSc's Jacobi takes 1 for a zero diagonal entry; K's are positive.
-            Precond::Jacobi(d.with_local_slice(|d| {
+            let mut d: Vec<f64> = d.with_local_slice(|d| {
                 d.iter().map(|&x| if x != 0.0 { 1.0 / x } else { 1.0 }).collect()
-            })?)
+            })?;
+            if use_layer {
+                for &i in &massless {
+                    d[i] = 0.0;
+                }
+            }
+            let layer =
+                if use_layer { LayerBlock::new(k, massless, &d, k.block_size()?)? } else { None };
+            Precond::Jacobi(d, layer)
         } else {
             Precond::Petsc(r.duplicate()?)
         };
@@ -151,7 +175,25 @@ impl StepCg {
             r,
             known: 0,
             scale: false,
+            stale_layer: false,
         })
+    }
+
+    /// Rows of the mass-free layer's block over all ranks (0: plain Jacobi or PETSc's
+    /// preconditioner).
+    pub fn layer_rows(&self) -> usize {
+        match &self.pc {
+            Precond::Jacobi(_, Some(l)) => l.total(),
+            _ => 0,
+        }
+    }
+
+    /// The layer block's rows and its solver (`cholesky`, `icc`, ...), if there is one.
+    pub fn layer_solver(&self) -> Result<Option<(usize, String)>> {
+        match &self.pc {
+            Precond::Jacobi(_, Some(l)) => Ok(Some((l.total(), l.solver()?))),
+            _ => Ok(None),
+        }
     }
 
     /// `true`: each solution `x` is scaled by `s = x.b / x.Kx`, the minimum of the step's
@@ -167,6 +209,10 @@ impl StepCg {
     /// `K` changed, or the increment was set from outside: the next solve computes `K x_0`.
     pub fn forget(&mut self) {
         self.known = 0;
+        self.stale_layer = true;
+        if let Precond::Jacobi(_, Some(layer)) = &mut self.pc {
+            layer.forget();
+        }
     }
 
     /// `K x` of the last solution (valid after [`StepCg::solve`]).
@@ -192,11 +238,23 @@ impl StepCg {
         fresh: bool,
     ) -> Result<CgInfo> {
         let mut info = CgInfo::default();
+        if std::mem::take(&mut self.stale_layer) {
+            if let Precond::Jacobi(d, Some(layer)) = &mut self.pc {
+                layer.factor(k, d)?;
+            }
+        }
         let known = self.known;
         // The first guess, and its product where it is known; the common case (extrapolated
         // from known products) is made inside the first pass below.
-        let extrapolate = self.predictor == Predictor::Extrapolate && known == 2;
-        let fused = extrapolate && !fresh && matches!(self.pc, Precond::Jacobi(_));
+        let extrapolate = self.predictor == Predictor::Extrapolate && known >= 2;
+        let fused = extrapolate && !fresh && matches!(self.pc, Precond::Jacobi(..));
+        // The layer's rows extrapolated in their own way (`LayerBlock::guess`), folded into
+        // the previous solution so that the two-point extrapolation below makes them.
+        if extrapolate {
+            if let Precond::Jacobi(_, Some(layer)) = &mut self.pc {
+                layer.guess(&mut self.x_prev, &mut self.kx_prev)?;
+            }
+        }
         match self.predictor {
             Predictor::Zero => {
                 x.zero()?;
@@ -218,6 +276,9 @@ impl StepCg {
             x.zero()?;
             self.kx.zero()?;
             self.known = 1;
+            if let Precond::Jacobi(_, Some(layer)) = &mut self.pc {
+                layer.forget();
+            }
             return Ok(info);
         }
         let mut rz = sums[0];
@@ -271,6 +332,9 @@ impl StepCg {
             Predictor::Extrapolate if known >= 1 && !fresh => 2,
             _ => 1,
         };
+        if let Precond::Jacobi(_, Some(layer)) = &mut self.pc {
+            layer.record(x)?;
+        }
         Ok(info)
     }
 
@@ -302,29 +366,42 @@ impl StepCg {
         extrapolate: bool,
     ) -> Result<([f64; 3], f64)> {
         let local = match &mut self.pc {
-            Precond::Jacobi(d) => Vector::with_slices(
-                [b],
-                [x, &mut self.x_prev, &mut self.kx, &mut self.kx_prev, &mut self.r, &mut self.p],
-                |[b], [x, xp, kx, kxp, r, p]| {
-                    let (mut rz, mut xb, mut xr, mut bb) = (0.0, 0.0, 0.0, 0.0);
-                    for i in 0..x.len() {
-                        if extrapolate {
-                            let (xo, ko) = (x[i], kx[i]);
-                            x[i] = 2.0 * xo - xp[i];
-                            kx[i] = 2.0 * ko - kxp[i];
-                            xp[i] = xo;
-                            kxp[i] = ko;
+            Precond::Jacobi(d, layer) => {
+                let mut sums = Vector::with_slices(
+                    [b],
+                    [
+                        x,
+                        &mut self.x_prev,
+                        &mut self.kx,
+                        &mut self.kx_prev,
+                        &mut self.r,
+                        &mut self.p,
+                    ],
+                    |[b], [x, xp, kx, kxp, r, p]| {
+                        let (mut rz, mut xb, mut xr, mut bb) = (0.0, 0.0, 0.0, 0.0);
+                        for i in 0..x.len() {
+                            if extrapolate {
+                                let (xo, ko) = (x[i], kx[i]);
+                                x[i] = 2.0 * xo - xp[i];
+                                kx[i] = 2.0 * ko - kxp[i];
+                                xp[i] = xo;
+                                kxp[i] = ko;
+                            }
+                            r[i] = b[i] - kx[i];
+                            p[i] = d[i] * r[i];
+                            rz += r[i] * p[i];
+                            xb += x[i] * b[i];
+                            xr += x[i] * r[i];
+                            bb += b[i] * b[i];
                         }
-                        r[i] = b[i] - kx[i];
-                        p[i] = d[i] * r[i];
-                        rz += r[i] * p[i];
-                        xb += x[i] * b[i];
-                        xr += x[i] * r[i];
-                        bb += b[i] * b[i];
-                    }
-                    [rz, xb, xr, bb]
-                },
-            )?,
+                        [rz, xb, xr, bb]
+                    },
+                )?;
+                if let Some(layer) = layer {
+                    sums[0] += with_layer(layer, &self.r, &mut self.p)?;
+                }
+                sums
+            }
             Precond::Petsc(z) => {
                 let bb = Vector::with_slices([b, &self.kx], [&mut self.r], |[b, kx], [r]| {
                     let mut bb = 0.0;
@@ -358,21 +435,27 @@ impl StepCg {
     /// ranks (with Jacobi in one pass; `K x` is `b - r`, formed at the end).
     fn update(&mut self, ksp: &Ksp, alpha: f64, x: &mut Vector, b: &Vector) -> Result<[f64; 3]> {
         let local = match &mut self.pc {
-            Precond::Jacobi(d) => Vector::with_slices(
-                [&self.p, &self.q, b],
-                [x, &mut self.r],
-                |[p, q, b], [x, r]| {
-                    let (mut rz, mut xb, mut xr) = (0.0, 0.0, 0.0);
-                    for i in 0..r.len() {
-                        x[i] += alpha * p[i];
-                        r[i] -= alpha * q[i];
-                        rz += r[i] * d[i] * r[i];
-                        xb += x[i] * b[i];
-                        xr += x[i] * r[i];
-                    }
-                    [rz, xb, xr]
-                },
-            )?,
+            Precond::Jacobi(d, layer) => {
+                let mut sums = Vector::with_slices(
+                    [&self.p, &self.q, b],
+                    [x, &mut self.r],
+                    |[p, q, b], [x, r]| {
+                        let (mut rz, mut xb, mut xr) = (0.0, 0.0, 0.0);
+                        for i in 0..r.len() {
+                            x[i] += alpha * p[i];
+                            r[i] -= alpha * q[i];
+                            rz += r[i] * d[i] * r[i];
+                            xb += x[i] * b[i];
+                            xr += x[i] * r[i];
+                        }
+                        [rz, xb, xr]
+                    },
+                )?;
+                if let Some(layer) = layer {
+                    sums[0] += self.r.with_local_slice(|r| layer.apply(r))??;
+                }
+                sums
+            }
             Precond::Petsc(z) => {
                 Vector::with_slices([&self.p, &self.q], [x, &mut self.r], |[p, q], [x, r]| {
                     for i in 0..r.len() {
@@ -403,11 +486,17 @@ impl StepCg {
     /// `p = B r + beta p`.
     fn next_direction(&mut self, beta: f64) -> Result<()> {
         match &self.pc {
-            Precond::Jacobi(d) => Vector::with_slices([&self.r], [&mut self.p], |[r], [p]| {
-                for i in 0..p.len() {
-                    p[i] = d[i] * r[i] + beta * p[i];
+            Precond::Jacobi(d, layer) => {
+                Vector::with_slices([&self.r], [&mut self.p], |[r], [p]| {
+                    for i in 0..p.len() {
+                        p[i] = d[i] * r[i] + beta * p[i];
+                    }
+                })?;
+                match layer {
+                    Some(layer) => self.p.with_local_slice_mut(|p| layer.add_last(p))?,
+                    None => Ok(()),
                 }
-            }),
+            }
             Precond::Petsc(z) => self.p.aypx(beta, z),
         }
     }

@@ -16,6 +16,7 @@
 pub mod cg;
 pub mod choice;
 pub mod dirichlet;
+pub mod layer;
 pub mod midpoint;
 pub mod operator;
 

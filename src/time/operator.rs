@@ -44,11 +44,14 @@ pub struct Reuse {
     pub predictor: Predictor,
     /// The energy error a solve may leave, relative to the energy (`time::cg`).
     pub energy_rtol: f64,
+    /// `-step_layer`: with Jacobi, the mass-free layer's massless rows get their block
+    /// factored exactly (`time::layer`).
+    pub layer: bool,
 }
 
 impl Default for Reuse {
     fn default() -> Self {
-        Reuse { refresh: 16, predictor: Predictor::Extrapolate, energy_rtol: 1e-13 }
+        Reuse { refresh: 16, predictor: Predictor::Extrapolate, energy_rtol: 1e-13, layer: true }
     }
 }
 
@@ -265,13 +268,23 @@ impl StepOperator {
         ksp.set_up()?;
         let cg = match defaults.reuse {
             Some(r) if ksp.ksp_type()? == "cg" => {
-                Some(StepCg::new(&k, &ksp, ksp.rtol()?, r.energy_rtol, r.predictor)?)
+                let massless = massless_rows(m, &k)?;
+                let (rtol, e, p) = (ksp.rtol()?, r.energy_rtol, r.predictor);
+                Some(StepCg::new(&k, &ksp, rtol, e, p, massless, r.layer)?)
             }
             _ => None,
         };
         let refresh = defaults.reuse.map_or(1, |r| r.refresh.max(1));
         Ok(StepOperator { k, k_free, dirichlet_dofs, dirichlet_diag, ksp, cg, refresh, choice })
     }
+}
+
+/// Local indices of the rows without mass (`M`'s diagonal exactly zero: the mass-free
+/// layer's contact DOFs; none for `M` and the lumped mass).
+fn massless_rows(m: &MassMatrix, k: &Matrix) -> Result<Vec<usize>> {
+    let mut d = k.create_vecs()?.0;
+    m.get_diagonal(&mut d)?;
+    d.with_local_slice(|d| (0..d.len()).filter(|&i| d[i] == 0.0).collect())
 }
 
 /// Preconditioners that work on K in A's node blocks as fast as on AIJ (or faster).

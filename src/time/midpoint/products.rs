@@ -35,6 +35,10 @@ pub struct ReuseReport {
     /// Steps since the last refresh.
     #[serde(skip)]
     pub since_refresh: usize,
+    /// Rows of the mass-free layer's block the step's preconditioner solves exactly or by
+    /// ICC (`time::layer`; 0: none).
+    #[serde(default)]
+    pub layer_rows: usize,
 }
 
 impl Midpoint {
@@ -131,7 +135,8 @@ impl Midpoint {
 
     /// What keeping the step's products did so far.
     pub fn reuse(&self) -> ReuseReport {
-        self.reuse
+        let layer_rows = self.op.cg.as_ref().map_or(0, |cg| cg.layer_rows());
+        ReuseReport { layer_rows, ..self.reuse }
     }
 
     /// The loads' work of the step, `f^{n+1/2}.du` (`f^{n+1/2} = f_now` for steady loads).
