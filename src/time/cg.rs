@@ -74,7 +74,7 @@ pub struct CgInfo {
 enum Precond {
     /// The inverse of `K`'s diagonal, applied inside the passes; with the mass-free layer's
     /// block (`time::layer`) zero on its rows, which the block's factor takes instead.
-    Jacobi(Vec<f64>, Option<LayerBlock>),
+    Jacobi(Vec<f64>, Option<Box<LayerBlock>>),
     /// PETSc's preconditioner of the step's KSP (set up), and `z = B r`.
     Petsc(Vector),
 }
@@ -157,7 +157,7 @@ impl StepCg {
             }
             let layer =
                 if use_layer { LayerBlock::new(k, massless, &d, k.block_size()?)? } else { None };
-            Precond::Jacobi(d, layer)
+            Precond::Jacobi(d, layer.map(Box::new))
         } else {
             Precond::Petsc(r.duplicate()?)
         };
