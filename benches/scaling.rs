@@ -11,6 +11,8 @@ use std::process::Command;
 
 use massfree::report::RunSummary;
 
+#[path = "scaling/layer.rs"]
+mod layer;
 #[path = "scaling/step_floor.rs"]
 mod step_floor;
 
@@ -134,7 +136,7 @@ fn main() {
         std::process::exit(1);
     }
     let quick = args.iter().any(|a| a == "--quick");
-    // --only scaling|solvers|mass|disc|contact3d|two_body|friction|output|stress|suite|setup|step runs one
+    // --only scaling|solvers|mass|disc|contact3d|two_body|friction|output|stress|suite|setup|step|layer runs one
     // section (step:N,M some parts of it).
     let only = args.iter().position(|a| a == "--only").and_then(|i| args.get(i + 1)).cloned();
     let want = |section: &str| only.as_deref().is_none_or(|o| o == section);
@@ -793,6 +795,9 @@ fn main() {
         let baseline = args.iter().position(|a| a == "--baseline").and_then(|i| args.get(i + 1));
         let parts = step_parts.unwrap_or_else(|| vec![1, 2, 3, 4]);
         md += &step_floor::section(&repo(), &bench_dir(), quick, baseline.map(Path::new), &parts);
+    }
+    if want("layer") {
+        md += &layer::section(&repo(), &bench_dir(), quick);
     }
     let path = bench_dir().join("scaling.md");
     std::fs::write(&path, &md).unwrap();
