@@ -92,7 +92,13 @@ pub fn section(repo: &Path, dir: &Path, quick: bool) -> String {
                 scene: beam.clone(),
                 ranks,
                 args: s(&["--param", &format!("h={h}"), "--steps", beam_steps]),
-                rounds: if quick { 1 } else if h == "0.015625" { 3 } else { 2 },
+                rounds: if quick {
+                    1
+                } else if h == "0.015625" {
+                    3
+                } else {
+                    2
+                },
             });
         }
     }
@@ -104,7 +110,12 @@ pub fn section(repo: &Path, dir: &Path, quick: bool) -> String {
             label: "block 3D Q1".into(),
             scene: scene(repo, "block_hex.toml", Some(tau), dir),
             ranks: 2,
-            args: s(&["--param", &format!("h={block_h}"), "--steps", if quick { "5" } else { "30" }]),
+            args: s(&[
+                "--param",
+                &format!("h={block_h}"),
+                "--steps",
+                if quick { "5" } else { "30" },
+            ]),
             rounds: if quick { 1 } else { rounds },
         });
     }
@@ -115,7 +126,13 @@ pub fn section(repo: &Path, dir: &Path, quick: bool) -> String {
         scene: scene(repo, "disc.toml", None, dir),
         ranks: 2,
         args: s(&[
-            "--param", "hc=0.05", "--param", "rc=2.0", "--param", "h=0.5", "--steps",
+            "--param",
+            "hc=0.05",
+            "--param",
+            "rc=2.0",
+            "--param",
+            "h=0.5",
+            "--steps",
             if quick { "100" } else { "900" },
         ]),
         rounds: 1,
@@ -125,7 +142,11 @@ pub fn section(repo: &Path, dir: &Path, quick: bool) -> String {
         scene: scene(repo, "sphere_hex.toml", None, dir),
         ranks: 2,
         args: s(&[
-            "--param", "hc=0.08", "--param", "h=0.4", "--steps",
+            "--param",
+            "hc=0.08",
+            "--param",
+            "h=0.4",
+            "--steps",
             if quick { "20" } else { "180" },
         ]),
         rounds: 1,
@@ -139,9 +160,18 @@ pub fn section(repo: &Path, dir: &Path, quick: bool) -> String {
                 if !layer && best[k - 1].as_ref().is_some_and(|r| r.step_reuse.layer_rows == 0) {
                     continue;
                 }
-                eprintln!("bench: layer {} {} ranks {mass} sweep {layer} round {round}", case.label, case.ranks);
+                eprintln!(
+                    "bench: layer {} {} ranks {mass} sweep {layer} round {round}",
+                    case.label, case.ranks
+                );
                 let mut args = case.args.clone();
-                args.extend(s(&["--mass", mass, "--", "-step_layer", if layer { "true" } else { "false" }]));
+                args.extend(s(&[
+                    "--mass",
+                    mass,
+                    "--",
+                    "-step_layer",
+                    if layer { "true" } else { "false" },
+                ]));
                 if let Some(r) = run(repo, case.ranks, &case.scene, &args, dir) {
                     let t = |x: &RunSummary| x.timings.stepping / x.steps.max(1) as f64;
                     if best[k].as_ref().is_none_or(|b| t(&r) < t(b)) {
@@ -158,7 +188,10 @@ pub fn section(repo: &Path, dir: &Path, quick: bool) -> String {
                 continue;
             }
             let Some(r) = &best[k] else {
-                md += &format!("| {} | {} | | | {mass} | {layer} | failed |\n", case.label, case.ranks);
+                md += &format!(
+                    "| {} | {} | | | {mass} | {layer} | failed |\n",
+                    case.label, case.ranks
+                );
                 continue;
             };
             let sweep = if r.step_reuse.layer_rows > 0 {

@@ -248,17 +248,9 @@ impl LayerBlock {
         if self.recorded < 3 {
             return Ok(());
         }
-        let world = SimpleCommunicator::world();
         let [h1, h2, h3] = &self.history;
         let own: Vec<f64> = (0..self.rows.len()).map(|j| -h1[j] + 2.0 * h2[j] - h3[j]).collect();
-        world.all_gather_varcount_into(
-            &own[..],
-            &mut mpi::datatype::PartitionMut::new(
-                &mut self.gathered[..],
-                &self.counts[..],
-                &self.displs[..],
-            ),
-        );
+        self.gather(&own);
         let all = &self.gathered;
         self.rc.with_local_slice_mut(|rc| rc.copy_from_slice(all))?;
         self.kcc.as_ref().expect("factored").mult(&self.rc, &mut self.zc)?;
@@ -279,6 +271,19 @@ impl LayerBlock {
         })?
     }
 
+    /// Every rank's values `own` on its layer rows, in the layer's order, into `gathered`.
+    /// Collective.
+    fn gather(&mut self, own: &[f64]) {
+        SimpleCommunicator::world().all_gather_varcount_into(
+            own,
+            &mut mpi::datatype::PartitionMut::new(
+                &mut self.gathered[..],
+                &self.counts[..],
+                &self.displs[..],
+            ),
+        );
+    }
+
     /// `x = K_CC^{-1} b` with the whole layer's vectors, the same on every rank.
     fn solve(&mut self, b: &[f64]) -> Result<()> {
         self.rc.with_local_slice_mut(|rc| rc.copy_from_slice(b))?;
@@ -291,17 +296,9 @@ impl LayerBlock {
     /// [`LayerBlock::add_last`]; returns this rank's change of `r.z` against Jacobi with zero
     /// on the layer rows. Collective.
     pub fn apply(&mut self, r: &[f64]) -> Result<f64> {
-        let world = SimpleCommunicator::world();
         // The whole r_C on every rank; y_C = K_CC^{-1} r_C.
         let own: Vec<f64> = self.rows.iter().map(|&i| r[i]).collect();
-        world.all_gather_varcount_into(
-            &own[..],
-            &mut mpi::datatype::PartitionMut::new(
-                &mut self.gathered[..],
-                &self.counts[..],
-                &self.displs[..],
-            ),
-        );
+        self.gather(&own);
         let rc_all = std::mem::take(&mut self.gathered);
         self.solve(&rc_all)?;
         // dz = -D^{-1} K_AC y_C, z_A = D^{-1} r_A + dz, and this rank's K_CA z_A.
@@ -323,7 +320,11 @@ impl LayerBlock {
                 }
             }
         })?;
-        world.all_reduce_into(&partial[..], &mut self.summed[..], SystemOperation::sum());
+        SimpleCommunicator::world().all_reduce_into(
+            &partial[..],
+            &mut self.summed[..],
+            SystemOperation::sum(),
+        );
         self.partial = partial;
         // z_C = K_CC^{-1} (r_C - K_CA z_A).
         let mut t = rc_all;
