@@ -34,25 +34,19 @@ impl Ksp {
     /// Creates a solver whose options are read with `prefix` (e.g. `"mass_"` reads
     /// `-mass_ksp_type`); an empty prefix reads the plain options.
     pub fn new(prefix: &str) -> Result<Ksp> {
-        ensure_live()?;
-        let mut ksp: ffi::KSP = ptr::null_mut();
-        // SAFETY: PETSc is live; `ksp` is an out-pointer.
-        chk!(ffi::KSPCreate(init::Petsc::comm_world(), &mut ksp))?;
-        let out = Ksp { ksp, prefix: prefix.to_owned(), factor_solver: None };
-        if !prefix.is_empty() {
-            let p = cstring(prefix)?;
-            // SAFETY: valid handle and C string (PETSc copies it).
-            chk!(ffi::KSPSetOptionsPrefix(ksp, p.as_ptr()))?;
-        }
-        Ok(out)
+        Ksp::create(init::Petsc::comm_world(), prefix)
     }
 
     /// A solver private to this rank (`MPI_COMM_SELF`), with options read with `prefix`.
     pub fn new_self(prefix: &str) -> Result<Ksp> {
+        Ksp::create(init::Petsc::comm_self(), prefix)
+    }
+
+    fn create(comm: ffi::MPI_Comm, prefix: &str) -> Result<Ksp> {
         ensure_live()?;
         let mut ksp: ffi::KSP = ptr::null_mut();
-        // SAFETY: PETSc is live; `ksp` is an out-pointer.
-        chk!(ffi::KSPCreate(init::Petsc::comm_self(), &mut ksp))?;
+        // SAFETY: PETSc is live; `comm` is a valid communicator; `ksp` is an out-pointer.
+        chk!(ffi::KSPCreate(comm, &mut ksp))?;
         let mut out = Ksp { ksp, prefix: String::new(), factor_solver: None };
         if !prefix.is_empty() {
             out.set_options_prefix(prefix)?;

@@ -192,22 +192,6 @@ impl Matrix {
         Ok(to_usize(rbs).max(1))
     }
 
-    /// The submatrix of the global `rows` x `cols` (each rank gives its part of both; the
-    /// result's rows and columns are distributed as those parts; `MatCreateSubMatrix`).
-    /// Collective.
-    pub fn sub_matrix(&self, rows: &super::IndexSet, cols: &super::IndexSet) -> Result<Matrix> {
-        let mut c: ffi::Mat = ptr::null_mut();
-        // SAFETY: valid assembled handle and index sets; `c` is an out-pointer.
-        chk!(ffi::MatCreateSubMatrix(
-            self.m,
-            rows.raw(),
-            cols.raw(),
-            ffi::MatReuse_MAT_INITIAL_MATRIX,
-            &mut c
-        ))?;
-        Matrix::from_raw(c)
-    }
-
     /// Whether the storage is (non-symmetric) block AIJ: `seqbaij` or `mpibaij`.
     fn is_plain_baij(&self) -> Result<bool> {
         let mut t: ffi::MatType = ptr::null();
