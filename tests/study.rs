@@ -42,12 +42,25 @@ fn run_study(file: &Path) -> Output {
         .env("OMPI_ALLOW_RUN_AS_ROOT", "1")
         .env("OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1")
         .env("OMPI_MCA_btl_vader_single_copy_mechanism", "none")
+        // A session directory base per study, as `tests/common/mod.rs` gives every launch
+        // (Open MPI's mkdir race between parallel jobs).
+        .env("OMPI_MCA_orte_tmpdir_base", session_base())
         // The study's runs inherit it: HDF5's file locks off, as for every launch of the tests
         // (`tests/common/mod.rs`, `mpi_env`: a descriptor inherited by a launch of another
         // test thread keeps this process's read lock).
         .env("HDF5_USE_FILE_LOCKING", "FALSE")
         .output()
         .expect("cannot start massfree")
+}
+
+/// A fresh Open MPI session directory base (short: Unix socket paths live under it).
+fn session_base() -> PathBuf {
+    static NEXT: AtomicUsize = AtomicUsize::new(0);
+    let dir = std::env::temp_dir()
+        .join("mf-ompi")
+        .join(format!("s{}-{}", std::process::id(), NEXT.fetch_add(1, Ordering::Relaxed)));
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
 }
 
 fn text(o: &Output) -> String {

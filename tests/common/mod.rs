@@ -95,13 +95,30 @@ pub fn massfree(ranks: usize, args: &[&str]) -> Output {
 /// writing the same file then fails with "unable to lock file, errno = 11" (seen once in
 /// `tests/mass_free.rs`, whose two tests launch runs in parallel threads). The runs of one
 /// test never write a file another process is writing, so the locks protect nothing here.
+///
+/// Each launch also gets a session directory base of its own: Open MPI 4.1 creates
+/// `<base>/ompi.<host>.<uid>` with a plain mkdir and aborts on "File exists" when another
+/// job created it a moment before (or removes it at its end while this one starts), a race
+/// that parallel test threads lose now and then (CI, `tests/two_body.rs`, orte_init failed).
 pub fn mpi_env(cmd: &mut Command) -> &mut Command {
-    cmd.env("HDF5_USE_FILE_LOCKING", "FALSE")
+    cmd.env("OMPI_MCA_orte_tmpdir_base", session_base())
+        .env("HDF5_USE_FILE_LOCKING", "FALSE")
         .env("OMPI_ALLOW_RUN_AS_ROOT", "1")
         .env("OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1")
         .env("OMPI_MCA_btl_vader_single_copy_mechanism", "none")
         .env("OMPI_MCA_rmaps_base_oversubscribe", "1")
         .env("RUST_BACKTRACE", "0")
+}
+
+/// A fresh, short directory (Unix socket paths under it must stay below 108 bytes) for one
+/// launch's Open MPI session files.
+pub fn session_base() -> PathBuf {
+    static NEXT: AtomicUsize = AtomicUsize::new(0);
+    let dir = std::env::temp_dir()
+        .join("mf-ompi")
+        .join(format!("{}-{}", std::process::id(), NEXT.fetch_add(1, Ordering::Relaxed)));
+    std::fs::create_dir_all(&dir).expect("cannot create an Open MPI session directory base");
+    dir
 }
 
 /// Run a scene and return its summary; panics with the program's output on failure.
