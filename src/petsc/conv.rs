@@ -11,6 +11,10 @@ pub fn check(code: ffi::PetscErrorCode, call: &str, file: &str, line: u32) -> Re
     if code == 0 {
         return Ok(());
     }
+    // A call that failed because a callback written in Rust did: that callback's error.
+    if let Some(e) = super::shell::take_failure() {
+        return Err(e);
+    }
     let call = call.rsplit("::").next().unwrap_or(call).trim();
     Err(Error::Petsc {
         call: call.to_owned(),

@@ -28,6 +28,8 @@ pub struct Ksp {
     ksp: ffi::KSP,
     prefix: String,
     factor_solver: Option<CString>,
+    /// The type of the preconditioner a shell wraps ([`Ksp::wrap_pc`]).
+    wrapped: Option<String>,
 }
 
 impl Ksp {
@@ -47,7 +49,7 @@ impl Ksp {
         let mut ksp: ffi::KSP = ptr::null_mut();
         // SAFETY: PETSc is live; `comm` is a valid communicator; `ksp` is an out-pointer.
         chk!(ffi::KSPCreate(comm, &mut ksp))?;
-        let mut out = Ksp { ksp, prefix: String::new(), factor_solver: None };
+        let mut out = Ksp { ksp, prefix: String::new(), factor_solver: None, wrapped: None };
         if !prefix.is_empty() {
             out.set_options_prefix(prefix)?;
         }
@@ -67,6 +69,20 @@ impl Ksp {
     /// The raw handle. Ownership stays here.
     pub fn raw(&self) -> ffi::KSP {
         self.ksp
+    }
+
+    /// The preconditioner's handle (owned by the KSP).
+    pub(super) fn pc_handle(&self) -> Result<ffi::PC> {
+        self.pc()
+    }
+
+    pub(super) fn set_wrapped(&mut self, inner_type: String) {
+        self.wrapped = Some(inner_type);
+    }
+
+    /// Whether a shell wraps the configured preconditioner ([`Ksp::wrap_pc`]).
+    pub fn is_wrapped(&self) -> bool {
+        self.wrapped.is_some()
     }
 
     fn pc(&self) -> Result<ffi::PC> {
@@ -243,6 +259,14 @@ impl Ksp {
         Ok(info)
     }
 
+    /// Builds the preconditioner alone now (a shell's set-up runs at once, not at the first
+    /// solve). Collective.
+    pub fn pc_set_up(&mut self) -> Result<()> {
+        let pc = self.pc()?;
+        // SAFETY: valid PC with operators set.
+        chk!(ffi::PCSetUp(pc))
+    }
+
     /// Applies the preconditioner (set up with the solver) to `r`: `z = B r`. For Krylov
     /// loops written outside PETSc (`time::cg`).
     pub fn pc_apply(&self, r: &Vector, z: &mut Vector) -> Result<()> {
@@ -259,8 +283,12 @@ impl Ksp {
         Ok(from_cstr(t))
     }
 
-    /// The preconditioner in use (empty before it is set or defaulted at setup).
+    /// The preconditioner in use (empty before it is set or defaulted at setup); of a shell
+    /// made by [`Ksp::wrap_pc`], the wrapped one's.
     pub fn pc_type(&self) -> Result<String> {
+        if let Some(t) = &self.wrapped {
+            return Ok(t.clone());
+        }
         let pc = self.pc()?;
         let mut t: ffi::PCType = ptr::null();
         // SAFETY: valid PC; PETSc owns the returned string.

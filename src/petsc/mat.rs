@@ -272,6 +272,14 @@ impl Matrix {
         Ok(out)
     }
 
+    /// A handle PETSc lends (a callback's argument): referenced here, so that dropping the
+    /// wrapper only releases that reference.
+    pub(crate) fn borrowed(m: ffi::Mat) -> Result<Matrix> {
+        // SAFETY: a valid Mat handle (a PetscObject); the reference is released by `Drop`.
+        chk!(ffi::PetscObjectReference(m as ffi::PetscObject))?;
+        Matrix::from_raw(m)
+    }
+
     fn read_layout(&mut self) -> Result<()> {
         let (mut lo, mut hi, mut r, mut c) = (0, 0, 0, 0);
         // SAFETY: valid, preallocated Mat; out-pointers are locals.

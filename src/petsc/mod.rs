@@ -32,6 +32,7 @@ mod ksp;
 mod log;
 mod mat;
 mod scatter;
+mod shell;
 mod vec;
 
 pub use init::Petsc;
@@ -40,4 +41,5 @@ pub use ksp::{Ksp, SolveInfo};
 pub use log::{memory_current, memory_maximum, wtime, LogStage};
 pub use mat::{MatNonzeroInfo, Matrix, NullSpace, Pattern};
 pub use scatter::Scatter;
+pub use shell::PcShell;
 pub use vec::Vector;

@@ -59,6 +59,14 @@ impl Vector {
         Ok(out)
     }
 
+    /// A handle PETSc lends (a callback's argument): referenced here, so that dropping the
+    /// wrapper only releases that reference.
+    pub(crate) fn borrowed(v: ffi::Vec) -> Result<Vector> {
+        // SAFETY: a valid Vec handle (a PetscObject); the reference is released by `Drop`.
+        chk!(ffi::PetscObjectReference(v as ffi::PetscObject))?;
+        Vector::from_raw(v)
+    }
+
     fn read_layout(&mut self) -> Result<()> {
         let (mut n, mut gn, mut lo, mut hi) = (0, 0, 0, 0);
         // SAFETY: `self.v` is a valid Vec whose sizes are set; out-pointers are locals.

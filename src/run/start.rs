@@ -73,6 +73,7 @@ pub fn step_operator(
     }
     // The step's own CG serves steps without contact (a contact solver rewrites K's rows).
     defaults.reuse = if with_contact { None } else { app.step_reuse };
+    defaults.layer = app.step_layer_around;
     defaults.blocked = d.scene.contact.as_ref().is_none_or(|c| c.pairs.is_empty());
     let op = StepOperator::new(
         m,
@@ -89,9 +90,11 @@ pub fn step_operator(
         _ if pc_type == defaults.pc_type && solver.pc_type.is_none() => why,
         _ => "set by the scene or the command line".to_string(),
     };
-    let layer = match op.cg.as_ref().map(|cg| cg.layer_solver()).transpose()?.flatten() {
+    let around = op.layer.as_ref().and_then(|i| i.borrow().clone());
+    let own = op.cg.as_ref().map(|cg| cg.layer_solver()).transpose()?.flatten();
+    let layer = match own.or(around) {
         Some((rows, solver)) => format!(
-            "; the mass-free layer's {rows} massless rows swept with {solver} (-step_layer false: plain Jacobi)"
+            "; the mass-free layer's {rows} massless rows swept with {solver} (-step_layer false: not swept)"
         ),
         None => String::new(),
     };

@@ -156,7 +156,7 @@ impl StepCg {
                 }
             }
             let layer =
-                if use_layer { LayerBlock::new(k, massless, &d, k.block_size()?)? } else { None };
+                if use_layer { LayerBlock::new(k, massless, Some(&d), k.block_size()?)? } else { None };
             Precond::Jacobi(d, layer.map(Box::new))
         } else {
             Precond::Petsc(r.duplicate()?)
@@ -240,7 +240,7 @@ impl StepCg {
         let mut info = CgInfo::default();
         if std::mem::take(&mut self.stale_layer) {
             if let Precond::Jacobi(d, Some(layer)) = &mut self.pc {
-                layer.factor(k, d)?;
+                layer.factor(k, Some(d))?;
             }
         }
         let known = self.known;

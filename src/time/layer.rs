@@ -76,9 +76,15 @@ pub struct LayerBlock {
 
 impl LayerBlock {
     /// The massless rows of `k` (local indices `rows`, sorted), their blocks and the solver
-    /// of `K_CC`; `d` is Jacobi's inverse diagonal of `k` (local), `dim` the DOFs per node.
-    /// `None` when no rank has a massless row. Collective.
-    pub fn new(k: &Matrix, rows: Vec<usize>, d: &[f64], dim: usize) -> Result<Option<LayerBlock>> {
+    /// of `K_CC`; `d` is Jacobi's inverse diagonal of `k` (local; `None` for the sweep
+    /// around another preconditioner, [`LayerBlock::apply_around`]), `dim` the DOFs per
+    /// node. `None` when no rank has a massless row. Collective.
+    pub fn new(
+        k: &Matrix,
+        rows: Vec<usize>,
+        d: Option<&[f64]>,
+        dim: usize,
+    ) -> Result<Option<LayerBlock>> {
         let world = SimpleCommunicator::world();
         let (lo, _) = k.ownership_range();
         let own: Vec<i32> = rows.iter().map(|&i| (lo + i) as i32).collect();
@@ -149,7 +155,7 @@ impl LayerBlock {
 
     /// Gathers `K_CC`, collects this rank's `K_AC` and factors `K_CC` (again, after `k`
     /// changed; `d` as in [`LayerBlock::new`]). Collective.
-    pub fn factor(&mut self, k: &Matrix, d: &[f64]) -> Result<()> {
+    pub fn factor(&mut self, k: &Matrix, d: Option<&[f64]>) -> Result<()> {
         let world = SimpleCommunicator::world();
         let (lo, hi) = k.ownership_range();
         // This rank's rows of K_CC as (row, column, value) in the layer's numbering.
@@ -185,17 +191,24 @@ impl LayerBlock {
             )),
             other => other,
         })?;
-        // K_AC: this rank's massive rows with entries in layer columns (any rank's).
-        let massless: std::collections::HashSet<usize> = self.rows.iter().copied().collect();
+        // K_AC: this rank's massive rows with entries in layer columns (any rank's). K's
+        // pattern never changes (a contact solver rewrites values), so after the first scan
+        // of all rows only the coupled ones are read again.
+        let candidates: Vec<usize> = if self.adjacent.is_empty() {
+            let massless: std::collections::HashSet<usize> = self.rows.iter().copied().collect();
+            (0..hi - lo).filter(|i| !massless.contains(i)).collect()
+        } else {
+            std::mem::take(&mut self.adjacent)
+        };
         self.adjacent.clear();
         self.kac_start = vec![0];
         self.kac_cols.clear();
         self.kac_vals.clear();
-        for i in (0..hi - lo).filter(|i| !massless.contains(i)) {
+        for i in candidates {
             let before = self.kac_cols.len();
             k.with_row(lo + i, |c, v| {
                 for (&g, &x) in c.iter().zip(v) {
-                    if let (Some(j), true) = (self.layer_row(g), x != 0.0) {
+                    if let Some(j) = self.layer_row(g) {
                         self.kac_cols.push(j as u32);
                         self.kac_vals.push(x);
                     }
@@ -206,7 +219,7 @@ impl LayerBlock {
                 self.kac_start.push(self.kac_cols.len());
             }
         }
-        self.d_adjacent = self.adjacent.iter().map(|&i| d[i]).collect();
+        self.d_adjacent = d.map_or(Vec::new(), |d| self.adjacent.iter().map(|&i| d[i]).collect());
         self.dz = vec![0.0; self.adjacent.len()];
         self.z_own = vec![0.0; self.rows.len()];
         Ok(())
@@ -341,6 +354,75 @@ impl LayerBlock {
         Ok(rz_layer + rz_adjacent)
     }
 
+    /// The same sweep around any preconditioner `inner` of the whole operator (block
+    /// Jacobi with ILU, ...), whose restriction to the massive rows takes Jacobi's place:
+    ///
+    /// ```text
+    ///   y_C = K_CC^{-1} r_C,   z_I = [B (r_I - K_IC y_C, 0)]_I,   z_C = K_CC^{-1} (r_C - K_CI z_I)
+    /// ```
+    /// `[B]_II` is SPD when `B` is, so the sweep stays symmetric. The layer's work is
+    /// surface-sized as in [`LayerBlock::apply`]; `s` is a work vector like `r`. Collective.
+    pub fn apply_around(
+        &mut self,
+        r: &Vector,
+        z: &mut Vector,
+        s: &mut Vector,
+        inner: &mut dyn FnMut(&Vector, &mut Vector) -> Result<()>,
+    ) -> Result<()> {
+        let own: Vec<f64> = r.with_local_slice(|r| self.rows.iter().map(|&i| r[i]).collect())?;
+        self.gather(&own);
+        let rc_all = std::mem::take(&mut self.gathered);
+        self.solve(&rc_all)?;
+        // s = (r_I - K_IC y_C, 0).
+        s.copy_from(r)?;
+        let (rows, adjacent) = (&self.rows, &self.adjacent);
+        let (start, cols, vals) = (&self.kac_start, &self.kac_cols, &self.kac_vals);
+        self.zc.with_local_slice(|y| {
+            s.with_local_slice_mut(|s| {
+                for &i in rows {
+                    s[i] = 0.0;
+                }
+                for (a, &i) in adjacent.iter().enumerate() {
+                    s[i] -= (start[a]..start[a + 1])
+                        .map(|e| vals[e] * y[cols[e] as usize])
+                        .sum::<f64>();
+                }
+            })
+        })??;
+        inner(s, z)?;
+        // K_CA z_A over the ranks; z_C = K_CC^{-1} (r_C - K_CA z_A).
+        let mut partial = std::mem::take(&mut self.partial);
+        partial.iter_mut().for_each(|x| *x = 0.0);
+        z.with_local_slice(|z| {
+            for (a, &i) in adjacent.iter().enumerate() {
+                for e in start[a]..start[a + 1] {
+                    partial[cols[e] as usize] += vals[e] * z[i];
+                }
+            }
+        })?;
+        SimpleCommunicator::world().all_reduce_into(
+            &partial[..],
+            &mut self.summed[..],
+            SystemOperation::sum(),
+        );
+        self.partial = partial;
+        let mut t = rc_all;
+        for (t, s) in t.iter_mut().zip(&self.summed) {
+            *t -= s;
+        }
+        self.solve(&t)?;
+        let first = self.first;
+        self.zc.with_local_slice(|zc| {
+            z.with_local_slice_mut(|z| {
+                for (j, &i) in self.rows.iter().enumerate() {
+                    z[i] = zc[first + j];
+                }
+            })
+        })??;
+        self.gathered = t;
+        Ok(())
+    }
+
     /// Adds the last [`LayerBlock::apply`]'s `z_C` onto the layer rows of `p` (which Jacobi
     /// left zero) and its change of `z` onto the coupled rows.
     pub fn add_last(&self, p: &mut [f64]) -> Result<()> {
@@ -351,5 +433,60 @@ impl LayerBlock {
             p[i] += self.dz[a];
         }
         Ok(())
+    }
+}
+
+/// The sweep as a PETSc preconditioner around the step KSP's own (`PCSHELL`,
+/// [`crate::petsc::Ksp::wrap_pc`]): what the contact steps solve with, whose operator a
+/// contact solver rewrites near the contact nodes, i.e. in the layer's rows. PETSc sets the
+/// shell up again whenever the operator changed, and then `K_CC` is gathered and factored
+/// again and `K_AC` collected again (surface-sized, beside the wrapped preconditioner's own
+/// refactorization).
+pub struct LayerShell {
+    rows: Vec<usize>,
+    dim: usize,
+    block: Option<LayerBlock>,
+    s: Option<Vector>,
+    /// The layer's rows over all ranks and its solver, once set up (for the reports).
+    info: std::rc::Rc<std::cell::RefCell<Option<(usize, String)>>>,
+}
+
+impl LayerShell {
+    /// For this rank's massless rows (local indices, sorted) with `dim` DOFs per node;
+    /// `info` receives the layer's size and solver at each set-up.
+    pub fn new(
+        rows: Vec<usize>,
+        dim: usize,
+        info: std::rc::Rc<std::cell::RefCell<Option<(usize, String)>>>,
+    ) -> LayerShell {
+        LayerShell { rows, dim, block: None, s: None, info }
+    }
+}
+
+impl crate::petsc::PcShell for LayerShell {
+    fn set_up(&mut self, op: &Matrix) -> Result<()> {
+        match self.block.as_mut() {
+            Some(b) => b.factor(op, None)?,
+            None => {
+                self.block = LayerBlock::new(op, std::mem::take(&mut self.rows), None, self.dim)?;
+                self.s = Some(op.create_vecs()?.0);
+            }
+        }
+        if let Some(b) = &self.block {
+            *self.info.borrow_mut() = Some((b.total(), b.solver()?));
+        }
+        Ok(())
+    }
+
+    fn apply(
+        &mut self,
+        r: &Vector,
+        z: &mut Vector,
+        inner: &mut dyn FnMut(&Vector, &mut Vector) -> Result<()>,
+    ) -> Result<()> {
+        match (self.block.as_mut(), self.s.as_mut()) {
+            (Some(b), Some(s)) => b.apply_around(r, z, s, inner),
+            _ => inner(r, z),
+        }
     }
 }

@@ -2,7 +2,11 @@
 //! eliminated, and its solver, set up once per run (PETSc tutorials' order: defaults, then
 //! `KSPSetFromOptions`, then the `step_` prefix).
 
+use std::cell::RefCell;
+use std::rc::Rc;
+
 use super::cg::{Predictor, StepCg};
+use super::layer::LayerShell;
 use super::choice::{self, Estimate, RunFacts, Solver};
 use crate::error::Result;
 use crate::mass::MassMatrix;
@@ -25,6 +29,9 @@ pub struct StepSolverDefaults {
     /// The step's CG written out with its products kept (`time::cg`), for steps without
     /// contact; `None`: PETSc's `KSPSolve` and the products recomputed every step.
     pub reuse: Option<Reuse>,
+    /// `-step_layer_around`: the mass-free layer's rows swept around Jacobi or a block
+    /// preconditioner in PETSc's KSP too (`time::layer::LayerShell`).
+    pub layer: bool,
     /// `K` may be stored in A's node blocks for CG + Jacobi (3D; not with mortar pairs,
     /// whose `T^T K T` PETSc forms only from AIJ).
     pub blocked: bool,
@@ -118,6 +125,7 @@ impl Default for StepSolverDefaults {
             user_reuse_preconditioner: false,
             symmetric: true,
             reuse: Some(Reuse::default()),
+            layer: false,
             blocked: true,
             run: None,
         }
@@ -143,6 +151,22 @@ pub struct StepOperator {
     /// The choice made knowing the run (`StepSolverDefaults::run`): the solver, its
     /// estimates, the reason, and the seconds of the product with `K` it was based on.
     pub choice: Option<(Solver, Estimate, String, f64)>,
+    /// With the layer's sweep around PETSc's preconditioner (`time::layer::LayerShell`):
+    /// the layer's rows over all ranks and its solver, once set up.
+    pub layer: Option<Rc<RefCell<Option<(usize, String)>>>>,
+}
+
+/// Whether `local` holds on any rank. Collective.
+fn any_rank(local: bool) -> bool {
+    use mpi::collective::SystemOperation;
+    use mpi::traits::*;
+    let mut any = 0i32;
+    mpi::topology::SimpleCommunicator::world().all_reduce_into(
+        &(local as i32),
+        &mut any,
+        SystemOperation::max(),
+    );
+    any != 0
 }
 
 impl StepOperator {
@@ -266,16 +290,44 @@ impl StepOperator {
         let iterative = ksp.ksp_type()? != "preonly";
         ksp.set_initial_guess_nonzero(iterative)?;
         ksp.set_up()?;
+        let massless = massless_rows(m, &k)?;
         let cg = match defaults.reuse {
             Some(r) if ksp.ksp_type()? == "cg" => {
-                let massless = massless_rows(m, &k)?;
                 let (rtol, e, p) = (ksp.rtol()?, r.energy_rtol, r.predictor);
-                Some(StepCg::new(&k, &ksp, rtol, e, p, massless, r.layer)?)
+                Some(StepCg::new(&k, &ksp, rtol, e, p, massless.clone(), r.layer)?)
             }
             _ => None,
         };
+        // With `-step_layer_around` the solves through PETSc's KSP (contact steps; with a
+        // preconditioner other than Jacobi, every step) sweep the layer's rows around that
+        // preconditioner (`time::layer::LayerShell`), refactored when a contact solver
+        // rewrites K.
+        let pc = ksp.pc_type()?;
+        let sweep = defaults.layer
+            && ksp.ksp_type()? == "cg"
+            && matches!(pc.as_str(), "jacobi" | "pbjacobi" | "bjacobi" | "ilu" | "icc" | "sor")
+            && any_rank(!massless.is_empty());
+        let contact_layer = if sweep {
+            let info = Rc::new(RefCell::new(None));
+            let shell = LayerShell::new(massless, k.block_size()?, info.clone());
+            ksp.wrap_pc(&format!("the mass-free layer's sweep around {pc}"), Box::new(shell))?;
+            ksp.pc_set_up()?;
+            Some(info)
+        } else {
+            None
+        };
         let refresh = defaults.reuse.map_or(1, |r| r.refresh.max(1));
-        Ok(StepOperator { k, k_free, dirichlet_dofs, dirichlet_diag, ksp, cg, refresh, choice })
+        Ok(StepOperator {
+            k,
+            k_free,
+            dirichlet_dofs,
+            dirichlet_diag,
+            ksp,
+            cg,
+            refresh,
+            choice,
+            layer: contact_layer,
+        })
     }
 }
 

@@ -135,7 +135,9 @@ impl Midpoint {
 
     /// What keeping the step's products did so far.
     pub fn reuse(&self) -> ReuseReport {
-        let layer_rows = self.op.cg.as_ref().map_or(0, |cg| cg.layer_rows());
+        let own = self.op.cg.as_ref().map_or(0, |cg| cg.layer_rows());
+        let around = self.op.layer.as_ref().and_then(|i| i.borrow().as_ref().map(|l| l.0));
+        let layer_rows = own.max(around.unwrap_or(0));
         ReuseReport { layer_rows, ..self.reuse }
     }
 
