@@ -190,3 +190,53 @@ fn inexact_iterations_and_the_preconditioners_change_nothing() {
         assert!(rel_diff(s0.energy_final, s.energy_final) < 1e-9, "variant {i}: energy");
     }
 }
+
+/// The energy correction settles a step from two solves that share an active set
+/// (`Midpoint::correct_energy`): the constrained operator is then the same, the solve affine
+/// in `xi`, so the increment and the contact data interpolated at the model's root are that
+/// root's solution (to the solves' tolerance) and the confirming solve is left out. Against
+/// the same run confirming every time (`-massless_correction_blend false`): the same active
+/// sets, forces, displacements and energies to the solver's tolerance, one solve fewer per
+/// settled step.
+#[test]
+fn the_energy_correction_needs_no_confirming_solve_on_a_held_active_set() {
+    let dir = scratch("contact3d-blend");
+    let scene = scene_variant("sphere_hex.toml", &dir, &[("steps = 220", "steps = 60")]);
+    let mut runs = vec![];
+    for blend in ["true", "false"] {
+        let s = run_scene(
+            2,
+            &scene,
+            &["--mass", "modified0", "--", "-massless_correction_blend", blend],
+        );
+        let r = reader(&dir.join("sphere_hex-2.h5"));
+        let f = r.series(&layout::contact("force")).unwrap();
+        let a = r.series(&layout::contact("active")).unwrap();
+        let u = r.series("fields/displacement").unwrap();
+        runs.push((s, f, a, u));
+    }
+    let ((s1, f1, a1, u1), (s2, f2, a2, u2)) = (&runs[0], &runs[1]);
+    let (c1, c2) = (&s1.energy_corrections, &s2.energy_corrections);
+    eprintln!("blended {c1:?}\nconfirmed {c2:?}");
+    assert!(c1.closed_form > 0, "no step settled without the confirming solve");
+    assert_eq!(c2.closed_form, 0);
+    assert_eq!(c1.steps, c2.steps, "corrected steps");
+    assert_eq!(
+        c1.extra_solves + c1.closed_form,
+        c2.extra_solves,
+        "one solve fewer per settled step"
+    );
+    assert!(a1.iter().any(|&x| x != 0.0), "no contact");
+    assert_eq!(a1, a2, "active sets");
+    let fmax = f1.iter().cloned().fold(0.0, f64::max);
+    let dmax = f1.iter().zip(f2).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
+    assert!(dmax <= 1e-7 * fmax, "forces differ by {dmax} (max {fmax})");
+    let umax = u2.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+    let du = u1.iter().zip(u2).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
+    // Each solve leaves at most rtol = 1e-10 of the solution: 10 n rtol over n steps.
+    assert!(du <= 10.0 * 60.0 * 1e-10 * umax, "displacements differ by {du} (max {umax})");
+    assert!(rel_diff(s1.energy_final, s2.energy_final) < 1e-9, "final energy");
+    assert!(s1.energy_balance < 1e-8, "energy balance {}", s1.energy_balance);
+    // No gain beyond the balance's tolerance: the correction puts back losses only.
+    assert!(s1.energy_final <= s1.energy_initial * (1.0 + 1e-8), "energy rose");
+}

@@ -133,8 +133,11 @@ fn the_layer_sweep_around_petscs_preconditioner_gives_the_plain_solvers_contact_
         let replace = [(shipped, format!("steps = {steps}"))];
         let one = run_with(scene, &replace, mass, 1, true, &[]);
         for ranks in [1, 2] {
-            let swept =
-                if ranks == 1 { None } else { Some(run_with(scene, &replace, mass, ranks, true, &[])) };
+            let swept = if ranks == 1 {
+                None
+            } else {
+                Some(run_with(scene, &replace, mass, ranks, true, &[]))
+            };
             let swept = swept.as_ref().unwrap_or(&one);
             let plain = run_with(scene, &replace, mass, ranks, false, &[]);
             let (s, p) = (&swept.summary, &plain.summary);
@@ -142,7 +145,10 @@ fn the_layer_sweep_around_petscs_preconditioner_gives_the_plain_solvers_contact_
             assert_eq!(p.step_reuse.layer_rows, 0, "{scene} {mass}: -step_layer false");
             // The same contact: the same active sets, step by step.
             assert!(swept.active.iter().any(|&a| a > 0.0), "{scene}: no contact");
-            assert_eq!(swept.active, plain.active, "{scene} {mass} on {ranks} rank(s): active sets");
+            assert_eq!(
+                swept.active, plain.active,
+                "{scene} {mass} on {ranks} rank(s): active sets"
+            );
             // As without contact: each solve leaves at most rtol in the energy norm.
             let bound = 10.0 * steps as f64 * RTOL;
             let d = field_diff(&swept.displacement, &plain.displacement);

@@ -56,9 +56,11 @@ fn run_study(file: &Path) -> Output {
 /// A fresh Open MPI session directory base (short: Unix socket paths live under it).
 fn session_base() -> PathBuf {
     static NEXT: AtomicUsize = AtomicUsize::new(0);
-    let dir = std::env::temp_dir()
-        .join("mf-ompi")
-        .join(format!("s{}-{}", std::process::id(), NEXT.fetch_add(1, Ordering::Relaxed)));
+    let dir = std::env::temp_dir().join("mf-ompi").join(format!(
+        "s{}-{}",
+        std::process::id(),
+        NEXT.fetch_add(1, Ordering::Relaxed)
+    ));
     std::fs::create_dir_all(&dir).unwrap();
     dir
 }

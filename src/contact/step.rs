@@ -62,3 +62,97 @@ pub struct StepContact {
 
 /// A slave node's plane in the mortar basis, `(c_q, n_q)`: `n_q . y_q <= c_q`.
 pub type NodePlane = (f64, [f64; 3]);
+
+impl StepContact {
+    /// The contact data of the solve at `xi_a + t (xi_b - xi_a)` between two solves `a`, `b`
+    /// of one step whose right-hand sides differ along one direction (the energy
+    /// correction's), when both found the same active set on the same normals without
+    /// friction or a geometry that follows the bodies: the constrained operator is then the
+    /// same, so the solution, the forces, the gaps and the works are affine in `t` (to the
+    /// solves' tolerance). `None` when they cannot be blended, or when the blend leaves an
+    /// active node pulling (`lambda < 0`) or an inactive one penetrating (gap < 0): then the
+    /// step must be solved at that point.
+    pub fn blend(a: &StepContact, b: &StepContact, t: f64) -> Option<StepContact> {
+        let plain = |c: &StepContact| {
+            c.row.tangential.is_empty()
+                && c.contact_nodal.is_empty()
+                && c.friction_nodal.is_empty()
+                && c.master_friction.is_empty()
+        };
+        if !(plain(a) && plain(b))
+            || a.row.active != b.row.active
+            || a.normals != b.normals
+            || a.row.force.len() != b.row.force.len()
+            || a.row.gap.len() != b.row.gap.len()
+            || a.master_nodal.len() != b.master_nodal.len()
+        {
+            return None;
+        }
+        let mix = |x: f64, y: f64| x + t * (y - x);
+        let mix3 = |x: &[f64; 3], y: &[f64; 3]| [0, 1, 2].map(|i| mix(x[i], y[i]));
+        let force: Vec<f64> =
+            a.row.force.iter().zip(&b.row.force).map(|(&x, &y)| mix(x, y)).collect();
+        let gap: Vec<f64> = a.row.gap.iter().zip(&b.row.gap).map(|(&x, &y)| mix(x, y)).collect();
+        let feasible = b.row.active.iter().enumerate().all(|(q, &on)| {
+            if on {
+                force.get(q).is_none_or(|&f| f >= 0.0)
+            } else {
+                gap.get(q).is_none_or(|&g| !(g < 0.0))
+            }
+        });
+        if !feasible {
+            return None;
+        }
+        let mut c = b.clone();
+        c.row.force = force;
+        c.row.gap = gap;
+        c.work = mix(a.work, b.work);
+        c.resultant = mix3(&a.resultant, &b.resultant);
+        c.obstacle_force = mix3(&a.obstacle_force, &b.obstacle_force);
+        c.master_force = mix3(&a.master_force, &b.master_force);
+        c.master_nodal =
+            a.master_nodal.iter().zip(&b.master_nodal).map(|(x, y)| mix3(x, y)).collect();
+        Some(c)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn sample(scale: f64, active: Vec<bool>) -> StepContact {
+        let mut c = StepContact::default();
+        c.row.force = vec![1.0 * scale, 0.0];
+        c.row.gap = vec![0.0, 0.5 * scale];
+        c.row.active = active;
+        c.normals = vec![[0.0, 1.0, 0.0]; 2];
+        c.work = -2.0 * scale;
+        c.resultant = [0.0, scale, 0.0];
+        c
+    }
+
+    #[test]
+    fn a_blend_is_affine_between_solves_of_one_active_set() {
+        let (a, b) = (sample(1.0, vec![true, false]), sample(3.0, vec![true, false]));
+        let c = StepContact::blend(&a, &b, 0.25).expect("blendable");
+        assert_eq!(c.row.force, vec![1.5, 0.0]);
+        assert_eq!(c.row.gap, vec![0.0, 0.75]);
+        assert_eq!(c.work, -3.0);
+        assert_eq!(c.resultant, [0.0, 1.5, 0.0]);
+        // Beyond b, still feasible.
+        assert!(StepContact::blend(&a, &b, 1.2).is_some());
+    }
+
+    #[test]
+    fn no_blend_across_active_sets_friction_or_infeasible_points() {
+        let a = sample(1.0, vec![true, false]);
+        assert!(StepContact::blend(&a, &sample(3.0, vec![true, true]), 0.5).is_none());
+        let mut f = sample(3.0, vec![true, false]);
+        f.row.tangential = vec![[0.0; 3]; 2];
+        assert!(StepContact::blend(&a, &f, 0.5).is_none());
+        // Extrapolated so far that the active node pulls: lambda = 1 + t (-1 - 1) < 0.
+        let pull = sample(-1.0, vec![true, false]);
+        assert!(StepContact::blend(&a, &pull, 0.75).is_none());
+        assert!(StepContact::blend(&a, &pull, 0.25).is_some());
+    }
+}

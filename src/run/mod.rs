@@ -297,6 +297,7 @@ impl<'a> Simulation<'a> {
             d.part.dim,
             diagnostics::node_bodies(d),
         )?;
+        midpoint.set_correction_blend(self.app.massless_correction_blend);
         // With massless DOFs contact steps start from the last increment: the residual test
         // hardly sees the massless rows, and an extrapolated guess let their velocity drift
         // (1.5e-6 of a rigid translation in 60 steps of the disc, tests/snapshot.rs).

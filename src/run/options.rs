@@ -87,6 +87,10 @@ pub struct AppOptions {
     /// massless DOFs, a contact step whose active set changed gets the force that takes out
     /// the work the contact did (`time::Midpoint::correct_energy`).
     pub massless_energy_correction: bool,
+    /// `-massless_correction_blend true|false` (default true): a corrected step whose two
+    /// solves share an active set takes the interpolated increment and contact data at the
+    /// model's root without a confirming solve (`false`: always the confirming solve).
+    pub massless_correction_blend: bool,
     /// `-massless_drift_rtol X` (default `time::Midpoint::DRIFT_RTOL`, 1e-7): following the
     /// bodies, the work of steady contact steps is collected up to this fraction of the
     /// energy before the correction puts it back.
@@ -154,6 +158,10 @@ impl AppOptions {
             },
             massless_energy_correction: massless_energy_correction(
                 Petsc::options_get_string("-massless_energy_correction")?.as_deref(),
+            )?,
+            massless_correction_blend: on_by_default(
+                "-massless_correction_blend",
+                Petsc::options_get_string("-massless_correction_blend")?.as_deref(),
             )?,
             massless_drift_rtol: positive(
                 "-massless_drift_rtol",
@@ -269,10 +277,15 @@ fn step_reuse(
 
 /// `-step_layer true|false` (default true).
 fn step_layer(value: Option<&str>) -> Result<bool> {
+    on_by_default("-step_layer", value)
+}
+
+/// A boolean option on by default.
+fn on_by_default(name: &str, value: Option<&str>) -> Result<bool> {
     match value {
         None | Some("1" | "true" | "yes") => Ok(true),
         Some("0" | "false" | "no") => Ok(false),
-        Some(other) => Err(Error::Usage(format!("-step_layer {other}: give true or false"))),
+        Some(other) => Err(Error::Usage(format!("{name} {other}: give true or false"))),
     }
 }
 

@@ -380,8 +380,8 @@ pub fn summary_lines(d: &Domain, layer: Option<(usize, usize)>, s: &RunSummary) 
     if s.energy_corrections.enabled {
         let c = &s.energy_corrections;
         lines.push(format!(
-            "massless DOFs: contact work put back on {} steps ({} extra solves, {} KSP iterations; {} steps handed it on, {} unsettled): {:.3e}, pending at the end {:.3e}",
-            c.steps, c.extra_solves, c.iterations, c.skipped, c.unconverged, c.energy, c.pending
+            "massless DOFs: contact work put back on {} steps ({} extra solves, {} KSP iterations, {} steps settled without a confirming solve; {} steps handed it on, {} unsettled): {:.3e}, pending at the end {:.3e}",
+            c.steps, c.extra_solves, c.iterations, c.closed_form, c.skipped, c.unconverged, c.energy, c.pending
         ));
     }
     if s.release_projections > 0 {

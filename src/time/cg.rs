@@ -155,8 +155,11 @@ impl StepCg {
                     d[i] = 0.0;
                 }
             }
-            let layer =
-                if use_layer { LayerBlock::new(k, massless, Some(&d), k.block_size()?)? } else { None };
+            let layer = if use_layer {
+                LayerBlock::new(k, massless, Some(&d), k.block_size()?)?
+            } else {
+                None
+            };
             Precond::Jacobi(d, layer.map(Box::new))
         } else {
             Precond::Petsc(r.duplicate()?)

@@ -118,6 +118,9 @@ pub struct Midpoint {
     /// The bound of `drift` as a fraction of the energy ([`Midpoint::DRIFT_RTOL`] unless
     /// `-massless_drift_rtol` says otherwise).
     drift_rtol: f64,
+    /// Settle a corrected step from two solves on one active set without a confirming solve
+    /// (`-massless_correction_blend`).
+    blend: bool,
     /// Whether the energy of steps whose active set changed is corrected.
     correct: bool,
     /// The energy correction's right-hand side and work vectors `(P M du0, -2 xi P M du0,
@@ -161,6 +164,10 @@ pub struct Corrections {
     /// pending).
     #[serde(default)]
     pub unconverged: usize,
+    /// Corrected steps settled without the confirming solve: both solves on one active set,
+    /// the increment and the contact data interpolated at the model's root.
+    #[serde(default)]
+    pub closed_form: usize,
 }
 
 impl Midpoint {
@@ -224,6 +231,7 @@ impl Midpoint {
             corrections_this_step: 0,
             drift: 0.0,
             drift_rtol: Self::DRIFT_RTOL,
+            blend: true,
             correct: false,
             rhs_corr: None,
             corr: None,
@@ -373,6 +381,12 @@ impl Midpoint {
     /// of the energy (`None`: [`Midpoint::DRIFT_RTOL`]); `dim` components per node, `groups`
     /// the body of each owned node in DOF order (the correction keeps each body's momentum;
     /// empty: one body). Collective.
+    /// Whether a corrected step whose two solves share an active set is settled without a
+    /// confirming solve (default true).
+    pub fn set_correction_blend(&mut self, blend: bool) {
+        self.blend = blend;
+    }
+
     pub fn configure_massless(
         &mut self,
         correct: bool,
@@ -600,12 +614,16 @@ impl Midpoint {
     /// iterations, the last contact data and the step's contact work with the correction's.
     fn correct_energy<'c>(
         &mut self,
-        work: f64,
+        first: &StepContact,
         mut contact: Option<&mut (dyn ContactSolver + 'c)>,
         n: usize,
         t_next: f64,
         slack: f64,
     ) -> Result<(usize, Option<StepContact>, f64)> {
+        let work = first.work;
+        // Blends only on a fixed geometry: one that follows the bodies makes the constrained
+        // operator depend on the solution.
+        let can_blend = self.blend && !contact.as_deref().is_some_and(|s| s.geometry_follows());
         let scale = self.energy.total().abs().max(self.energy.kinetic).max(f64::MIN_POSITIVE);
         let tol = (1e-10 * scale).max(slack);
         let debt = self.corrections.pending;
@@ -636,6 +654,8 @@ impl Midpoint {
         // Samples (xi, W, m.du): `a` the solve before the last (its increment in `prev`), `b`
         // the last (in `du`).
         let (mut a, mut b) = ((0.0, work, q0), (0.0, work, q0));
+        // The contact data of the two samples (for a blend instead of the confirming solve).
+        let (mut contact_a, mut contact_b) = (first.clone(), first.clone());
         let mut xi = if q0 > 0.0 { (work + debt) / q0 } else { f64::INFINITY };
         let (mut its, mut last, mut total, mut corr_work) = (0, None, work, 0.0);
         for k in 0..MAX_SOLVES {
@@ -647,10 +667,14 @@ impl Midpoint {
                 break;
             }
             let (m, force, prev) = self.corr.as_mut().expect("allocated");
+            let mut blend = None;
             if k > 0 {
                 // Start from the model's increment, du_a + t (du_b - du_a); du_b becomes the
                 // sample before the last.
                 let t = (xi - a.0) / (b.0 - a.0);
+                if can_blend {
+                    blend = StepContact::blend(&contact_a, &contact_b, t);
+                }
                 Vector::with_slices([], [&mut self.du, prev], |[], [du, prev]| {
                     for i in 0..du.len() {
                         let d = du[i];
@@ -662,6 +686,20 @@ impl Midpoint {
             // The du form is the midpoint equation times 2.
             force.copy_from(m)?;
             force.scale(-2.0 * xi)?;
+            // Both samples on one active set: the solve is affine in xi between them, so the
+            // interpolated increment is the solution at xi and its contact data the blend of
+            // theirs (feasible, or `blend` is None). No confirming solve then: one extra
+            // solve a corrected step.
+            if let Some(c) = blend {
+                let q = m.dot(&self.du)?;
+                corr_work = -xi * q;
+                total = c.work + corr_work;
+                if (total + debt).abs() <= tol {
+                    self.corrections.closed_form += 1;
+                    last = Some(c);
+                    break;
+                }
+            }
             self.rhs_corr.as_mut().expect("allocated").waxpy(1.0, force, &self.rhs)?;
             let (i, c) = self.solve_system(true, contact.as_deref_mut(), n, t_next)?;
             its += i;
@@ -670,6 +708,9 @@ impl Midpoint {
             self.corrections_this_step += 1;
             let w = c.as_ref().map_or(0.0, |c| c.work);
             let q = self.corr.as_ref().expect("allocated").0.dot(&self.du)?;
+            if let Some(c) = &c {
+                contact_a = std::mem::replace(&mut contact_b, c.clone());
+            }
             // 1/2 force.du, the correction force's work.
             corr_work = -xi * q;
             total = w + corr_work;
@@ -794,7 +835,7 @@ impl Midpoint {
                     0.0
                 };
                 let (extra_its, last, work) =
-                    self.correct_energy(c.work, contact.as_deref_mut(), n, t_next, slack)?;
+                    self.correct_energy(c, contact.as_deref_mut(), n, t_next, slack)?;
                 its += extra_its;
                 if let Some(new) = last {
                     *c = new;

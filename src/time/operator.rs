@@ -6,8 +6,8 @@ use std::cell::RefCell;
 use std::rc::Rc;
 
 use super::cg::{Predictor, StepCg};
-use super::layer::LayerShell;
 use super::choice::{self, Estimate, RunFacts, Solver};
+use super::layer::LayerShell;
 use crate::error::Result;
 use crate::mass::MassMatrix;
 use crate::petsc::{Ksp, Matrix, NullSpace, Vector};

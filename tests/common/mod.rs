@@ -114,9 +114,11 @@ pub fn mpi_env(cmd: &mut Command) -> &mut Command {
 /// launch's Open MPI session files.
 pub fn session_base() -> PathBuf {
     static NEXT: AtomicUsize = AtomicUsize::new(0);
-    let dir = std::env::temp_dir()
-        .join("mf-ompi")
-        .join(format!("{}-{}", std::process::id(), NEXT.fetch_add(1, Ordering::Relaxed)));
+    let dir = std::env::temp_dir().join("mf-ompi").join(format!(
+        "{}-{}",
+        std::process::id(),
+        NEXT.fetch_add(1, Ordering::Relaxed)
+    ));
     std::fs::create_dir_all(&dir).expect("cannot create an Open MPI session directory base");
     dir
 }
