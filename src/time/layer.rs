@@ -297,6 +297,24 @@ impl LayerBlock {
         );
     }
 
+    /// The sweep's second layer solve, `z_C = K_CC^{-1} (r_C - K_CA z_A)` from the whole
+    /// `r_C` and this rank's `K_CA z_A` (summed over the ranks here); returns the right-hand
+    /// side (a buffer to keep). Collective.
+    fn solve_second(&mut self, rc_all: Vec<f64>, partial: Vec<f64>) -> Result<Vec<f64>> {
+        SimpleCommunicator::world().all_reduce_into(
+            &partial[..],
+            &mut self.summed[..],
+            SystemOperation::sum(),
+        );
+        self.partial = partial;
+        let mut t = rc_all;
+        for (t, s) in t.iter_mut().zip(&self.summed) {
+            *t -= s;
+        }
+        self.solve(&t)?;
+        Ok(t)
+    }
+
     /// `x = K_CC^{-1} b` with the whole layer's vectors, the same on every rank.
     fn solve(&mut self, b: &[f64]) -> Result<()> {
         self.rc.with_local_slice_mut(|rc| rc.copy_from_slice(b))?;
@@ -333,18 +351,8 @@ impl LayerBlock {
                 }
             }
         })?;
-        SimpleCommunicator::world().all_reduce_into(
-            &partial[..],
-            &mut self.summed[..],
-            SystemOperation::sum(),
-        );
-        self.partial = partial;
         // z_C = K_CC^{-1} (r_C - K_CA z_A).
-        let mut t = rc_all;
-        for (t, s) in t.iter_mut().zip(&self.summed) {
-            *t -= s;
-        }
-        self.solve(&t)?;
+        let t = self.solve_second(rc_all, partial)?;
         let (first, n) = (self.first, self.rows.len());
         let rz_layer = self.zc.with_local_slice(|z| {
             self.z_own.copy_from_slice(&z[first..first + n]);
@@ -400,17 +408,7 @@ impl LayerBlock {
                 }
             }
         })?;
-        SimpleCommunicator::world().all_reduce_into(
-            &partial[..],
-            &mut self.summed[..],
-            SystemOperation::sum(),
-        );
-        self.partial = partial;
-        let mut t = rc_all;
-        for (t, s) in t.iter_mut().zip(&self.summed) {
-            *t -= s;
-        }
-        self.solve(&t)?;
+        let t = self.solve_second(rc_all, partial)?;
         let first = self.first;
         self.zc.with_local_slice(|zc| {
             z.with_local_slice_mut(|z| {
