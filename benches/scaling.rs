@@ -796,8 +796,10 @@ fn main() {
         let parts = step_parts.unwrap_or_else(|| vec![1, 2, 3, 4]);
         md += &step_floor::section(&repo(), &bench_dir(), quick, baseline.map(Path::new), &parts);
     }
-    if want("layer") {
-        md += &layer::section(&repo(), &bench_dir(), quick);
+    // `--only layer:contact` runs the layer's contact cases only (the disc and the ball).
+    let contact_only = only.as_deref() == Some("layer:contact");
+    if want("layer") || contact_only {
+        md += &layer::section(&repo(), &bench_dir(), quick, contact_only);
     }
     let path = bench_dir().join("scaling.md");
     std::fs::write(&path, &md).unwrap();

@@ -88,7 +88,17 @@ fn sparse_active_set_agrees_with_the_schur_complement() {
         let stem = scene.file_stem().unwrap().to_string_lossy().to_string();
         let mut runs = vec![];
         for solver in ["pdas", "columns"] {
-            let s = run_scene(2, &scene, &["--", "-ksp_rtol", "1e-13", "-contact_solver", solver]);
+            // The same correction in both (the columns solver has no kick).
+            let args = [
+                "--",
+                "-ksp_rtol",
+                "1e-13",
+                "-contact_solver",
+                solver,
+                "-massless_correction_kick",
+                "false",
+            ];
+            let s = run_scene(2, &scene, &args);
             let h5 = dir.join(format!("{stem}-2.h5"));
             let r = reader(&h5);
             let f = r.series(&layout::contact("force")).unwrap();
@@ -197,7 +207,8 @@ fn inexact_iterations_and_the_preconditioners_change_nothing() {
 /// root's solution (to the solves' tolerance) and the confirming solve is left out. Against
 /// the same run confirming every time (`-massless_correction_blend false`): the same active
 /// sets, forces, displacements and energies to the solver's tolerance, one solve fewer per
-/// settled step.
+/// settled step. (The correction's solves, `-massless_correction_kick false`: by default the
+/// ball's corrections need none.)
 #[test]
 fn the_energy_correction_needs_no_confirming_solve_on_a_held_active_set() {
     let dir = scratch("contact3d-blend");
@@ -207,7 +218,15 @@ fn the_energy_correction_needs_no_confirming_solve_on_a_held_active_set() {
         let s = run_scene(
             2,
             &scene,
-            &["--mass", "modified0", "--", "-massless_correction_blend", blend],
+            &[
+                "--mass",
+                "modified0",
+                "--",
+                "-massless_correction_kick",
+                "false",
+                "-massless_correction_blend",
+                blend,
+            ],
         );
         let r = reader(&dir.join("sphere_hex-2.h5"));
         let f = r.series(&layout::contact("force")).unwrap();
@@ -239,4 +258,61 @@ fn the_energy_correction_needs_no_confirming_solve_on_a_held_active_set() {
     assert!(s1.energy_balance < 1e-8, "energy balance {}", s1.energy_balance);
     // No gain beyond the balance's tolerance: the correction puts back losses only.
     assert!(s1.energy_final <= s1.energy_initial * (1.0 + 1e-8), "energy rose");
+}
+
+/// The energy correction without a solve (`Midpoint::kick`, the default against rigid
+/// obstacles without friction): a corrected step's increment is moved along its own massive
+/// motion relative to the mean, with the layer's static response in the step's constrained
+/// operator. Theory: the moved increment solves the step with a force that is zero on the
+/// layer's rows (the massless nodes stay in equilibrium: the run's own check of `K~ w` on
+/// them is round-off), keeps the active nodes' normal increments (the contact forces and the
+/// constraint at t_{n+1} stay), and has no resultant (impulse = momentum change); its work is
+/// a quadratic in closed form, so every corrected step keeps the energy to round-off, and
+/// nothing is solved again. The ball (`M_H^0`, 60 steps of the growing contact zone) on 2
+/// ranks against 1 rank (the kick's reductions and the gathered layer block) and against the
+/// correction's solves (`-massless_correction_kick false`: both keep the energy, so their
+/// final energies agree, and that run does solve again).
+#[test]
+fn the_energy_correction_kicks_a_step_without_a_solve() {
+    let dir = scratch("contact3d-kick");
+    let scene = scene_variant("sphere_hex.toml", &dir, &[("steps = 220", "steps = 60")]);
+    let mut runs = vec![];
+    for (ranks, kick) in [(2, "true"), (1, "true"), (2, "false")] {
+        let args = ["--mass", "modified0", "--", "-massless_correction_kick", kick];
+        let s = run_scene(ranks, &scene, &args);
+        let h5 = dir.join(format!("sphere_hex-{ranks}.h5"));
+        let r = reader(&h5);
+        let e = r.series("energy/total").unwrap();
+        let a = r.series(&layout::contact("active")).unwrap();
+        let g = r.series(&layout::contact("gap")).unwrap();
+        runs.push((s, e, a, g));
+    }
+    let ((s2, e2, a2, g2), (s1, e1, a1, _), (sp, _, _, _)) = (&runs[0], &runs[1], &runs[2]);
+    let (k2, kp) = (&s2.energy_corrections, &sp.energy_corrections);
+    eprintln!("kicked {k2:?}\nsolved {kp:?}");
+    assert!(k2.steps > 0 && k2.kicked == k2.steps, "every corrected step kicked: {k2:?}");
+    assert_eq!((k2.extra_solves, k2.iterations), (0, 0), "a kick solves nothing");
+    assert!(kp.kicked == 0 && kp.extra_solves > 0, "the solves' form must solve: {kp:?}");
+    assert!(k2.kick_residual < 1e-10, "force left on the layer: {:e}", k2.kick_residual);
+    assert!(k2.pending.abs() < 1e-9 * s2.energy_initial, "pending {}", k2.pending);
+    // Energy: never above E^0 (no loads), and the same at the end as the solves' run keeps.
+    let e0 = e2[0];
+    let rise = e2.iter().fold(f64::MIN, |m, &e| m.max(e - e0)) / e0;
+    assert!(rise < 1e-9, "the energy rose by {rise:e}");
+    assert!(rel_diff(s2.energy_final, s2.energy_initial) < 1e-9, "final energy");
+    assert!(rel_diff(s2.energy_final, sp.energy_final) < 2e-9, "against the solves' run");
+    assert!(s2.energy_balance < 1e-8, "energy balance {}", s2.energy_balance);
+    // Momentum: the contact is the only force.
+    let c = contact(s2);
+    let dp = s2.momentum_final[2] - s2.momentum_initial[2];
+    assert!(rel_diff(c.impulse[2], dp) < 1e-8, "impulse {} vs momentum change {dp}", c.impulse[2]);
+    // No node the kick moved penetrates (the gaps of the moved inactive nodes included).
+    assert!(a2.iter().any(|&x| x != 0.0), "no contact");
+    let low = g2.iter().filter(|g| g.is_finite()).fold(f64::MAX, |m, &g| m.min(g));
+    assert!(low >= -1e-12, "a gap of {low:e}");
+    // 1 and 2 ranks.
+    assert_eq!(s1.energy_corrections.kicked, k2.kicked);
+    assert_eq!(a1, a2, "active sets of 1 and 2 ranks");
+    let diff = e1.iter().zip(e2).fold(0.0f64, |m, (x, y)| m.max((x - y).abs())) / e0;
+    assert!(diff < 1e-9, "energy histories of 1 and 2 ranks differ by {diff:e}");
 }

@@ -74,4 +74,12 @@ pub trait ContactSolver {
     fn geometry_follows(&self) -> bool {
         false
     }
+    /// Whether after [`ContactSolver::solve`] the step operator holds the constrained
+    /// operator of the step's final active set, `K~ = P K P + sum_q d_q n_q n_q^T` (the
+    /// active nodes' normal increments fixed, symmetric; rigid obstacles without friction):
+    /// then `(K~ w)_C = 0` on the contact rows is the layer's static response that keeps the
+    /// contact forces (the energy correction's kick, `time::Midpoint`).
+    fn constrained_operator(&self) -> bool {
+        false
+    }
 }

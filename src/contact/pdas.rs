@@ -441,4 +441,7 @@ impl ContactSolver for ActiveSet<'_> {
     fn reference_cost(&self) -> Option<ReferenceCost> {
         self.reference
     }
+    fn constrained_operator(&self) -> bool {
+        true
+    }
 }

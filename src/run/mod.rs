@@ -298,6 +298,7 @@ impl<'a> Simulation<'a> {
             diagnostics::node_bodies(d),
         )?;
         midpoint.set_correction_blend(self.app.massless_correction_blend);
+        midpoint.set_correction_kick(self.app.massless_correction_kick);
         // With massless DOFs contact steps start from the last increment: the residual test
         // hardly sees the massless rows, and an extrapolated guess let their velocity drift
         // (1.5e-6 of a rigid translation in 60 steps of the disc, tests/snapshot.rs).

@@ -91,6 +91,11 @@ pub struct AppOptions {
     /// solves share an active set takes the interpolated increment and contact data at the
     /// model's root without a confirming solve (`false`: always the confirming solve).
     pub massless_correction_blend: bool,
+    /// `-massless_correction_kick true|false` (default true): a corrected step against rigid
+    /// obstacles without friction is settled without any solve, its increment moved along
+    /// the massive motion relative to the mean with the layer's static response
+    /// (`time::Midpoint::kick`); `false`: the correction's solves.
+    pub massless_correction_kick: bool,
     /// `-massless_drift_rtol X` (default `time::Midpoint::DRIFT_RTOL`, 1e-7): following the
     /// bodies, the work of steady contact steps is collected up to this fraction of the
     /// energy before the correction puts it back.
@@ -162,6 +167,10 @@ impl AppOptions {
             massless_correction_blend: on_by_default(
                 "-massless_correction_blend",
                 Petsc::options_get_string("-massless_correction_blend")?.as_deref(),
+            )?,
+            massless_correction_kick: on_by_default(
+                "-massless_correction_kick",
+                Petsc::options_get_string("-massless_correction_kick")?.as_deref(),
             )?,
             massless_drift_rtol: positive(
                 "-massless_drift_rtol",

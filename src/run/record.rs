@@ -380,9 +380,15 @@ pub fn summary_lines(d: &Domain, layer: Option<(usize, usize)>, s: &RunSummary) 
     if s.energy_corrections.enabled {
         let c = &s.energy_corrections;
         lines.push(format!(
-            "massless DOFs: contact work put back on {} steps ({} extra solves, {} KSP iterations, {} steps settled without a confirming solve; {} steps handed it on, {} unsettled): {:.3e}, pending at the end {:.3e}",
-            c.steps, c.extra_solves, c.iterations, c.closed_form, c.skipped, c.unconverged, c.energy, c.pending
+            "massless DOFs: contact work put back on {} steps ({} without a solve, {} extra solves, {} KSP iterations, {} steps settled without a confirming solve; {} steps handed it on, {} unsettled): {:.3e}, pending at the end {:.3e}",
+            c.steps, c.kicked, c.extra_solves, c.iterations, c.closed_form, c.skipped, c.unconverged, c.energy, c.pending
         ));
+        if c.kicked > 0 {
+            lines.push(format!(
+                "massless DOFs: the kicks' force on the layer's rows at most {:.1e} of the massive rows' (static response)",
+                c.kick_residual
+            ));
+        }
     }
     if s.release_projections > 0 {
         lines.push(format!(

@@ -65,8 +65,9 @@ pub struct LayerBlock {
     partial: Vec<f64>,
     /// This rank's part of the last `z_C`, and `-D^{-1} K_AC y_C` on the coupled rows.
     z_own: Vec<f64>,
-    /// The whole `K_CC` (for the guess's product).
+    /// The whole `K_CC` (for the guess's product) and its pattern (row starts, columns).
     kcc: Option<Matrix>,
+    kcc_pattern: Option<(Vec<i32>, Vec<i32>)>,
     /// This rank's layer values of the last three solutions (newest first) and how many of
     /// them are from consecutive solves ([`LayerBlock::guess`]).
     history: [Vec<f64>; 3],
@@ -85,6 +86,21 @@ impl LayerBlock {
         d: Option<&[f64]>,
         dim: usize,
     ) -> Result<Option<LayerBlock>> {
+        let pc = if dim == 3 { "icc" } else { "cholesky" };
+        Self::with_solver(k, rows, d, "step_layer_", pc, "nd")
+    }
+
+    /// [`LayerBlock::new`] with the solver of `K_CC` under the options prefix `prefix`,
+    /// its preconditioner `pc` and the factor's ordering unless the options say otherwise
+    /// (`cholesky`: exact).
+    pub fn with_solver(
+        k: &Matrix,
+        rows: Vec<usize>,
+        d: Option<&[f64]>,
+        prefix: &str,
+        pc: &str,
+        ordering: &str,
+    ) -> Result<Option<LayerBlock>> {
         let world = SimpleCommunicator::world();
         let (lo, _) = k.ownership_range();
         let own: Vec<i32> = rows.iter().map(|&i| (lo + i) as i32).collect();
@@ -97,16 +113,16 @@ impl LayerBlock {
             return Ok(None);
         }
         let first = layer_dofs.partition_point(|&g| g < lo as i32);
-        let defaults: [(&str, &str); 2] = [
-            ("-step_layer_pc_type", if dim == 3 { "icc" } else { "cholesky" }),
-            ("-step_layer_pc_factor_mat_ordering_type", "nd"),
+        let defaults: [(String, &str); 2] = [
+            (format!("-{prefix}pc_type"), pc),
+            (format!("-{prefix}pc_factor_mat_ordering_type"), ordering),
         ];
-        for (name, value) in defaults {
+        for (name, value) in &defaults {
             if !Petsc::options_has(name)? {
                 Petsc::options_set(name, Some(value))?;
             }
         }
-        let mut ksp = Ksp::new_self("step_layer_")?;
+        let mut ksp = Ksp::new_self(prefix)?;
         ksp.set_type("preonly")?;
         let n = layer_dofs.len();
         let mut block = LayerBlock {
@@ -129,6 +145,7 @@ impl LayerBlock {
             z_own: Vec::new(),
             dz: Vec::new(),
             kcc: None,
+            kcc_pattern: None,
             history: Default::default(),
             recorded: 0,
         };
@@ -180,9 +197,26 @@ impl LayerBlock {
         for l in &lengths {
             start.push(start.last().unwrap() + l);
         }
-        let kcc = Matrix::new_seq_csr(&start, &cols, &vals)?;
-        self.ksp.set_operators(&kcc, &kcc)?;
-        self.kcc = Some(kcc);
+        // The pattern never changes: the values go into the matrix factored before, so that
+        // PETSc keeps its ordering and symbolic factorization (a contact step refactors
+        // numerically only; the symbolic Cholesky took two thirds of a refactorization of the
+        // ball's 1335 rows).
+        match (self.kcc.as_mut(), &self.kcc_pattern) {
+            (Some(kcc), Some((s0, c0))) if *s0 == start && *c0 == cols => {
+                for r in 0..lengths.len() {
+                    let (a, b) = (start[r] as usize, start[r + 1] as usize);
+                    kcc.set_values(&[r as i32], &cols[a..b], &vals[a..b], false)?;
+                }
+                kcc.assemble()?;
+                self.ksp.set_operators(kcc, kcc)?;
+            }
+            _ => {
+                let kcc = Matrix::new_seq_csr(&start, &cols, &vals)?;
+                self.ksp.set_operators(&kcc, &kcc)?;
+                self.kcc = Some(kcc);
+                self.kcc_pattern = Some((start, cols));
+            }
+        }
         self.ksp.set_from_options()?;
         self.ksp.set_up().map_err(|e| match e {
             Error::Petsc { message, .. } => Error::Solver(format!(
@@ -419,6 +453,32 @@ impl LayerBlock {
         })??;
         self.gathered = t;
         Ok(())
+    }
+
+    /// The layer's static response to the massive DOFs of `w`: `w_C = -K_CC^{-1} K_CA w_A`
+    /// (the layer rows of `w` are overwritten), i.e. `(K w)_C = 0`: the massless rows in
+    /// equilibrium with the rest of `w`. Collective.
+    pub fn static_response(&mut self, w: &mut Vector) -> Result<()> {
+        let mut partial = std::mem::take(&mut self.partial);
+        partial.iter_mut().for_each(|x| *x = 0.0);
+        let (adjacent, start, cols, vals) =
+            (&self.adjacent, &self.kac_start, &self.kac_cols, &self.kac_vals);
+        w.with_local_slice(|z| {
+            for (a, &i) in adjacent.iter().enumerate() {
+                for e in start[a]..start[a + 1] {
+                    partial[cols[e] as usize] += vals[e] * z[i];
+                }
+            }
+        })?;
+        self.solve_second(vec![0.0; self.total()], partial)?;
+        let first = self.first;
+        self.zc.with_local_slice(|zc| {
+            w.with_local_slice_mut(|w| {
+                for (j, &i) in self.rows.iter().enumerate() {
+                    w[i] = zc[first + j];
+                }
+            })
+        })?
     }
 
     /// Adds the last [`LayerBlock::apply`]'s `z_C` onto the layer rows of `p` (which Jacobi

@@ -119,6 +119,15 @@ pub struct Midpoint {
     /// Settle a corrected step from two solves on one active set without a confirming solve
     /// (`-massless_correction_blend`).
     blend: bool,
+    /// Settle a corrected step without a solve where the contact solver allows it
+    /// (`-massless_correction_kick`, [`Midpoint::kick`]).
+    kick: bool,
+    /// The kick's state: whether every contact DOF is massless or Dirichlet (found once),
+    /// the layer block of the constrained operator and the active set and normals it was
+    /// factored for, and its work vectors `(w, M w, A w)`.
+    kick_layer: Option<KickLayer>,
+    kick_ready: Option<bool>,
+    kick_vectors: Option<(Vector, Vector, Vector)>,
     /// Whether the energy of steps whose active set changed is corrected.
     correct: bool,
     /// The energy correction's right-hand side and work vectors `(P M du0, -2 xi P M du0,
@@ -134,6 +143,10 @@ pub struct Midpoint {
     /// The number of bodies over all ranks.
     n_groups: usize,
 }
+
+/// The kick's layer block of the constrained operator (none without massless rows) and the
+/// active set and normals it was factored for.
+type KickLayer = (Option<super::layer::LayerBlock>, Vec<(bool, [f64; 3])>);
 
 /// What the energy correction of contact steps did ([`Midpoint::configure_massless`]).
 #[derive(Debug, Clone, Copy, Default, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -166,6 +179,14 @@ pub struct Corrections {
     /// the increment and the contact data interpolated at the model's root.
     #[serde(default)]
     pub closed_form: usize,
+    /// Corrected steps settled without any solve ([`Midpoint::kick`]).
+    #[serde(default)]
+    pub kicked: usize,
+    /// The largest force a kick left on the massless rows (and the active normals) relative
+    /// to its largest on the massive rows, `max |(K~ w)_C| / max |(K~ w)_I|`: zero up to
+    /// round-off when the layer's static response is right.
+    #[serde(default)]
+    pub kick_residual: f64,
 }
 
 impl Midpoint {
@@ -230,6 +251,10 @@ impl Midpoint {
             drift: 0.0,
             drift_rtol: Self::DRIFT_RTOL,
             blend: true,
+            kick: true,
+            kick_layer: None,
+            kick_ready: None,
+            kick_vectors: None,
             correct: false,
             rhs_corr: None,
             corr: None,
@@ -383,6 +408,12 @@ impl Midpoint {
     /// confirming solve (default true).
     pub fn set_correction_blend(&mut self, blend: bool) {
         self.blend = blend;
+    }
+
+    /// Whether a corrected step is settled without a solve where the contact solver allows
+    /// it ([`Midpoint::kick`]; default true).
+    pub fn set_correction_kick(&mut self, kick: bool) {
+        self.kick = kick;
     }
 
     pub fn configure_massless(
@@ -604,8 +635,14 @@ impl Midpoint {
                 } else {
                     0.0
                 };
-                let (extra_its, last, work) =
-                    self.correct_energy(c, contact.as_deref_mut(), n, t_next, slack)?;
+                let (extra_its, last, work) = self.correct_energy(
+                    c,
+                    contact.as_deref_mut(),
+                    n,
+                    t_next,
+                    slack,
+                    (loads, varying),
+                )?;
                 its += extra_its;
                 if let Some(new) = last {
                     *c = new;

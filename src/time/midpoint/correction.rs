@@ -10,9 +10,48 @@ use super::Midpoint;
 use crate::contact::{ContactSolver, StepContact};
 use crate::error::Result;
 use crate::petsc::Vector;
+use crate::time::layer::LayerBlock;
 
 /// Solves of a corrected step beyond its first, at most.
 pub const MAX_SOLVES: usize = 8;
+
+/// The largest kick `|xi|` ([`Midpoint::kick`]): a larger one would change the step's
+/// motion relative to the mean by more than a quarter (the solves' form hands on at the
+/// same size of response, `|xi| tau^2 > 1/2`); the work is handed on then.
+pub const MAX_KICK: f64 = 0.25;
+
+/// What [`Midpoint::kick`] did.
+pub(super) enum Kick {
+    /// Settled: the step's contact data (gaps of the moved nodes) and its work with the
+    /// correction's.
+    Done(Box<StepContact>, f64),
+    /// The step cannot carry it (no motion relative to the mean, or too small a one).
+    HandOn,
+    /// Not applicable here (the solver's form, friction, a moving Dirichlet boundary, an
+    /// inactive node the kick would push into the obstacle): the correction's solves.
+    Solve,
+}
+
+/// The kick `xi` whose work `alpha xi^2 - beta xi` equals `target`, the root of smaller size
+/// (`target` small: `-target / beta`); without a real root (a gain to take back larger than
+/// the kick can), the vertex `beta / (2 alpha)`, which takes back the most. `None` for
+/// `alpha <= 0` (no motion to kick) or a root that is not a number.
+pub fn kick_size(alpha: f64, beta: f64, target: f64) -> Option<f64> {
+    if alpha <= 0.0 || !alpha.is_finite() || !beta.is_finite() {
+        return None;
+    }
+    let disc = beta * beta + 4.0 * alpha * target;
+    let xi = if disc < 0.0 {
+        beta / (2.0 * alpha)
+    } else {
+        let s = beta + beta.signum() * disc.sqrt();
+        if s == 0.0 {
+            return None;
+        }
+        -2.0 * target / s
+    };
+    xi.is_finite().then_some(xi)
+}
 
 /// The root of the step's energy error `F(xi) = W(xi) - xi q(xi) + debt` nearest the last
 /// sample, where the contact work `W` and `q = m.du` are the lines through two solves' samples
@@ -63,6 +102,25 @@ impl Midpoint {
     /// leaves every body's momentum balance, impulse = momentum change, as it was). `M1` is
     /// `M` times ones (the mass per DOF), built once.
     fn without_translations(&mut self, x: &mut Vector) -> Result<()> {
+        self.remove_translations(x, false)
+    }
+
+    /// `x -= sum_{b,c} (e_bc.M x / e_bc.M1) e_bc` on each body and component, the Dirichlet
+    /// rows zero before and after: the displacement `x` so changed has no mean translation,
+    /// `1_b^T M x = 0` (`M` symmetric: `1^T M x = (M1).x`). Collective.
+    fn without_mean_translations(&mut self, x: &mut Vector) -> Result<()> {
+        self.remove_translations(x, true)?;
+        let lo = self.first_dof;
+        x.with_local_slice_mut(|v| {
+            for &d in self.dirichlet.dofs() {
+                v[d as usize - lo] = 0.0;
+            }
+        })
+    }
+
+    /// [`Midpoint::without_translations`] (`displacement` false: `x` a force) or
+    /// [`Midpoint::without_mean_translations`] (true).
+    fn remove_translations(&mut self, x: &mut Vector, displacement: bool) -> Result<()> {
         let lo = self.first_dof;
         let dim = self.dim.max(1);
         if self.m_ones.is_none() {
@@ -90,7 +148,7 @@ impl Midpoint {
             m1.with_local_slice(|m| {
                 for i in 0..v.len() {
                     let k = group(i) * dim + i % dim;
-                    sums[k] += v[i];
+                    sums[k] += if displacement { m[i] * v[i] } else { v[i] };
                     sums[ng * dim + k] += m[i];
                 }
             })
@@ -107,7 +165,8 @@ impl Midpoint {
         m1.with_local_slice(|m| {
             x.with_local_slice_mut(|v| {
                 for i in 0..v.len() {
-                    v[i] -= ratio[group(i) * dim + i % dim] * m[i];
+                    let r = ratio[group(i) * dim + i % dim];
+                    v[i] -= if displacement { r } else { r * m[i] };
                 }
             })
         })??;
@@ -143,6 +202,7 @@ impl Midpoint {
     /// the active set changes (and those that take pending work);
     /// `-massless_energy_correction false` turns it off. Returns the extra solves' KSP
     /// iterations, the last contact data and the step's contact work with the correction's.
+    #[allow(clippy::too_many_arguments)]
     pub(super) fn correct_energy<'c>(
         &mut self,
         first: &StepContact,
@@ -150,6 +210,7 @@ impl Midpoint {
         n: usize,
         t_next: f64,
         slack: f64,
+        loads: (bool, bool),
     ) -> Result<(usize, Option<StepContact>, f64)> {
         let work = first.work;
         // Blends only on a fixed geometry: one that follows the bodies makes the constrained
@@ -166,6 +227,27 @@ impl Midpoint {
             self.drift += if slack > 0.0 { work + debt } else { 0.0 };
             self.corrections.pending = 0.0;
             return Ok((0, None, work));
+        }
+        if let Some(solver) = contact.as_deref() {
+            match self.kick(first, solver, -(work + debt), loads)? {
+                Kick::Done(c, total) => {
+                    let c = *c;
+                    self.corrections.steps += 1;
+                    self.corrections.kicked += 1;
+                    self.corrections.energy += total - work;
+                    self.corrections.pending = debt + total;
+                    if self.corrections.pending.abs() <= tol {
+                        self.corrections.pending = 0.0;
+                    }
+                    return Ok((0, Some(c), total));
+                }
+                Kick::HandOn => {
+                    self.corrections.skipped += 1;
+                    self.corrections.pending = debt + work;
+                    return Ok((0, None, work));
+                }
+                Kick::Solve => {}
+            }
         }
         if self.rhs_corr.is_none() {
             self.rhs_corr = Some(self.u.duplicate()?);
@@ -285,6 +367,204 @@ impl Midpoint {
     }
 }
 
+impl Midpoint {
+    /// The energy correction without a solve (issue 28): the step's increment is moved along
+    /// `w`, `du <- du - xi w`, where `w` is the step's increment on the massive DOFs without
+    /// each body's mean translation ([`Midpoint::without_mean_translations`]) and, on the
+    /// massless layer, its static response in the constrained operator of the step's final
+    /// active set, `w_C = -K~_CC^{-1} K~_CA w_A` ([`LayerBlock::static_response`], an exact
+    /// factorization of the surface-sized block). The moved increment solves the step with
+    /// the extra force `-xi K~ w`, which is zero on the layer's free rows (the massless nodes
+    /// stay in equilibrium: no period-2 mode) and on the active nodes' normals keeps `n . w =
+    /// 0` (their gaps and contact forces stay), and has no resultant on a free body (`1^T M w
+    /// = 0`, `A 1 = 0`): contact at `t_{n+1}` and every body's momentum balance are kept. Its
+    /// work is exact in closed form: with `u1 = u^n + du`, `v1 = 2 du / tau - v^n`, the
+    /// energy at `t_{n+1}` changes by
+    ///
+    /// ```text
+    ///   E(xi) - E(0) = alpha xi^2 - (beta + f.w) xi,
+    ///   alpha = 2/tau^2 w.M w + 1/2 w.A w,   beta = 2/tau w.M v1 + w.A u1 - f.w,
+    /// ```
+    /// (`f = f^{n+1/2}`: the loads' work changes by `-xi f.w`), so `xi` solves `alpha xi^2 -
+    /// beta xi = target` ([`kick_size`]). Only where the contact solver's operator is that
+    /// `K~` ([`ContactSolver::constrained_operator`]: rigid obstacles, no friction, a fixed
+    /// geometry), every contact DOF is massless, and without a moving Dirichlet boundary; an
+    /// inactive node the kick would push into an obstacle falls back to the solves.
+    /// Collective.
+    pub(super) fn kick(
+        &mut self,
+        first: &StepContact,
+        solver: &dyn ContactSolver,
+        target: f64,
+        (loads, varying): (bool, bool),
+    ) -> Result<Kick> {
+        let plain = first.row.tangential.is_empty()
+            && first.contact_nodal.is_empty()
+            && first.friction_nodal.is_empty();
+        if !self.kick
+            || !solver.constrained_operator()
+            || solver.is_pair()
+            || solver.geometry_follows()
+            || !plain
+            || self.lifting.is_some()
+            || !self.kick_ready(solver)?
+        {
+            return Ok(Kick::Solve);
+        }
+        let (dim, tau) = (self.dim.max(1), self.tau);
+        // The layer block of K~, factored again when the active set or a normal changed.
+        let key: Vec<(bool, [f64; 3])> = first
+            .row
+            .active
+            .iter()
+            .enumerate()
+            .map(|(q, &a)| (a, if a { first.normals[q] } else { [0.0; 3] }))
+            .collect();
+        match self.kick_layer.as_mut() {
+            Some((Some(block), old)) if *old != key => {
+                block.factor(&self.op.k, None)?;
+                *old = key;
+            }
+            Some(_) => {}
+            None => {
+                let rows: Vec<usize> =
+                    self.massless()?.iter().enumerate().filter(|m| *m.1).map(|m| m.0).collect();
+                let block = LayerBlock::with_solver(
+                    &self.op.k,
+                    rows,
+                    None,
+                    "massless_kick_",
+                    "cholesky",
+                    // Refactored at every corrected step: quotient minimum degree took half
+                    // the time of nested dissection on the ball's 1335 rows (3 ms against 6).
+                    "qmd",
+                )?;
+                self.kick_layer = Some((block, key));
+            }
+        }
+        let mut layer = self.kick_layer.take();
+        let Some((Some(block), _)) = layer.as_mut() else {
+            self.kick_layer = layer;
+            return Ok(Kick::Solve);
+        };
+        if self.kick_vectors.is_none() {
+            self.kick_vectors =
+                Some((self.u.duplicate()?, self.u.duplicate()?, self.u.duplicate()?));
+        }
+        let (mut w, mut mw, mut aw) = self.kick_vectors.take().expect("allocated");
+        let sizes = (|| -> Result<(f64, f64, Vec<f64>)> {
+            // w: the massive increment without its mean translation, the layer's static
+            // response on the massless rows.
+            w.copy_from(&self.du)?;
+            self.without_mean_translations(&mut w)?;
+            block.static_response(&mut w)?;
+            // The layer's rows of the kick's force, K~ w, against the massive rows' (a check
+            // of the static response with the operator itself: zero up to round-off).
+            self.op.k.mult(&w, &mut aw)?;
+            let massless = &self.massless.as_ref().expect("found").0;
+            let mut big = [0.0f64; 2];
+            aw.with_local_slice(|kw| {
+                for (x, &c) in kw.iter().zip(massless) {
+                    let k = usize::from(!c);
+                    big[k] = big[k].max(x.abs());
+                }
+            })?;
+            let mut all_big = [0.0f64; 2];
+            SimpleCommunicator::world().all_reduce_into(
+                &big[..],
+                &mut all_big[..],
+                SystemOperation::max(),
+            );
+            if all_big[1] > 0.0 {
+                let r = all_big[0] / all_big[1];
+                self.corrections.kick_residual = self.corrections.kick_residual.max(r);
+            }
+            self.m.mult(&w, &mut mw)?;
+            self.a.mult(&w, &mut aw)?;
+            let mut local = [0.0f64; 4];
+            Vector::with_slices(
+                [&w, &mw, &aw, &self.du, &self.u, &self.v],
+                [],
+                |[w, mw, aw, du, u, v], []| {
+                    for i in 0..w.len() {
+                        local[0] += mw[i] * w[i];
+                        local[1] += aw[i] * w[i];
+                        local[2] += mw[i] * (2.0 * du[i] / tau - v[i]);
+                        local[3] += aw[i] * (u[i] + du[i]);
+                    }
+                },
+            )?;
+            // f^{n+1/2}.w (f_now stands for both ends of the step when the loads are constant).
+            let f_w = match (loads, varying) {
+                (false, _) => 0.0,
+                (true, false) => self.f_now.dot(&w)?,
+                (true, true) => 0.5 * (self.f_now.dot(&w)? + self.f_next.dot(&w)?),
+            };
+            let mut all = [0.0f64; 4];
+            SimpleCommunicator::world().all_reduce_into(
+                &local[..],
+                &mut all[..],
+                SystemOperation::sum(),
+            );
+            let alpha = 2.0 / (tau * tau) * all[0] + 0.5 * all[1];
+            let beta = 2.0 / tau * all[2] + all[3] - f_w;
+            // The contact nodes' normal motion under the kick (inactive nodes' gaps).
+            let trace = solver.nodes().trace(&w)?;
+            let normal: Vec<f64> = (0..first.normals.len())
+                .map(|q| (0..dim).map(|c| first.normals[q][c] * trace[q * dim + c]).sum())
+                .collect();
+            Ok((alpha, beta, normal))
+        })();
+        let result = match sizes {
+            Err(e) => Err(e),
+            Ok((alpha, beta, normal)) => match kick_size(alpha, beta, target) {
+                Some(xi) if xi.abs() <= MAX_KICK => {
+                    let gap_tol = solver.nodes().gap_tol;
+                    let mut c = first.clone();
+                    for (q, g) in c.row.gap.iter_mut().enumerate() {
+                        *g += xi * normal[q];
+                    }
+                    let feasible =
+                        c.row.gap.iter().zip(&c.row.active).all(|(&g, &a)| a || g >= -gap_tol);
+                    if feasible {
+                        self.du.axpy(-xi, &w)?;
+                        let work = alpha * xi * xi - beta * xi;
+                        c.work = first.work + work;
+                        let total = c.work;
+                        Ok(Kick::Done(Box::new(c), total))
+                    } else {
+                        Ok(Kick::Solve)
+                    }
+                }
+                _ => Ok(Kick::HandOn),
+            },
+        };
+        self.kick_vectors = Some((w, mw, aw));
+        self.kick_layer = layer;
+        result
+    }
+
+    /// Whether every contact DOF is massless or Dirichlet (found once; collective).
+    fn kick_ready(&mut self, solver: &dyn ContactSolver) -> Result<bool> {
+        if let Some(ready) = self.kick_ready {
+            return Ok(ready);
+        }
+        let lo = self.first_dof;
+        let fixed: std::collections::HashSet<i32> = self.dirichlet.dofs().iter().copied().collect();
+        let massless = self.massless()?.to_vec();
+        let massive = solver
+            .nodes()
+            .dofs
+            .iter()
+            .filter(|&&(g, own)| own && !fixed.contains(&g) && !massless[g as usize - lo])
+            .count() as f64;
+        let mut all = 0.0;
+        SimpleCommunicator::world().all_reduce_into(&massive, &mut all, SystemOperation::sum());
+        self.kick_ready = Some(all == 0.0);
+        Ok(all == 0.0)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -320,6 +600,31 @@ mod tests {
             // The root near the first guess, not the far one of the quadratic.
             assert!((xi - xi1).abs() <= 0.2 * xi1.abs(), "{xi} against {xi1}");
         }
+    }
+
+    #[test]
+    fn the_kick_puts_back_its_target_with_the_smaller_root() {
+        // alpha xi^2 - beta xi = target: a loss to put back (target > 0) for either sign of
+        // beta, a gain to take back (target < 0) within reach, a tiny target (no
+        // cancellation).
+        for &(alpha, beta, target) in &[
+            (3.0, 2.0, 1e-3),
+            (3.0, -2.0, 1e-3),
+            (0.5, 1.0, -0.1),
+            (2.0, 1e-3, 1e-14),
+            (1e6, -40.0, 2e-9),
+        ] {
+            let xi = kick_size(alpha, beta, target).expect("a root");
+            let work = alpha * xi * xi - beta * xi;
+            assert!((work - target).abs() <= 1e-12 * target.abs(), "{work} against {target}");
+            // The other root, target / (alpha xi) with opposite sign, is the larger.
+            let other = -target / (alpha * xi);
+            assert!(xi.abs() <= other.abs(), "{xi} is the larger root ({other})");
+        }
+        // No real root: the vertex, where the work is least.
+        let xi = kick_size(1.0, 1.0, -1.0).expect("the vertex");
+        assert!((xi - 0.5).abs() < 1e-15);
+        assert_eq!(kick_size(0.0, 1.0, 1.0), None, "nothing to kick");
     }
 
     #[test]
