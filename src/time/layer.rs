@@ -173,6 +173,14 @@ impl LayerBlock {
     /// Gathers `K_CC`, collects this rank's `K_AC` and factors `K_CC` (again, after `k`
     /// changed; `d` as in [`LayerBlock::new`]). Collective.
     pub fn factor(&mut self, k: &Matrix, d: Option<&[f64]>) -> Result<()> {
+        self.factor_holding(k, d, &[])
+    }
+
+    /// [`LayerBlock::factor`] with the layer rows of the global DOFs `held` (any rank may
+    /// list any; their union counts) taken out of `K_CC`: their rows and columns become the
+    /// identity's, so that a solve leaves them at zero. The pattern stays, so the refactoring
+    /// is numeric only. Collective.
+    pub fn factor_holding(&mut self, k: &Matrix, d: Option<&[f64]>, held: &[i32]) -> Result<()> {
         let world = SimpleCommunicator::world();
         let (lo, hi) = k.ownership_range();
         // This rank's rows of K_CC as (row, column, value) in the layer's numbering.
@@ -196,6 +204,24 @@ impl LayerBlock {
         start.push(0i32);
         for l in &lengths {
             start.push(start.last().unwrap() + l);
+        }
+        let held = gather_all(&world, held);
+        let mut vals = vals;
+        if !held.is_empty() {
+            let mut out = vec![false; lengths.len()];
+            for &g in &held {
+                if let Some(j) = self.layer_row(g) {
+                    out[j] = true;
+                }
+            }
+            for r in 0..lengths.len() {
+                for e in start[r] as usize..start[r + 1] as usize {
+                    let c = cols[e] as usize;
+                    if out[r] || out[c] {
+                        vals[e] = if c == r { 1.0 } else { 0.0 };
+                    }
+                }
+            }
         }
         // The pattern never changes: the values go into the matrix factored before, so that
         // PETSc keeps its ordering and symbolic factorization (a contact step refactors
@@ -453,6 +479,22 @@ impl LayerBlock {
         })??;
         self.gathered = t;
         Ok(())
+    }
+
+    /// This rank's layer rows (local indices, sorted), the order of [`LayerBlock::solve_own`].
+    pub fn own_rows(&self) -> &[usize] {
+        &self.rows
+    }
+
+    /// `x_C = K_CC^{-1} r_C` from every rank's layer values `own` (in [`LayerBlock::own_rows`]
+    /// order): this rank's part of `x_C`. Collective.
+    pub fn solve_own(&mut self, own: &[f64]) -> Result<Vec<f64>> {
+        self.gather(own);
+        let all = std::mem::take(&mut self.gathered);
+        self.solve(&all)?;
+        self.gathered = all;
+        let (first, n) = (self.first, self.rows.len());
+        self.zc.with_local_slice(|z| z[first..first + n].to_vec())
     }
 
     /// The layer's static response to the massive DOFs of `w`: `w_C = -K_CC^{-1} K_CA w_A`
