@@ -262,8 +262,8 @@ fn the_energy_correction_needs_no_confirming_solve_on_a_held_active_set() {
 
 /// The energy correction without a solve (`Midpoint::kick`, the default against rigid
 /// obstacles without friction): a corrected step's increment is moved along its own massive
-/// motion relative to the mean, with the layer's static response in the step's constrained
-/// operator. Theory: the moved increment solves the step with a force that is zero on the
+/// motion relative to the mean (smoothed by four iterations of the step's solver), with the
+/// layer's static response in the step's constrained operator. Theory: the moved increment solves the step with a force that is zero on the
 /// layer's rows (the massless nodes stay in equilibrium: the run's own check of `K~ w` on
 /// them is round-off), keeps the active nodes' normal increments (the contact forces and the
 /// constraint at t_{n+1} stay), and has no resultant (impulse = momentum change); its work is
@@ -291,7 +291,9 @@ fn the_energy_correction_kicks_a_step_without_a_solve() {
     let (k2, kp) = (&s2.energy_corrections, &sp.energy_corrections);
     eprintln!("kicked {k2:?}\nsolved {kp:?}");
     assert!(k2.steps > 0 && k2.kicked == k2.steps, "every corrected step kicked: {k2:?}");
-    assert_eq!((k2.extra_solves, k2.iterations), (0, 0), "a kick solves nothing");
+    // No solve: the direction's smoothing takes at most 4 KSP iterations a kick.
+    assert_eq!(k2.extra_solves, 0, "a kick solves nothing");
+    assert!(k2.iterations <= 4 * k2.kicked, "{} smoothing iterations", k2.iterations);
     assert!(kp.kicked == 0 && kp.extra_solves > 0, "the solves' form must solve: {kp:?}");
     assert!(k2.kick_residual < 1e-10, "force left on the layer: {:e}", k2.kick_residual);
     assert!(k2.pending.abs() < 1e-9 * s2.energy_initial, "pending {}", k2.pending);

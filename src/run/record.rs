@@ -380,7 +380,7 @@ pub fn summary_lines(d: &Domain, layer: Option<(usize, usize)>, s: &RunSummary) 
     if s.energy_corrections.enabled {
         let c = &s.energy_corrections;
         lines.push(format!(
-            "massless DOFs: contact work put back on {} steps ({} without a solve, {} extra solves, {} KSP iterations, {} steps settled without a confirming solve; {} steps handed it on, {} unsettled): {:.3e}, pending at the end {:.3e}",
+            "massless DOFs: contact work put back on {} steps ({} kicked, {} extra solves, {} KSP iterations, {} steps settled without a confirming solve; {} steps handed it on, {} unsettled): {:.3e}, pending at the end {:.3e}",
             c.steps, c.kicked, c.extra_solves, c.iterations, c.closed_form, c.skipped, c.unconverged, c.energy, c.pending
         ));
         if c.kicked > 0 {

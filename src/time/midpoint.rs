@@ -181,7 +181,8 @@ pub struct Corrections {
     /// the increment and the contact data interpolated at the model's root.
     #[serde(default)]
     pub closed_form: usize,
-    /// Corrected steps settled without any solve ([`Midpoint::kick`]).
+    /// Corrected steps settled without a solve of the step ([`Midpoint::kick`]; the
+    /// iterations that smooth its direction are counted in `iterations`).
     #[serde(default)]
     pub kicked: usize,
     /// The largest force a kick left on the massless rows (and the active normals) relative
