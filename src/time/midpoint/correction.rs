@@ -29,8 +29,9 @@ pub(super) enum Kick {
     /// Settled: the step's contact data (gaps of the moved nodes), its work with the
     /// correction's, and the KSP iterations that smoothed the direction.
     Done(Box<StepContact>, f64, usize),
-    /// The step cannot carry it (no motion relative to the mean, or too small a one).
-    HandOn,
+    /// The step cannot carry it (no motion relative to the mean, or too small a one); the
+    /// smoothing's KSP iterations.
+    HandOn(usize),
     /// Not applicable here (the solver's form, friction, a moving Dirichlet boundary, an
     /// inactive node the kick would push into the obstacle): the correction's solves.
     Solve,
@@ -252,10 +253,11 @@ impl Midpoint {
                     }
                     return Ok((its, Some(c), total));
                 }
-                Kick::HandOn => {
+                Kick::HandOn(its) => {
                     self.corrections.skipped += 1;
+                    self.corrections.iterations += its;
                     self.corrections.pending = debt + work;
-                    return Ok((0, None, work));
+                    return Ok((its, None, work));
                 }
                 Kick::Solve => {}
             }
@@ -562,7 +564,7 @@ impl Midpoint {
                         Ok(Kick::Solve)
                     }
                 }
-                _ => Ok(Kick::HandOn),
+                _ => Ok(Kick::HandOn(smoothing_its)),
             },
         };
         self.kick_vectors = Some((w, mw, aw));
