@@ -342,7 +342,15 @@ fn contact_results_do_not_depend_on_the_number_of_ranks() {
         ] {
             assert!(rel_diff(a, b) < 1e-8, "{mass}: {key}");
         }
-        assert!(rel_diff(contact(s1).contact_work, contact(s2).contact_work) < 1e-6);
+        // The contact work is tied to the energies by the balance (1e-9 of the energy a
+        // run): with the massless layer's correction it is round-off itself, so it is
+        // compared on the energy's scale; without, it is the impact's loss, to 1e-6 of it.
+        let (w1, w2) = (contact(s1).contact_work, contact(s2).contact_work);
+        let scale = s1.energy_initial.abs();
+        assert!((w1 - w2).abs() <= 1e-8 * scale, "{mass}: contact work {w1} against {w2}");
+        if mass == "consistent" {
+            assert!(rel_diff(w1, w2) < 1e-6, "{mass}: contact work {w1} against {w2}");
+        }
     }
 }
 

@@ -94,6 +94,40 @@ const VARIANTS: [(&str, bool); 5] = [
     ("modified1", false),
 ];
 
+fn per_step(x: &RunSummary) -> f64 {
+    x.timings.stepping / x.steps.max(1) as f64
+}
+
+fn its(x: &RunSummary) -> f64 {
+    x.ksp_iterations as f64 / x.steps.max(1) as f64
+}
+
+/// One row of the table (printed as it comes): `base` is `M`'s (ms/step, its/step).
+fn row(
+    md: &mut String,
+    case: &Case,
+    r: &RunSummary,
+    mass: &str,
+    sweep: &str,
+    base: Option<(f64, f64)>,
+) {
+    let (rt, ri) = base.map_or((f64::NAN, f64::NAN), |(t0, i0)| {
+        (per_step(r) / t0, if i0 > 0.0 { its(r) / i0 } else { f64::NAN })
+    });
+    *md += &format!(
+        "| {} | {} | {} | {:.3} | {mass} | {sweep} | {} + {} | {:.2} | {:.2} | {rt:.2} | {ri:.2} |\n",
+        case.label,
+        case.ranks,
+        r.n_dofs,
+        r.cfl,
+        r.ksp_type,
+        r.pc_type,
+        1e3 * per_step(r),
+        its(r),
+    );
+    print!("{}", md.lines().last().map(|l| format!("{l}\n")).unwrap_or_default());
+}
+
 pub fn section(repo: &Path, dir: &Path, quick: bool, contact_only: bool) -> String {
     let mut md = String::from(
         "\nThe mass-free layer against the standard mass (`./run bench --only layer`; fastest of the rounds, runs interleaved; ratio = ms/step over `M`'s in the same case):\n\n| case | ranks | DOFs | CFL | mass | layer sweep | solver | ms/step | KSP its/step | time ratio to M | its ratio to M |\n|---|---|---|---|---|---|---|---|---|---|---|\n",
@@ -182,15 +216,12 @@ pub fn section(repo: &Path, dir: &Path, quick: bool, contact_only: bool) -> Stri
                 args.extend(s(&["--mass", mass, "--"]));
                 args.extend(s(extra));
                 if let Some(r) = run(repo, case.ranks, &case.scene, &args, dir) {
-                    let t = |x: &RunSummary| x.timings.stepping / x.steps.max(1) as f64;
-                    if best[k].as_ref().is_none_or(|b| t(&r) < t(b)) {
+                    if best[k].as_ref().is_none_or(|b| per_step(&r) < per_step(b)) {
                         best[k] = Some(r);
                     }
                 }
             }
         }
-        let per_step = |x: &RunSummary| x.timings.stepping / x.steps.max(1) as f64;
-        let its = |x: &RunSummary| x.ksp_iterations as f64 / x.steps.max(1) as f64;
         let base = best[0].as_ref().map(|b| (per_step(b), its(b)));
         for (k, &(mass, what, _)) in CONTACT_VARIANTS.iter().enumerate() {
             let Some(r) = &best[k] else {
@@ -200,21 +231,7 @@ pub fn section(repo: &Path, dir: &Path, quick: bool, contact_only: bool) -> Stri
                 );
                 continue;
             };
-            let (rt, ri) = base.map_or((f64::NAN, f64::NAN), |(t0, i0)| {
-                (per_step(r) / t0, if i0 > 0.0 { its(r) / i0 } else { f64::NAN })
-            });
-            md += &format!(
-                "| {} | {} | {} | {:.3} | {mass} | {what} | {} + {} | {:.2} | {:.2} | {rt:.2} | {ri:.2} |\n",
-                case.label,
-                case.ranks,
-                r.n_dofs,
-                r.cfl,
-                r.ksp_type,
-                r.pc_type,
-                1e3 * per_step(r),
-                its(r),
-            );
-            print!("{}", md.lines().last().map(|l| format!("{l}\n")).unwrap_or_default());
+            row(&mut md, case, r, mass, what, base);
         }
     }
     for case in cases.iter().filter(|c| !c.around && !contact_only) {
@@ -242,15 +259,12 @@ pub fn section(repo: &Path, dir: &Path, quick: bool, contact_only: bool) -> Stri
                     args.extend(s(&["-step_layer_around", "true"]));
                 }
                 if let Some(r) = run(repo, case.ranks, &case.scene, &args, dir) {
-                    let t = |x: &RunSummary| x.timings.stepping / x.steps.max(1) as f64;
-                    if best[k].as_ref().is_none_or(|b| t(&r) < t(b)) {
+                    if best[k].as_ref().is_none_or(|b| per_step(&r) < per_step(b)) {
                         best[k] = Some(r);
                     }
                 }
             }
         }
-        let per_step = |x: &RunSummary| x.timings.stepping / x.steps.max(1) as f64;
-        let its = |x: &RunSummary| x.ksp_iterations as f64 / x.steps.max(1) as f64;
         let base = best[0].as_ref().map(|b| (per_step(b), its(b)));
         for (k, &(mass, layer)) in VARIANTS.iter().enumerate() {
             if !layer && best[k - 1].as_ref().is_some_and(|r| r.step_reuse.layer_rows == 0) {
@@ -272,21 +286,7 @@ pub fn section(repo: &Path, dir: &Path, quick: bool, contact_only: bool) -> Stri
             } else {
                 "no".into()
             };
-            let (rt, ri) = base.map_or((f64::NAN, f64::NAN), |(t0, i0)| {
-                (per_step(r) / t0, if i0 > 0.0 { its(r) / i0 } else { f64::NAN })
-            });
-            md += &format!(
-                "| {} | {} | {} | {:.3} | {mass} | {sweep} | {} + {} | {:.2} | {:.2} | {rt:.2} | {ri:.2} |\n",
-                case.label,
-                case.ranks,
-                r.n_dofs,
-                r.cfl,
-                r.ksp_type,
-                r.pc_type,
-                1e3 * per_step(r),
-                its(r),
-            );
-            print!("{}", md.lines().last().map(|l| format!("{l}\n")).unwrap_or_default());
+            row(&mut md, case, r, mass, &sweep, base);
         }
     }
     md

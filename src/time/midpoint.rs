@@ -128,6 +128,7 @@ pub struct Midpoint {
     kick_layer: Option<KickLayer>,
     kick_ready: Option<bool>,
     kick_vectors: Option<(Vector, Vector, Vector)>,
+    kick_cg: Option<(Vector, Vector, Vector)>,
     /// `A_CC` of the whole layer for the projection of released nodes (built on first use).
     release_layer: Option<super::layer::LayerBlock>,
     /// Whether the energy of steps whose active set changed is corrected.
@@ -258,6 +259,7 @@ impl Midpoint {
             kick_layer: None,
             kick_ready: None,
             kick_vectors: None,
+            kick_cg: None,
             release_layer: None,
             correct: false,
             rhs_corr: None,
