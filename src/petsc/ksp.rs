@@ -223,20 +223,6 @@ impl Ksp {
         self.checked(info)
     }
 
-    /// At most `max_it` iterations from the guess in `x` (a partial solve: reaching the cap
-    /// is not an error, any other divergence is); the iteration limit is restored after.
-    pub fn solve_capped(&mut self, b: &Vector, x: &mut Vector, max_it: usize) -> Result<SolveInfo> {
-        let limit = self.max_it()?;
-        self.set_tolerances(None, None, None, Some(max_it))?;
-        let info = self.solve_once(b, x);
-        self.set_tolerances(None, None, None, Some(limit))?;
-        let info = info?;
-        if info.reason == ffi::KSPConvergedReason_KSP_DIVERGED_ITS {
-            return Ok(info);
-        }
-        self.checked(info)
-    }
-
     fn solve_once(&mut self, b: &Vector, x: &mut Vector) -> Result<SolveInfo> {
         // SAFETY: valid handles; `b` and `x` are distinct by the borrow rules.
         chk!(ffi::KSPSolve(self.ksp, b.raw(), x.raw()))?;
