@@ -196,6 +196,67 @@ impl RunSummary {
     pub fn read(run: &RunReader) -> Option<RunSummary> {
         RunSummary::parse(&run.summary_text()).ok()
     }
+
+    /// A made-up summary of a small contact run for unit tests (30 steps, 1458 DOFs, M).
+    #[cfg(test)]
+    pub fn example() -> RunSummary {
+        use crate::contact::history::ContactSummary;
+        RunSummary {
+            n_nodes: 729,
+            n_cells: 640,
+            n_dofs: 1458,
+            steps: 30,
+            timings: Timings {
+                mesh: 0.1,
+                partition: 0.01,
+                assembly: 0.02,
+                setup: 0.03,
+                stepping: 0.5,
+                output: 0.0,
+                stress: 0.0,
+                ..Default::default()
+            },
+            ksp_iterations: 124,
+            energy_initial: 1.0,
+            energy_final: 1.0,
+            external_work: 0.0,
+            energy_balance: 1e-12,
+            energy_drift: 1e-4,
+            errors: vec![ErrorSample { step: 30, time: 3e-4, l2: 6.1e-6, h1_semi: 1.5e-4 }],
+            output: None,
+            matmult_seconds: 1e-4,
+            peak_memory_mib: 85.5,
+            peak_memory_rank_mib: 85.5,
+            ranks: 2,
+            ksp_type: "cg".into(),
+            pc_type: "jacobi".into(),
+            mass_kind: "consistent".into(),
+            layer_contact_nodes: 0,
+            layer_cells: 0,
+            mass: MassCheck::default(),
+            momentum_initial: vec![0.0, 0.0],
+            momentum_final: vec![0.0, 0.0],
+            angular_momentum_initial: vec![0.0; 3],
+            angular_momentum_final: vec![0.0; 3],
+            contact: Some(ContactSummary {
+                max_pressure: 2.5,
+                episodes_max: 1,
+                ..Default::default()
+            }),
+            pictures: vec![],
+            effects: String::new(),
+            bodies: Vec::new(),
+            energy_max: 0.0,
+            massless_initialization: None,
+            release_projections: 0,
+            release_energy: 0.0,
+            energy_corrections: Default::default(),
+            step_reuse: Default::default(),
+            ksp_iterations_step_max: 7,
+            cfl: 0.5,
+            stability: None,
+        }
+    }
 }
 
 /// The metrics of a finished run read back from its HDF5 file: the series of `/energy` and

@@ -98,6 +98,34 @@ impl Row {
         }
     }
 
+    /// The stepping phase's wall time per step, ms (the program's own timing).
+    pub fn stepping_ms(&self) -> Option<f64> {
+        let m = &self.result.as_ref().ok()?.summary;
+        (m.steps > 0).then(|| 1e3 * m.timings.stepping / m.steps as f64)
+    }
+
+    /// The cost of this run against the standard mass `M` (`consistent`) at the same case and
+    /// variant: (KSP iterations per step, stepping time per step), each as a ratio to `M`'s
+    /// run. `None` for `M` itself, when that run is missing or failed, or took no iterations.
+    pub fn cost_to_m(&self, rows: &[Row]) -> Option<(f64, f64)> {
+        let d = self.result.as_ref().ok()?;
+        if self.mass_kind() == "consistent" {
+            return None;
+        }
+        let m = rows.iter().find(|r| {
+            r.case == self.case
+                && r.variant == self.variant
+                && r.ranks == self.ranks
+                && r.mass_kind() == "consistent"
+        })?;
+        let dm = m.result.as_ref().ok()?;
+        let its = dm.stability.ksp_iterations_mean;
+        let time = m.stepping_ms()?;
+        (its > 0.0 && time > 0.0).then(|| {
+            (d.stability.ksp_iterations_mean / its, self.stepping_ms().unwrap_or(0.0) / time)
+        })
+    }
+
     /// The largest relative difference over the rank sweep (None: not swept).
     pub fn rank_diff(&self) -> Option<f64> {
         let d = self.result.as_ref().ok()?;
@@ -123,7 +151,7 @@ fn f2(x: f64) -> String {
 }
 
 /// The CSV columns (one line per run; the tests read them by name).
-pub const CSV_COLUMNS: [&str; 38] = [
+pub const CSV_COLUMNS: [&str; 41] = [
     "case",
     "group",
     "variant",
@@ -161,6 +189,9 @@ pub const CSV_COLUMNS: [&str; 38] = [
     "non_finite",
     "rank_diff",
     "wall_s",
+    "stepping_ms_per_step",
+    "ksp_ratio_to_m",
+    "time_ratio_to_m",
     "file",
 ];
 
@@ -222,7 +253,11 @@ pub fn csv(rows: &[Row], tol: Tolerances) -> String {
                     s.non_finite.to_string(),
                     r.rank_diff().map(|x| format!("{x:e}")).unwrap_or_default(),
                     format!("{:.3}", d.process_s),
+                    r.stepping_ms().map(|x| format!("{x:e}")).unwrap_or_default(),
                 ]);
+                let cost = r.cost_to_m(rows);
+                f.push(cost.map(|c| format!("{:e}", c.0)).unwrap_or_default());
+                f.push(cost.map(|c| format!("{:e}", c.1)).unwrap_or_default());
             }
             Err(msg) => {
                 f.extend(["".into(), "".into(), "".into(), "".into(), "error".into()]);
@@ -242,9 +277,9 @@ pub fn csv(rows: &[Row], tol: Tolerances) -> String {
 pub fn markdown(rows: &[Row], tol: Tolerances) -> String {
     let mut out = String::new();
     out.push_str(
-        "| case | variant | mass | DOFs | steps | CFL | status | energy rise | loss | impacts | loss / impact | penetration / size | osc2 p | TV p | osc2 F | TV F | episodes / impact max (mean) | PDAS mean / max | KSP mean / max | rank diff | wall s |\n",
+        "| case | variant | mass | DOFs | steps | CFL | status | energy rise | loss | impacts | loss / impact | penetration / size | osc2 p | TV p | osc2 F | TV F | episodes / impact max (mean) | PDAS mean / max | KSP mean / max | rank diff | wall s | stepping ms/step | KSP its, time vs M |\n",
     );
-    out.push_str(&"|---".repeat(21));
+    out.push_str(&"|---".repeat(23));
     out.push_str("|\n");
     for r in rows {
         let fails = r.failures(tol);
@@ -263,7 +298,7 @@ pub fn markdown(rows: &[Row], tol: Tolerances) -> String {
                 let s = &d.stability;
                 let m = &d.summary;
                 out.push_str(&format!(
-                    "{head}| {} | {} | {} | {status} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} ({}) | {} / {} | {} / {} | {} | {:.1} |\n",
+                    "{head}| {} | {} | {} | {status} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} ({}) | {} / {} | {} / {} | {} | {:.1} | {} | {} |\n",
                     m.n_dofs,
                     m.steps,
                     cfl(m.cfl),
@@ -284,13 +319,17 @@ pub fn markdown(rows: &[Row], tol: Tolerances) -> String {
                     s.ksp_iterations_max,
                     r.rank_diff().map(e).unwrap_or_else(|| "-".into()),
                     d.process_s,
+                    r.stepping_ms().map(|x| format!("{x:.2}")).unwrap_or_else(|| "-".into()),
+                    r.cost_to_m(rows)
+                        .map(|(i, t)| format!("{i:.2}, {t:.2}"))
+                        .unwrap_or_else(|| "-".into()),
                 ));
             }
             Err(msg) => {
                 out.push_str(&format!(
                     "{head}| | | | **FAIL** (error: {}) |{}\n",
                     msg.replace('|', "/"),
-                    " |".repeat(14)
+                    " |".repeat(16)
                 ));
             }
         }
@@ -311,9 +350,9 @@ fn cfl(x: f64) -> String {
 /// One line per case: its runs, failures and the extremes of the metrics over its runs.
 pub fn case_summary(rows: &[Row], tol: Tolerances) -> String {
     let mut out = String::from(
-        "| group | case | runs | failed | largest energy rise | largest loss / impact (mass) | largest penetration / size | osc2 F: M, lumped / M_H (largest) | episodes / impact max: M, lumped / M_H | flicker (M_H runs) | rank diff | wall s |\n",
+        "| group | case | runs | failed | largest energy rise | largest loss / impact (mass) | largest penetration / size | osc2 F: M, lumped / M_H (largest) | episodes / impact max: M, lumped / M_H | flicker (M_H runs) | rank diff | wall s | cost M_H / M: KSP its (time), largest |\n",
     );
-    out.push_str(&"|---".repeat(12));
+    out.push_str(&"|---".repeat(13));
     out.push_str("|\n");
     let mut names: Vec<&str> = Vec::new();
     for r in rows {
@@ -352,8 +391,16 @@ pub fn case_summary(rows: &[Row], tol: Tolerances) -> String {
             .filter_map(|r| r.rank_diff())
             .fold(None, |a: Option<f64>, b| Some(a.map_or(b, |a| a.max(b))));
         let wall: f64 = done.iter().map(|(_, d)| d.process_s).sum();
+        let costs: Vec<(f64, f64)> = rs.iter().filter_map(|r| r.cost_to_m(rows)).collect();
+        let cost = if costs.is_empty() {
+            "-".to_string()
+        } else {
+            let its = costs.iter().map(|c| c.0).fold(0.0, f64::max);
+            let time = costs.iter().map(|c| c.1).fold(0.0, f64::max);
+            format!("{its:.2} ({time:.2})")
+        };
         out.push_str(&format!(
-            "| {} | {name} | {} | {} | {} | {loss} | {} | {} | {} | {} | {} | {:.0} |\n",
+            "| {} | {name} | {} | {} | {} | {loss} | {} | {} | {} | {} | {} | {:.0} | {cost} |\n",
             rs[0].group,
             rs.len(),
             if failed == 0 { "0".to_string() } else { format!("**{failed}**") },
@@ -367,4 +414,54 @@ pub fn case_summary(rows: &[Row], tol: Tolerances) -> String {
         ));
     }
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn run(case: &str, variant: &str, mass: &str, ksp_mean: f64, stepping: f64) -> Row {
+        let mut summary = RunSummary::example();
+        summary.timings.stepping = stepping;
+        let stability = Stability { ksp_iterations_mean: ksp_mean, ..Default::default() };
+        Row {
+            case: case.into(),
+            group: "g".into(),
+            variant: variant.into(),
+            mass: mass.into(),
+            ranks: 2,
+            tau: 1e-3,
+            single_episode: true,
+            file: String::new(),
+            result: Ok(Done { summary, stability, process_s: 1.0, ranks: Vec::new() }),
+        }
+    }
+
+    /// Each `M_H` run is compared with `M`'s run of its own case and variant, never another's.
+    #[test]
+    fn the_cost_of_m_h_is_a_ratio_to_m_at_the_same_point() {
+        let rows = vec![
+            run("a", "v=1", "consistent", 10.0, 0.3),
+            run("a", "v=1", "modified0", 12.0, 0.45),
+            run("a", "v=2", "consistent", 20.0, 0.6),
+            run("a", "v=2", "modified1", 21.0, 0.6),
+            run("b", "v=1", "modified0", 5.0, 0.1),
+        ];
+        let close =
+            |a: (f64, f64), b: (f64, f64)| (a.0 - b.0).abs() < 1e-15 && (a.1 - b.1).abs() < 1e-15;
+        assert!(close(rows[1].cost_to_m(&rows).unwrap(), (1.2, 1.5)));
+        assert!(close(rows[3].cost_to_m(&rows).unwrap(), (1.05, 1.0)));
+        assert_eq!(rows[0].cost_to_m(&rows), None, "M against itself");
+        assert_eq!(rows[4].cost_to_m(&rows), None, "no M at that point");
+        // The stepping time per step: 0.3 s over the example's 30 steps.
+        assert!((rows[0].stepping_ms().unwrap() - 10.0).abs() < 1e-12);
+        let tol = Tolerances { rise: 1e-6, penetration: 1e-8, ranks: 1e-8 };
+        let table = case_summary(&rows, tol);
+        let line = table.lines().find(|l| l.contains("| a |")).unwrap();
+        assert!(line.ends_with("| 1.20 (1.50) |"), "{line}");
+        assert!(table.lines().find(|l| l.contains("| b |")).unwrap().ends_with("| - |"));
+        let csv = csv(&rows, tol);
+        let second = csv.lines().nth(2).unwrap();
+        assert!(second.contains(",1.2e0,1.5e0,"), "{second}");
+    }
 }
