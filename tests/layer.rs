@@ -4,7 +4,8 @@
 //! - Same increments: every shipped scene without contact (the beam and the block, quads,
 //!   triangles, hexahedra, tetrahedra) with either layer (`modified0`, `modified1`) gives the
 //!   plain Jacobi solver's results to solver tolerance, on 1 and 2 ranks; 1 rank against 2 as
-//!   well (the block is gathered across the partition's cut).
+//!   well; on 2 ranks both scopes of the block (the whole layer gathered, the 2D default;
+//!   each rank's own, the 3D default: `-step_layer_local`).
 //! - The iterations of `M`: with the sweep `B K` has the eigenvalue 1 on the layer and
 //!   Jacobi's spectrum on the Schur complement of the massive rows (`4/tau^2 M_II` plus a
 //!   stiffness below `A_II`), and the layer's guess is exact for the `(-1)^n` mode the
@@ -31,7 +32,7 @@ fn run(scene: &str, mass: &str, ranks: usize, layer: bool, extra: &[&str]) -> Ru
         ("steps = 250", format!("steps = {STEPS}")),
         ("error_steps = [30, 250]", "error_steps = [30, 120]".into()),
     ];
-    run_with(scene, &replace, mass, ranks, layer, extra)
+    run_with(scene, &replace, mass, ranks, layer, extra, &[])
 }
 
 fn run_with(
@@ -41,8 +42,11 @@ fn run_with(
     ranks: usize,
     layer: bool,
     extra: &[&str],
+    petsc: &[&str],
 ) -> Run {
-    let dir = scratch(&format!("layer-{}-{mass}-{ranks}-{layer}", scene.trim_end_matches(".toml")));
+    let tag = petsc.join("").replace('-', "");
+    let dir =
+        scratch(&format!("layer-{}-{mass}-{ranks}-{layer}{tag}", scene.trim_end_matches(".toml")));
     let replace: Vec<(&str, &str)> = replace.iter().map(|(a, b)| (*a, b.as_str())).collect();
     let path = scene_variant(scene, &dir, &replace);
     let mut args = vec!["--mass", mass];
@@ -51,11 +55,19 @@ fn run_with(
     if layer {
         args.extend_from_slice(&["-step_layer_around", "true"]);
     }
+    args.extend_from_slice(petsc);
     let summary = run_scene(ranks, &path, &args);
     let stem = path.file_stem().unwrap().to_string_lossy().to_string();
     let h5 = dir.join(format!("{stem}-{ranks}.h5"));
     let active = reader(&h5).series("contact/active_set_size").unwrap_or_default();
     Run { summary, displacement: values(&h5, "fields/displacement"), active }
+}
+
+/// The option for the layer block's scope that is not the default of `scene` (each rank's
+/// own block in 3D, the whole layer gathered in 2D).
+fn other_scope(scene: &str) -> [&'static str; 2] {
+    let three_d = scene.starts_with("block") || scene.starts_with("sphere");
+    ["-step_layer_local", if three_d { "false" } else { "true" }]
 }
 
 /// `max |a - b| / max |b|` over the whole series.
@@ -95,6 +107,26 @@ fn the_layer_sweep_gives_the_plain_solvers_results_on_every_scene_without_contac
             if ranks == 2 {
                 let d = field_diff(&swept.displacement, &one.displacement);
                 assert!(d < bound, "{scene} {mass}: 1 rank against 2 differ by {d:e}");
+                // The other scope of the layer's block (`-step_layer_local`; by default each
+                // rank's own block in 3D, the whole layer in 2D): another preconditioner,
+                // the same solution.
+                let local = other_scope(scene);
+                let replace = [
+                    ("steps = 250", format!("steps = {STEPS}")),
+                    ("error_steps = [30, 250]", "error_steps = [30, 120]".into()),
+                ];
+                let l = run_with(scene, &replace, mass, 2, true, &[], &local);
+                assert!(
+                    l.summary.step_reuse.layer_rows > 0,
+                    "{scene} {mass}: no layer block (other scope)"
+                );
+                let d = field_diff(&l.displacement, &plain.displacement);
+                eprintln!(
+                    "{scene} {mass} other scope {local:?}: differ by {d:.2e}; iterations {}",
+                    l.summary.ksp_iterations
+                );
+                assert!(d < bound, "{scene} {mass} other scope: displacement differs by {d:e}");
+                assert!(l.summary.energy_balance < 1e-10, "{scene} {mass} local: balance");
             }
         }
     }
@@ -131,15 +163,15 @@ fn the_layer_sweep_around_petscs_preconditioner_gives_the_plain_solvers_contact_
         ("sphere_hex.toml", "modified1", "steps = 220", 40),
     ] {
         let replace = [(shipped, format!("steps = {steps}"))];
-        let one = run_with(scene, &replace, mass, 1, true, &[]);
+        let one = run_with(scene, &replace, mass, 1, true, &[], &[]);
         for ranks in [1, 2] {
             let swept = if ranks == 1 {
                 None
             } else {
-                Some(run_with(scene, &replace, mass, ranks, true, &[]))
+                Some(run_with(scene, &replace, mass, ranks, true, &[], &[]))
             };
             let swept = swept.as_ref().unwrap_or(&one);
-            let plain = run_with(scene, &replace, mass, ranks, false, &[]);
+            let plain = run_with(scene, &replace, mass, ranks, false, &[], &[]);
             let (s, p) = (&swept.summary, &plain.summary);
             assert!(s.step_reuse.layer_rows > 0, "{scene} {mass}: no layer sweep");
             assert_eq!(p.step_reuse.layer_rows, 0, "{scene} {mass}: -step_layer false");
@@ -165,6 +197,15 @@ fn the_layer_sweep_around_petscs_preconditioner_gives_the_plain_solvers_contact_
                 let d = field_diff(&swept.displacement, &one.displacement);
                 assert!(d < bound, "{scene} {mass}: 1 rank against 2 differ by {d:e}");
                 assert_eq!(swept.active, one.active, "{scene} {mass}: 1 rank against 2");
+                let local = other_scope(scene);
+                let l = run_with(scene, &replace, mass, 2, true, &[], &local);
+                assert_eq!(l.active, plain.active, "{scene} {mass} other scope: active sets");
+                let d = field_diff(&l.displacement, &plain.displacement);
+                eprintln!(
+                    "{scene} {mass} other scope {local:?}: differ by {d:.2e}; iterations {}",
+                    l.summary.ksp_iterations
+                );
+                assert!(d < bound, "{scene} {mass} other scope: displacement differs by {d:e}");
             }
         }
     }

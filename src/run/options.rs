@@ -107,8 +107,9 @@ pub struct AppOptions {
     /// The step's own CG and its kept products (`time::cg`): `-step_reuse true|false`
     /// (default true; used by CG steps without contact), `-step_reuse_refresh N` (default 16),
     /// `-step_predictor zero|last|extrapolate`, `-step_energy_rtol X`, `-step_layer
-    /// true|false` (default true: the mass-free layer's rows factored, `time::layer`).
-    /// `None`: off.
+    /// true|false` (default true: the mass-free layer's rows factored, `time::layer`),
+    /// `-step_layer_local true|false` (default: true in 3D, false in 2D; each rank sweeps its
+    /// own part of the layer). `None`: off.
     pub step_reuse: Option<crate::time::Reuse>,
     /// `-step_layer_around true|false` (default false): the mass-free layer's rows swept
     /// around PETSc's preconditioner too (Jacobi or block Jacobi/ILU: contact steps, and
@@ -184,6 +185,13 @@ impl AppOptions {
                 Petsc::options_get_string("-step_predictor")?.as_deref(),
                 Petsc::options_get_real("-step_energy_rtol")?,
                 Petsc::options_get_string("-step_layer")?.as_deref(),
+                match Petsc::options_has("-step_layer_local")? {
+                    true => {
+                        Some(Petsc::options_get_string("-step_layer_local")?.unwrap_or_default())
+                    }
+                    false => None,
+                }
+                .as_deref(),
             )?,
             step_layer_around: step_layer(Petsc::options_get_string("-step_layer")?.as_deref())?
                 && flag("-step_layer_around", Petsc::options_get_string("-step_layer_around")?)?,
@@ -256,6 +264,7 @@ fn step_reuse(
     predictor: Option<&str>,
     energy_rtol: Option<f64>,
     layer: Option<&str>,
+    layer_local: Option<&str>,
 ) -> Result<Option<crate::time::Reuse>> {
     let on = match on {
         None | Some("1" | "true" | "yes") => true,
@@ -281,6 +290,15 @@ fn step_reuse(
         r.energy_rtol = e;
     }
     r.layer = step_layer(layer)?;
+    // Given without a value: on.
+    r.layer_local = match layer_local {
+        None => None,
+        Some("0" | "false" | "no") => Some(false),
+        Some("" | "1" | "true" | "yes") => Some(true),
+        Some(other) => {
+            return Err(Error::Usage(format!("-step_layer_local {other}: give true or false")));
+        }
+    };
     Ok(on.then_some(r))
 }
 
@@ -343,11 +361,12 @@ mod tests {
         assert_eq!(mortar_normal(Some("average".into())), Ok(NormalKind::Average));
         assert_eq!(massless_energy_correction(None), Ok(true));
         assert_eq!(massless_energy_correction(Some("no")), Ok(false));
-        let r = step_reuse(None, None, None, None, None).unwrap().expect("on by default");
+        let r = step_reuse(None, None, None, None, None, None).unwrap().expect("on by default");
         assert_eq!(r.refresh, 16);
         assert_eq!(r.predictor, crate::time::Predictor::Extrapolate);
-        assert!(step_reuse(Some("false"), None, None, None, None).unwrap().is_none());
-        let r = step_reuse(None, Some(100.0), Some("last"), Some(1e-12), None).unwrap().unwrap();
+        assert!(step_reuse(Some("false"), None, None, None, None, None).unwrap().is_none());
+        let r =
+            step_reuse(None, Some(100.0), Some("last"), Some(1e-12), None, None).unwrap().unwrap();
         assert_eq!(
             (r.refresh, r.predictor, r.energy_rtol),
             (100, crate::time::Predictor::Last, 1e-12)
@@ -362,14 +381,22 @@ mod tests {
         assert_eq!(e, "scene error: -mortar_normal x: give slave (the default) or average");
         let e = massless_energy_correction(Some("")).unwrap_err().to_string();
         assert_eq!(e, "usage error: -massless_energy_correction : give true or false");
-        let e = step_reuse(None, Some(0.5), None, None, None).unwrap_err().to_string();
+        let e = step_reuse(None, Some(0.5), None, None, None, None).unwrap_err().to_string();
         assert_eq!(
             e,
             "usage error: -step_reuse_refresh 0.5: give a whole number of steps, at least 1"
         );
-        let e = step_reuse(None, None, Some("quadratic"), None, None).unwrap_err().to_string();
+        let e = step_reuse(None, None, None, None, None, Some("maybe")).unwrap_err().to_string();
+        assert_eq!(e, "usage error: -step_layer_local maybe: give true or false");
+        let local = |v| step_reuse(None, None, None, None, None, v).unwrap().unwrap().layer_local;
+        assert_eq!(
+            (local(None), local(Some("")), local(Some("no"))),
+            (None, Some(true), Some(false))
+        );
+        let e =
+            step_reuse(None, None, Some("quadratic"), None, None, None).unwrap_err().to_string();
         assert_eq!(e, "usage error: -step_predictor quadratic: give zero, last or extrapolate");
-        let e = step_reuse(Some("maybe"), None, None, None, None).unwrap_err().to_string();
+        let e = step_reuse(Some("maybe"), None, None, None, None, None).unwrap_err().to_string();
         assert_eq!(e, "usage error: -step_reuse maybe: give true or false");
     }
 }

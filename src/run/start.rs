@@ -91,7 +91,7 @@ pub fn step_operator(
         _ => "set by the scene or the command line".to_string(),
     };
     let around = op.layer.as_ref().and_then(|i| i.borrow().clone());
-    let own = op.cg.as_ref().map(|cg| cg.layer_solver()).transpose()?.flatten();
+    let own = op.cg.as_ref().and_then(|cg| cg.layer_solver());
     let layer = match own.or(around) {
         Some((rows, solver)) => format!(
             "; the mass-free layer's {rows} massless rows swept with {solver} (-step_layer false: not swept)"

@@ -99,6 +99,8 @@ pub struct StepCg {
     scale: bool,
     /// `K` changed since the layer's block was factored ([`StepCg::forget`]).
     stale_layer: bool,
+    /// The layer block's rows over all ranks and its solver (the same on every rank).
+    layer_report: Option<(usize, String)>,
 }
 
 /// The layer's block applied to `r` and added onto `p` (whose layer rows Jacobi left zero);
@@ -132,17 +134,20 @@ impl StepCg {
     /// For the operator `k` whose KSP `ksp` is set up: Jacobi inside the passes when the
     /// KSP's preconditioner is `jacobi`, else PETSc's through `PCApply`. With Jacobi, the
     /// `massless` rows (local indices, sorted; the mass-free layer's) get their block's
-    /// factor instead (`time::layer`), unless empty on every rank. Collective.
+    /// factor instead (`time::layer`) if `reuse.layer`, unless empty on every rank
+    /// (`reuse.layer_local`, by default in 3D: each rank's own block, [`LayerBlock::local`]). The energy
+    /// tolerance and the predictor are `reuse`'s. Collective.
     pub fn new(
         k: &Matrix,
         ksp: &Ksp,
         rtol: f64,
-        energy_tol: f64,
-        predictor: Predictor,
+        reuse: &super::operator::Reuse,
         massless: Vec<usize>,
-        use_layer: bool,
     ) -> Result<StepCg> {
+        let (energy_tol, predictor) = (reuse.energy_rtol, reuse.predictor);
+        let (use_layer, local) = (reuse.layer, reuse.layer_local.unwrap_or(k.block_size()? == 3));
         let (r, _) = k.create_vecs()?;
+        let mut report = None;
         let pc = if ksp.pc_type()? == "jacobi" {
             let mut d = r.duplicate()?;
             k.get_diagonal(&mut d)?;
@@ -155,11 +160,17 @@ impl StepCg {
                     d[i] = 0.0;
                 }
             }
-            let layer = if use_layer {
-                LayerBlock::new(k, massless, Some(&d), k.block_size()?)?
-            } else {
-                None
+            let own = massless.len();
+            let layer = match (use_layer, local) {
+                (false, _) => None,
+                (true, false) => LayerBlock::new(k, massless, Some(&d), k.block_size()?)?,
+                (true, true) => LayerBlock::local(k, massless, Some(&d), k.block_size()?)?,
             };
+            // The same on every rank, also one without layer rows of its own.
+            if use_layer {
+                let r = LayerBlock::report(own, local)?;
+                report = (r.0 > 0).then_some(r);
+            }
             Precond::Jacobi(d, layer.map(Box::new))
         } else {
             Precond::Petsc(r.duplicate()?)
@@ -179,24 +190,20 @@ impl StepCg {
             known: 0,
             scale: false,
             stale_layer: false,
+            layer_report: report,
         })
     }
 
     /// Rows of the mass-free layer's block over all ranks (0: plain Jacobi or PETSc's
     /// preconditioner).
     pub fn layer_rows(&self) -> usize {
-        match &self.pc {
-            Precond::Jacobi(_, Some(l)) => l.total(),
-            _ => 0,
-        }
+        self.layer_report.as_ref().map_or(0, |r| r.0)
     }
 
-    /// The layer block's rows and its solver (`cholesky`, `icc`, ...), if there is one.
-    pub fn layer_solver(&self) -> Result<Option<(usize, String)>> {
-        match &self.pc {
-            Precond::Jacobi(_, Some(l)) => Ok(Some((l.total(), l.solver()?))),
-            _ => Ok(None),
-        }
+    /// The layer block's rows over all ranks and its solver (`cholesky`, `icc`, ...), if
+    /// there is one (on every rank).
+    pub fn layer_solver(&self) -> Option<(usize, String)> {
+        self.layer_report.clone()
     }
 
     /// `true`: each solution `x` is scaled by `s = x.b / x.Kx`, the minimum of the step's

@@ -27,6 +27,11 @@
 //! cut across its layer against 1.2 with the cut away from it), and costs two collectives of
 //! the layer's size an application: gathering `r_C`, summing `K_CA z_A` (PETSc's redundant
 //! solver and submatrices took 4 messages and 0.25 ms an application on 2 ranks).
+//!
+//! In 3D each rank sweeps its own part instead ([`LayerBlock::local`], `-step_layer_local`):
+//! there the couplings across the cut cost no iterations (the block at CFL 1: 361 against
+//! 362) and the whole layer's two solves an application on every rank most of `M_H`'s extra
+//! time (1.12 against 0.96 times `M`'s).
 
 use mpi::collective::SystemOperation;
 use mpi::topology::SimpleCommunicator;
@@ -42,8 +47,12 @@ pub struct LayerBlock {
     /// numbering they are `first..first + rows.len()`.
     rows: Vec<usize>,
     first: usize,
-    /// Global DOF of each layer row over all ranks (ascending: ranks own ascending ranges).
+    /// Global DOF of each layer row over all ranks (ascending: ranks own ascending ranges);
+    /// with `local`, this rank's only.
     layer_dofs: Vec<i32>,
+    /// Each rank factors its own rows' block only, without the couplings across the
+    /// partition and without communication ([`LayerBlock::local`]).
+    local: bool,
     /// This rank's massive rows coupled to the layer (local indices), Jacobi's `1/K_ii`
     /// there, and `K_AC` in CSR over them with layer columns.
     adjacent: Vec<usize>,
@@ -86,8 +95,33 @@ impl LayerBlock {
         d: Option<&[f64]>,
         dim: usize,
     ) -> Result<Option<LayerBlock>> {
+        Self::sweep(k, rows, d, dim, false)
+    }
+
+    /// [`LayerBlock::new`] with each rank's own rows only: the block `K_CC` of this rank's
+    /// massless rows and the couplings `K_AC` within this rank, no communication in the
+    /// sweep. The preconditioner stays symmetric (block-diagonal over the ranks, each block
+    /// the sweep of the module's doc on the rank's rows). `None` on a rank without massless
+    /// rows; nothing after the construction is collective.
+    pub fn local(
+        k: &Matrix,
+        rows: Vec<usize>,
+        d: Option<&[f64]>,
+        dim: usize,
+    ) -> Result<Option<LayerBlock>> {
+        Self::sweep(k, rows, d, dim, true)
+    }
+
+    /// The step sweep's block under the `step_layer_` options: ICC(0) in 3D, Cholesky in 2D.
+    fn sweep(
+        k: &Matrix,
+        rows: Vec<usize>,
+        d: Option<&[f64]>,
+        dim: usize,
+        local: bool,
+    ) -> Result<Option<LayerBlock>> {
         let pc = if dim == 3 { "icc" } else { "cholesky" };
-        Self::with_solver(k, rows, d, "step_layer_", pc, "nd")
+        Self::build(k, rows, d, "step_layer_", pc, "nd", local)
     }
 
     /// [`LayerBlock::new`] with the solver of `K_CC` under the options prefix `prefix`,
@@ -101,18 +135,32 @@ impl LayerBlock {
         pc: &str,
         ordering: &str,
     ) -> Result<Option<LayerBlock>> {
+        Self::build(k, rows, d, prefix, pc, ordering, false)
+    }
+
+    fn build(
+        k: &Matrix,
+        rows: Vec<usize>,
+        d: Option<&[f64]>,
+        prefix: &str,
+        pc: &str,
+        ordering: &str,
+        local: bool,
+    ) -> Result<Option<LayerBlock>> {
         let world = SimpleCommunicator::world();
         let (lo, _) = k.ownership_range();
         let own: Vec<i32> = rows.iter().map(|&i| (lo + i) as i32).collect();
-        let layer_dofs = gather_all(&world, &own);
-        let mut counts = vec![0i32; world.size() as usize];
-        world.all_gather_into(&(own.len() as i32), &mut counts[..]);
+        let (layer_dofs, counts) = if local {
+            (own.clone(), vec![own.len() as i32])
+        } else {
+            let mut counts = vec![0i32; world.size() as usize];
+            world.all_gather_into(&(own.len() as i32), &mut counts[..]);
+            (gather_all(&world, &own), counts)
+        };
         let displs: Vec<i32> =
             counts.iter().scan(0, |s, &c| Some(std::mem::replace(s, *s + c))).collect();
-        if layer_dofs.is_empty() {
-            return Ok(None);
-        }
-        let first = layer_dofs.partition_point(|&g| g < lo as i32);
+        // On every rank, also one without rows of its own (`local`): the solver's name is
+        // read from the options for the reports.
         let defaults: [(String, &str); 2] = [
             (format!("-{prefix}pc_type"), pc),
             (format!("-{prefix}pc_factor_mat_ordering_type"), ordering),
@@ -122,6 +170,10 @@ impl LayerBlock {
                 Petsc::options_set(name, Some(value))?;
             }
         }
+        if layer_dofs.is_empty() {
+            return Ok(None);
+        }
+        let first = layer_dofs.partition_point(|&g| g < lo as i32);
         let mut ksp = Ksp::new_self(prefix)?;
         ksp.set_type("preonly")?;
         let n = layer_dofs.len();
@@ -129,6 +181,7 @@ impl LayerBlock {
             rows,
             first,
             layer_dofs,
+            local,
             adjacent: Vec::new(),
             d_adjacent: Vec::new(),
             kac_start: Vec::new(),
@@ -155,14 +208,17 @@ impl LayerBlock {
         Ok(Some(block))
     }
 
-    /// The solver of `K_CC` (its preconditioner type: `cholesky`, `icc`, ...).
-    pub fn solver(&self) -> Result<String> {
-        self.ksp.pc_type()
-    }
-
-    /// Rows of `K_CC` over all ranks.
-    pub fn total(&self) -> usize {
-        self.layer_dofs.len()
+    /// The layer's rows over all ranks and the step sweep's solver of `K_CC` (from the
+    /// options, which [`LayerBlock::new`] and [`LayerBlock::local`] set on every rank): the
+    /// same report on every rank, also on one without layer rows. Collective.
+    pub fn report(own_rows: usize, local: bool) -> Result<(usize, String)> {
+        let mut total = 0usize;
+        SimpleCommunicator::world().all_reduce_into(&own_rows, &mut total, SystemOperation::sum());
+        let mut solver = Petsc::options_get_string("-step_layer_pc_type")?.unwrap_or_default();
+        if local {
+            solver += " on each rank's own part (-step_layer_local)";
+        }
+        Ok((total, solver))
     }
 
     /// The layer row of a global DOF, if it is one.
@@ -198,14 +254,17 @@ impl LayerBlock {
             })?;
             lengths.push((cols.len() - before) as i32);
         }
-        let (lengths, cols, vals) =
-            (gather_all(&world, &lengths), gather_all(&world, &cols), gather_all(&world, &vals));
+        let (lengths, cols, vals) = if self.local {
+            (lengths, cols, vals)
+        } else {
+            (gather_all(&world, &lengths), gather_all(&world, &cols), gather_all(&world, &vals))
+        };
         let mut start = Vec::with_capacity(lengths.len() + 1);
         start.push(0i32);
         for l in &lengths {
             start.push(start.last().unwrap() + l);
         }
-        let held = gather_all(&world, held);
+        let held = if self.local { held.to_vec() } else { gather_all(&world, held) };
         let mut vals = vals;
         if !held.is_empty() {
             let mut out = vec![false; lengths.len()];
@@ -247,7 +306,7 @@ impl LayerBlock {
         self.ksp.set_up().map_err(|e| match e {
             Error::Petsc { message, .. } => Error::Solver(format!(
                 "the mass-free layer's block K_CC ({} rows) could not be factored: {message}",
-                self.total()
+                self.layer_dofs.len()
             )),
             other => other,
         })?;
@@ -317,8 +376,11 @@ impl LayerBlock {
     /// `x_prev` and its product `kx_prev`, so that the two-point extrapolation of the caller
     /// makes the layer's guess. Nothing happens before three consecutive solutions.
     /// Collective.
+    /// With each rank's own block ([`LayerBlock::local`]) there is no layer guess: its
+    /// product would miss the couplings across the partition, which the kept products must
+    /// not (the solve would converge to another right-hand side).
     pub fn guess(&mut self, xp: &mut Vector, kxp: &mut Vector) -> Result<()> {
-        if self.recorded < 3 {
+        if self.recorded < 3 || self.local {
             return Ok(());
         }
         let [h1, h2, h3] = &self.history;
@@ -347,6 +409,10 @@ impl LayerBlock {
     /// Every rank's values `own` on its layer rows, in the layer's order, into `gathered`.
     /// Collective.
     fn gather(&mut self, own: &[f64]) {
+        if self.local {
+            self.gathered.copy_from_slice(own);
+            return;
+        }
         SimpleCommunicator::world().all_gather_varcount_into(
             own,
             &mut mpi::datatype::PartitionMut::new(
@@ -361,11 +427,15 @@ impl LayerBlock {
     /// `r_C` and this rank's `K_CA z_A` (summed over the ranks here); returns the right-hand
     /// side (a buffer to keep). Collective.
     fn solve_second(&mut self, rc_all: Vec<f64>, partial: Vec<f64>) -> Result<Vec<f64>> {
-        SimpleCommunicator::world().all_reduce_into(
-            &partial[..],
-            &mut self.summed[..],
-            SystemOperation::sum(),
-        );
+        if self.local {
+            self.summed.copy_from_slice(&partial);
+        } else {
+            SimpleCommunicator::world().all_reduce_into(
+                &partial[..],
+                &mut self.summed[..],
+                SystemOperation::sum(),
+            );
+        }
         self.partial = partial;
         let mut t = rc_all;
         for (t, s) in t.iter_mut().zip(&self.summed) {
@@ -512,7 +582,7 @@ impl LayerBlock {
                 }
             }
         })?;
-        self.solve_second(vec![0.0; self.total()], partial)?;
+        self.solve_second(vec![0.0; self.layer_dofs.len()], partial)?;
         let first = self.first;
         self.zc.with_local_slice(|zc| {
             w.with_local_slice_mut(|w| {
@@ -545,6 +615,10 @@ impl LayerBlock {
 pub struct LayerShell {
     rows: Vec<usize>,
     dim: usize,
+    local: bool,
+    /// Set up once: with `local` a rank without layer rows has no block, and must not build
+    /// again (the construction is collective, the later set-ups are not).
+    built: bool,
     block: Option<LayerBlock>,
     s: Option<Vector>,
     /// The layer's rows over all ranks and its solver, once set up (for the reports).
@@ -552,28 +626,38 @@ pub struct LayerShell {
 }
 
 impl LayerShell {
-    /// For this rank's massless rows (local indices, sorted) with `dim` DOFs per node;
-    /// `info` receives the layer's size and solver at each set-up.
+    /// For this rank's massless rows (local indices, sorted) with `dim` DOFs per node
+    /// (`local`: each rank's own block, [`LayerBlock::local`]); `info` receives the layer's
+    /// size and solver at each set-up.
     pub fn new(
         rows: Vec<usize>,
         dim: usize,
+        local: bool,
         info: std::rc::Rc<std::cell::RefCell<Option<(usize, String)>>>,
     ) -> LayerShell {
-        LayerShell { rows, dim, block: None, s: None, info }
+        LayerShell { rows, dim, local, built: false, block: None, s: None, info }
     }
 }
 
 impl crate::petsc::PcShell for LayerShell {
     fn set_up(&mut self, op: &Matrix) -> Result<()> {
-        match self.block.as_mut() {
-            Some(b) => b.factor(op, None)?,
-            None => {
-                self.block = LayerBlock::new(op, std::mem::take(&mut self.rows), None, self.dim)?;
-                self.s = Some(op.create_vecs()?.0);
-            }
+        if let Some(b) = self.block.as_mut() {
+            return b.factor(op, None);
         }
-        if let Some(b) = &self.block {
-            *self.info.borrow_mut() = Some((b.total(), b.solver()?));
+        if !self.built {
+            self.built = true;
+            let rows = std::mem::take(&mut self.rows);
+            let own = rows.len();
+            self.block = if self.local {
+                LayerBlock::local(op, rows, None, self.dim)?
+            } else {
+                LayerBlock::new(op, rows, None, self.dim)?
+            };
+            let report = LayerBlock::report(own, self.local)?;
+            self.s = Some(op.create_vecs()?.0);
+            if report.0 > 0 {
+                *self.info.borrow_mut() = Some(report);
+            }
         }
         Ok(())
     }

@@ -54,11 +54,22 @@ pub struct Reuse {
     /// `-step_layer`: with Jacobi, the mass-free layer's massless rows get their block
     /// factored exactly (`time::layer`).
     pub layer: bool,
+    /// `-step_layer_local`: each rank sweeps its own part of the layer, without the
+    /// couplings across the partition and without communication (`LayerBlock::local`).
+    /// `None`: in 3D (where the couplings across the cut cost no iterations and the layer's
+    /// guess none either), not in 2D (where that guess saves half the iterations).
+    pub layer_local: Option<bool>,
 }
 
 impl Default for Reuse {
     fn default() -> Self {
-        Reuse { refresh: 16, predictor: Predictor::Extrapolate, energy_rtol: 1e-13, layer: true }
+        Reuse {
+            refresh: 16,
+            predictor: Predictor::Extrapolate,
+            energy_rtol: 1e-13,
+            layer: true,
+            layer_local: None,
+        }
     }
 }
 
@@ -293,8 +304,7 @@ impl StepOperator {
         let massless = massless_rows(m, &k)?;
         let cg = match defaults.reuse {
             Some(r) if ksp.ksp_type()? == "cg" => {
-                let (rtol, e, p) = (ksp.rtol()?, r.energy_rtol, r.predictor);
-                Some(StepCg::new(&k, &ksp, rtol, e, p, massless.clone(), r.layer)?)
+                Some(StepCg::new(&k, &ksp, ksp.rtol()?, &r, massless.clone())?)
             }
             _ => None,
         };
@@ -309,7 +319,8 @@ impl StepOperator {
             && any_rank(!massless.is_empty());
         let contact_layer = if sweep {
             let info = Rc::new(RefCell::new(None));
-            let shell = LayerShell::new(massless, k.block_size()?, info.clone());
+            let local = defaults.reuse.and_then(|r| r.layer_local).unwrap_or(k.block_size()? == 3);
+            let shell = LayerShell::new(massless, k.block_size()?, local, info.clone());
             ksp.wrap_pc(&format!("the mass-free layer's sweep around {pc}"), Box::new(shell))?;
             ksp.pc_set_up()?;
             Some(info)
