@@ -1,6 +1,8 @@
 //! Issue 28, the mass-free layer at the price of the standard mass (`./run bench --only
 //! layer`): `M_H^0` and `M_H^1` against `M`, milliseconds and KSP iterations per step, with
-//! the layer's sweep (`time::layer`, the default) and without it (`-step_layer false`):
+//! the layer's sweep (`time::layer`, the default; in 3D also with the whole layer gathered,
+//! `-step_layer_local false`, against the default own blocks) and without it
+//! (`-step_layer false`):
 //!
 //! - the beam of section 7.1 (its loads, tau = 1e-5) at 83k and 330k DOFs, 1000 steps, on 1
 //!   and 2 ranks;
@@ -85,13 +87,26 @@ const CONTACT_VARIANTS: [(&str, &str, &[&str]); 7] = [
     ("modified1", "around the PC; kicked", &["-step_layer_around", "true"]),
 ];
 
-/// The variants of a case: `M`, and each `M_H` with and without the sweep.
-const VARIANTS: [(&str, bool); 5] = [
-    ("consistent", true),
-    ("modified0", true),
-    ("modified0", false),
-    ("modified1", true),
-    ("modified1", false),
+/// How a variant sweeps the layer: the default, the whole layer gathered on every rank
+/// (`-step_layer_local false`: only in 3D, where each rank's own block is the default), or
+/// not at all (`-step_layer false`).
+#[derive(Clone, Copy, PartialEq)]
+enum Sweep {
+    Default,
+    Gathered,
+    Off,
+}
+
+/// The variants of a case: `M`, and each `M_H` with the sweep (both scopes in 3D) and
+/// without.
+const VARIANTS: [(&str, Sweep); 7] = [
+    ("consistent", Sweep::Default),
+    ("modified0", Sweep::Default),
+    ("modified0", Sweep::Gathered),
+    ("modified0", Sweep::Off),
+    ("modified1", Sweep::Default),
+    ("modified1", Sweep::Gathered),
+    ("modified1", Sweep::Off),
 ];
 
 fn per_step(x: &RunSummary) -> f64 {
@@ -126,6 +141,27 @@ fn row(
         its(r),
     );
     print!("{}", md.lines().last().map(|l| format!("{l}\n")).unwrap_or_default());
+}
+
+fn sweep_name(sweep: Sweep) -> &'static str {
+    match sweep {
+        Sweep::Default => "default",
+        Sweep::Gathered => "whole layer",
+        Sweep::Off => "off",
+    }
+}
+
+/// Variant `k` of `case` is left out: the whole layer's scope outside 3D (the default there);
+/// a variant of a mass kind whose default run had no sweep in use (a factorization): the
+/// same run again.
+fn skip(case: &Case, best: &[Option<RunSummary>], k: usize) -> bool {
+    let (mass, sweep) = VARIANTS[k];
+    if sweep == Sweep::Gathered && !case.label.contains("3D") {
+        return true;
+    }
+    let default = VARIANTS.iter().position(|v| v.0 == mass && v.1 == Sweep::Default);
+    sweep != Sweep::Default
+        && default.is_some_and(|d| best[d].as_ref().is_some_and(|r| r.step_reuse.layer_rows == 0))
 }
 
 pub fn section(repo: &Path, dir: &Path, quick: bool, contact_only: bool) -> String {
@@ -237,26 +273,22 @@ pub fn section(repo: &Path, dir: &Path, quick: bool, contact_only: bool) -> Stri
     for case in cases.iter().filter(|c| !c.around && !contact_only) {
         let mut best: Vec<Option<RunSummary>> = vec![None; VARIANTS.len()];
         for round in 0..case.rounds {
-            for (k, &(mass, layer)) in VARIANTS.iter().enumerate() {
-                // Without the sweep in use (contact steps, a factorization) the two runs of a
-                // mass kind are the same: one is enough.
-                if !layer && best[k - 1].as_ref().is_some_and(|r| r.step_reuse.layer_rows == 0) {
+            for (k, &(mass, sweep)) in VARIANTS.iter().enumerate() {
+                if skip(case, &best, k) {
                     continue;
                 }
                 eprintln!(
-                    "bench: layer {} {} ranks {mass} sweep {layer} round {round}",
-                    case.label, case.ranks
+                    "bench: layer {} {} ranks {mass} sweep {} round {round}",
+                    case.label,
+                    case.ranks,
+                    sweep_name(sweep)
                 );
                 let mut args = case.args.clone();
-                args.extend(s(&[
-                    "--mass",
-                    mass,
-                    "--",
-                    "-step_layer",
-                    if layer { "true" } else { "false" },
-                ]));
-                if case.around && layer {
-                    args.extend(s(&["-step_layer_around", "true"]));
+                args.extend(s(&["--mass", mass, "--"]));
+                match sweep {
+                    Sweep::Default => {}
+                    Sweep::Gathered => args.extend(s(&["-step_layer_local", "false"])),
+                    Sweep::Off => args.extend(s(&["-step_layer", "false"])),
                 }
                 if let Some(r) = run(repo, case.ranks, &case.scene, &args, dir) {
                     if best[k].as_ref().is_none_or(|b| per_step(&r) < per_step(b)) {
@@ -266,21 +298,25 @@ pub fn section(repo: &Path, dir: &Path, quick: bool, contact_only: bool) -> Stri
             }
         }
         let base = best[0].as_ref().map(|b| (per_step(b), its(b)));
-        for (k, &(mass, layer)) in VARIANTS.iter().enumerate() {
-            if !layer && best[k - 1].as_ref().is_some_and(|r| r.step_reuse.layer_rows == 0) {
+        for (k, &(mass, sweep)) in VARIANTS.iter().enumerate() {
+            if skip(case, &best, k) {
                 continue;
             }
             let Some(r) = &best[k] else {
                 md += &format!(
-                    "| {} | {} | | | {mass} | {layer} | failed |\n",
-                    case.label, case.ranks
+                    "| {} | {} | | | {mass} | {} | failed |\n",
+                    case.label,
+                    case.ranks,
+                    sweep_name(sweep)
                 );
                 continue;
             };
-            let sweep = if r.step_reuse.layer_rows > 0 && case.around {
-                format!("around the PC ({} rows)", r.step_reuse.layer_rows)
-            } else if r.step_reuse.layer_rows > 0 {
-                format!("yes ({} rows)", r.step_reuse.layer_rows)
+            let scope = match (sweep, case.label.contains("3D")) {
+                (Sweep::Gathered, _) | (_, false) => "whole layer",
+                _ => "own blocks",
+            };
+            let sweep = if r.step_reuse.layer_rows > 0 {
+                format!("yes ({} rows, {scope})", r.step_reuse.layer_rows)
             } else if mass == "consistent" {
                 "-".into()
             } else {
