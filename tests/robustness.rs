@@ -72,6 +72,10 @@ fn disc_pace(dir: &Path, scene: &Path, ranks: usize) -> Pace {
     Pace::measure(&mut launch(ranks, &args), &format!("{REF_STEPS} steps on {ranks} rank(s)"))
 }
 
+/// Trials per rank count of the signal test: its moments are random, so every run of the
+/// suite tries new ones (two trials each cost 75 s more).
+const SIGNAL_TRIALS: usize = 1;
+
 /// The steps of the reference runs of the coarse disc.
 const REF_STEPS: usize = 1000;
 
@@ -81,25 +85,27 @@ fn long_runs_finish_on_two_and_three_ranks() {
     // MPI_Bcast at 10000 steps with --every 1000); the HDF5 metadata path then depended on
     // the file's history. Each run here must end, and say `finished`. A hang is a run still
     // going at PACE_FACTOR times the time the reference run's pace gives it.
+    // The two failures on 2 ranks, and one run on 3. The 20000-step runs of the first
+    // version (12 of the suite's minutes) went to the benchmark's long cases; the metadata
+    // test below grows a file past 10000 rows without a solver.
     let dir = scratch("long-runs");
     let scene = coarse_disc(&dir);
-    for ranks in [2, 3] {
-        let pace = disc_pace(&dir, &scene, ranks);
-        for (steps, every) in [(10000, "10"), (12000, "1000"), (20000, "1000")] {
-            let out = dir.join(format!("long-{ranks}-{steps}.h5"));
-            let args = run_args(
-                scene.to_str().unwrap(),
-                out.to_str().unwrap(),
-                &["--steps", &steps.to_string(), "--every", every],
-            );
-            let what = format!("{steps} steps on {ranks} ranks");
-            let mut job = Job::start(launch(ranks, &args).stdout(Stdio::null()), &what);
-            let st = job.wait(&pace.limit(steps as f64 / REF_STEPS as f64));
-            let secs = job.elapsed().as_secs_f64();
-            assert!(st.success(), "{what}: FAILED: exit {st} after {secs:.1} s (no hang)");
-            assert_eq!(status_by_h5dump(&out), "finished", "{what}");
-            assert_eq!(raw(&out, "energy/step").len(), steps + 1, "{what}: every step written");
-        }
+    let mut paces = std::collections::BTreeMap::new();
+    for (ranks, steps, every) in [(2, 10000, "10"), (2, 12000, "1000"), (3, 10000, "10")] {
+        let pace = paces.entry(ranks).or_insert_with(|| disc_pace(&dir, &scene, ranks));
+        let out = dir.join(format!("long-{ranks}-{steps}.h5"));
+        let args = run_args(
+            scene.to_str().unwrap(),
+            out.to_str().unwrap(),
+            &["--steps", &steps.to_string(), "--every", every],
+        );
+        let what = format!("{steps} steps on {ranks} ranks");
+        let mut job = Job::start(launch(ranks, &args).stdout(Stdio::null()), &what);
+        let st = job.wait(&pace.limit(steps as f64 / REF_STEPS as f64));
+        let secs = job.elapsed().as_secs_f64();
+        assert!(st.success(), "{what}: FAILED: exit {st} after {secs:.1} s (no hang)");
+        assert_eq!(status_by_h5dump(&out), "finished", "{what}");
+        assert_eq!(raw(&out, "energy/step").len(), steps + 1, "{what}: every step written");
     }
 }
 
@@ -337,7 +343,7 @@ fn a_signal_at_any_moment_ends_the_run_with_a_truthful_file() {
         let setup =
             Pace::measure(&mut launch(ranks, &args), &format!("tet set-up, {ranks} rank(s)"));
         let pace = disc_pace(&dir, &disc, ranks);
-        for trial in 0..2 {
+        for trial in 0..SIGNAL_TRIALS {
             // Set-up.
             let mut delay = rng.uniform() * setup.seconds;
             loop {
