@@ -136,7 +136,7 @@ fn main() {
         std::process::exit(1);
     }
     let quick = args.iter().any(|a| a == "--quick");
-    // --only scaling|solvers|mass|disc|contact3d|two_body|friction|output|stress|suite|setup|step|layer runs one
+    // --only scaling|solvers|mass|disc|contact3d|two_body|friction|output|stress|suite|setup|step|layer|long runs one
     // section (step:N,M some parts of it).
     let only = args.iter().position(|a| a == "--only").and_then(|i| args.get(i + 1)).cloned();
     let want = |section: &str| only.as_deref().is_none_or(|o| o == section);
@@ -796,10 +796,14 @@ fn main() {
         let parts = step_parts.unwrap_or_else(|| vec![1, 2, 3, 4]);
         md += &step_floor::section(&repo(), &bench_dir(), quick, baseline.map(Path::new), &parts);
     }
-    // `--only layer:contact` runs the layer's contact cases only (the disc and the ball).
-    let contact_only = only.as_deref() == Some("layer:contact");
-    if want("layer") || contact_only {
-        md += &layer::section(&repo(), &bench_dir(), quick, contact_only);
+    // `--only layer:contact` runs the layer's contact cases only (the disc and the ball),
+    // `layer:beam` and `layer:block` the others.
+    let layer_part = only.as_deref().and_then(|o| o.strip_prefix("layer:"));
+    if want("layer") || layer_part.is_some() {
+        md += &layer::section(&repo(), &bench_dir(), quick, layer_part);
+    }
+    if want("long") {
+        md += &long_runs_section(quick);
     }
     let path = bench_dir().join("scaling.md");
     std::fs::write(&path, &md).unwrap();
@@ -865,6 +869,51 @@ fn setup_section(quick: bool) -> String {
                 t.peak_memory_rank_mib
             );
         }
+    }
+    md
+}
+
+/// The long runs that left the test suite (tests/robustness.rs keeps 10000 and 12000 steps):
+/// the coarse disc of the robustness tests (179 nodes) for 20000 steps with output every 1000,
+/// on 2 and 3 ranks. Each must exit 0 with every step's energy row and `status = finished`;
+/// the table gives the wall time and the pace, so a slowdown of the late steps (a file whose
+/// metadata grows) shows as a higher ms/step than the short runs of the same scene.
+fn long_runs_section(quick: bool) -> String {
+    use massfree::io::layout::RunReader;
+    let steps: usize = if quick { 2000 } else { 20000 };
+    let mut md = format!(
+        "\nLong runs (the coarse disc, h = 2.0, hc = 0.4, {steps} steps, output every 1000; wall time of the whole launch):\n\n| ranks | wall s | ms/step | energy rows | status |\n|---|---|---|---|---|\n"
+    );
+    for ranks in [2usize, 3] {
+        let out = bench_dir().join(format!("long-{ranks}.h5"));
+        let start = std::time::Instant::now();
+        let o = Command::new("mpirun")
+            .args(["-q", "--oversubscribe", "-n", &ranks.to_string()])
+            .arg(repo().join("target/release/massfree"))
+            .arg("run")
+            .arg(repo().join("scenes/disc.toml"))
+            .args(["--param", "h=2.0", "--param", "hc=0.4", "--quiet", "--overwrite"])
+            .args(["--steps", &steps.to_string(), "--every", "1000", "-o"])
+            .arg(&out)
+            .env("OMPI_ALLOW_RUN_AS_ROOT", "1")
+            .env("OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1")
+            .env("OMPI_MCA_btl_vader_single_copy_mechanism", "none")
+            .output();
+        let wall = start.elapsed().as_secs_f64();
+        let (rows, status) = match (&o, RunReader::open(&out)) {
+            (Ok(o), Ok(r)) if o.status.success() => (
+                r.series("energy/step").map(|v| v.len()).unwrap_or(0),
+                r.text("status"),
+            ),
+            (Ok(o), _) => (0, format!("FAILED: {}", String::from_utf8_lossy(&o.stderr).trim())),
+            (Err(e), _) => (0, format!("FAILED: {e}")),
+        };
+        let ok = if rows == steps + 1 && status == "finished" { "" } else { " (NOT ALL)" };
+        md += &format!(
+            "| {ranks} | {wall:.1} | {:.2} | {rows}{ok} | {status} |\n",
+            1e3 * wall / steps as f64
+        );
+        eprintln!("long run on {ranks} ranks: {wall:.1} s, {rows} rows, {status}");
     }
     md
 }

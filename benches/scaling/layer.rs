@@ -164,7 +164,9 @@ fn skip(case: &Case, best: &[Option<RunSummary>], k: usize) -> bool {
         && default.is_some_and(|d| best[d].as_ref().is_some_and(|r| r.step_reuse.layer_rows == 0))
 }
 
-pub fn section(repo: &Path, dir: &Path, quick: bool, contact_only: bool) -> String {
+/// `part`: `Some("beam" | "block" | "contact")` runs only the cases whose label starts so
+/// (`./run bench --only layer:block`), `None` all of them.
+pub fn section(repo: &Path, dir: &Path, quick: bool, part: Option<&str>) -> String {
     let mut md = String::from(
         "\nThe mass-free layer against the standard mass (`./run bench --only layer`; fastest of the rounds, runs interleaved; ratio = ms/step over `M`'s in the same case):\n\n| case | ranks | DOFs | CFL | mass | layer sweep | solver | ms/step | KSP its/step | time ratio to M | its ratio to M |\n|---|---|---|---|---|---|---|---|---|---|---|\n",
     );
@@ -243,6 +245,10 @@ pub fn section(repo: &Path, dir: &Path, quick: bool, contact_only: bool) -> Stri
         rounds: if quick { 1 } else { 2 },
         around: true,
     });
+    let chosen = |c: &Case| {
+        part.is_none_or(|p| c.label.starts_with(p) || (p == "contact" && c.around))
+    };
+    cases.retain(chosen);
     for case in cases.iter().filter(|c| c.around) {
         let mut best: Vec<Option<RunSummary>> = vec![None; CONTACT_VARIANTS.len()];
         for round in 0..case.rounds {
@@ -270,7 +276,7 @@ pub fn section(repo: &Path, dir: &Path, quick: bool, contact_only: bool) -> Stri
             row(&mut md, case, r, mass, what, base);
         }
     }
-    for case in cases.iter().filter(|c| !c.around && !contact_only) {
+    for case in cases.iter().filter(|c| !c.around) {
         let mut best: Vec<Option<RunSummary>> = vec![None; VARIANTS.len()];
         for round in 0..case.rounds {
             for (k, &(mass, sweep)) in VARIANTS.iter().enumerate() {
