@@ -28,11 +28,15 @@ struct Run {
 }
 
 fn run(scene: &str, mass: &str, ranks: usize, layer: bool, extra: &[&str]) -> Run {
-    let replace = [
+    run_with(scene, &shortened(), mass, ranks, layer, extra, &[])
+}
+
+/// The shipped scenes without contact cut to `STEPS` steps.
+fn shortened() -> [(&'static str, String); 2] {
+    [
         ("steps = 250", format!("steps = {STEPS}")),
         ("error_steps = [30, 250]", "error_steps = [30, 120]".into()),
-    ];
-    run_with(scene, &replace, mass, ranks, layer, extra, &[])
+    ]
 }
 
 fn run_with(
@@ -111,11 +115,7 @@ fn the_layer_sweep_gives_the_plain_solvers_results_on_every_scene_without_contac
                 // rank's own block in 3D, the whole layer in 2D): another preconditioner,
                 // the same solution.
                 let local = other_scope(scene);
-                let replace = [
-                    ("steps = 250", format!("steps = {STEPS}")),
-                    ("error_steps = [30, 250]", "error_steps = [30, 120]".into()),
-                ];
-                let l = run_with(scene, &replace, mass, 2, true, &[], &local);
+                let l = run_with(scene, &shortened(), mass, 2, true, &[], &local);
                 assert!(
                     l.summary.step_reuse.layer_rows > 0,
                     "{scene} {mass}: no layer block (other scope)"

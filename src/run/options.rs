@@ -185,11 +185,10 @@ impl AppOptions {
                 Petsc::options_get_string("-step_predictor")?.as_deref(),
                 Petsc::options_get_real("-step_energy_rtol")?,
                 Petsc::options_get_string("-step_layer")?.as_deref(),
-                match Petsc::options_has("-step_layer_local")? {
-                    true => {
-                        Some(Petsc::options_get_string("-step_layer_local")?.unwrap_or_default())
-                    }
-                    false => None,
+                if Petsc::options_has("-step_layer_local")? {
+                    Some(Petsc::options_get_string("-step_layer_local")?.unwrap_or_default())
+                } else {
+                    None
                 }
                 .as_deref(),
             )?,
@@ -290,15 +289,7 @@ fn step_reuse(
         r.energy_rtol = e;
     }
     r.layer = step_layer(layer)?;
-    // Given without a value: on.
-    r.layer_local = match layer_local {
-        None => None,
-        Some("0" | "false" | "no") => Some(false),
-        Some("" | "1" | "true" | "yes") => Some(true),
-        Some(other) => {
-            return Err(Error::Usage(format!("-step_layer_local {other}: give true or false")));
-        }
-    };
+    r.layer_local = layer_local.map(|v| flag_value("-step_layer_local", Some(v))).transpose()?;
     Ok(on.then_some(r))
 }
 
@@ -321,7 +312,12 @@ fn flag(name: &str, value: Option<String>) -> Result<bool> {
     if !Petsc::options_has(name)? {
         return Ok(false);
     }
-    match value.as_deref() {
+    flag_value(name, value.as_deref())
+}
+
+/// The value of a flag that was given (alone: on).
+fn flag_value(name: &str, value: Option<&str>) -> Result<bool> {
+    match value {
         None | Some("" | "1" | "true" | "yes") => Ok(true),
         Some("0" | "false" | "no") => Ok(false),
         Some(other) => Err(Error::Usage(format!("{name} {other}: give true or false"))),

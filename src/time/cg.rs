@@ -135,8 +135,8 @@ impl StepCg {
     /// KSP's preconditioner is `jacobi`, else PETSc's through `PCApply`. With Jacobi, the
     /// `massless` rows (local indices, sorted; the mass-free layer's) get their block's
     /// factor instead (`time::layer`) if `reuse.layer`, unless empty on every rank
-    /// (`reuse.layer_local`, by default in 3D: each rank's own block, [`LayerBlock::local`]). The energy
-    /// tolerance and the predictor are `reuse`'s. Collective.
+    /// (`reuse.layer_local`, by default in 3D: each rank's own block, [`LayerBlock::new`]
+    /// with `local`). The energy tolerance and the predictor are `reuse`'s. Collective.
     pub fn new(
         k: &Matrix,
         ksp: &Ksp,
@@ -145,7 +145,7 @@ impl StepCg {
         massless: Vec<usize>,
     ) -> Result<StepCg> {
         let (energy_tol, predictor) = (reuse.energy_rtol, reuse.predictor);
-        let (use_layer, local) = (reuse.layer, reuse.layer_local.unwrap_or(k.block_size()? == 3));
+        let (use_layer, local) = (reuse.layer, reuse.layer_local_for(k.block_size()?));
         let (r, _) = k.create_vecs()?;
         let mut report = None;
         let pc = if ksp.pc_type()? == "jacobi" {
@@ -161,10 +161,10 @@ impl StepCg {
                 }
             }
             let own = massless.len();
-            let layer = match (use_layer, local) {
-                (false, _) => None,
-                (true, false) => LayerBlock::new(k, massless, Some(&d), k.block_size()?)?,
-                (true, true) => LayerBlock::local(k, massless, Some(&d), k.block_size()?)?,
+            let layer = if use_layer {
+                LayerBlock::new(k, massless, Some(&d), k.block_size()?, local)?
+            } else {
+                None
             };
             // The same on every rank, also one without layer rows of its own.
             if use_layer {

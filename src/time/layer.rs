@@ -28,10 +28,10 @@
 //! the layer's size an application: gathering `r_C`, summing `K_CA z_A` (PETSc's redundant
 //! solver and submatrices took 4 messages and 0.25 ms an application on 2 ranks).
 //!
-//! In 3D each rank sweeps its own part instead ([`LayerBlock::local`], `-step_layer_local`):
-//! there the couplings across the cut cost no iterations (the block at CFL 1: 361 against
-//! 362) and the whole layer's two solves an application on every rank most of `M_H`'s extra
-//! time (1.12 against 0.96 times `M`'s).
+//! In 3D each rank sweeps its own part instead ([`LayerBlock::new`] with `local`,
+//! `-step_layer_local`): there the couplings across the cut cost no iterations (the block at
+//! CFL 1: 361 against 362) and the whole layer's two solves an application on every rank
+//! most of `M_H`'s extra time (1.12 against 0.96 times `M`'s).
 
 use mpi::collective::SystemOperation;
 use mpi::topology::SimpleCommunicator;
@@ -51,7 +51,7 @@ pub struct LayerBlock {
     /// with `local`, this rank's only.
     layer_dofs: Vec<i32>,
     /// Each rank factors its own rows' block only, without the couplings across the
-    /// partition and without communication ([`LayerBlock::local`]).
+    /// partition and without communication ([`LayerBlock::new`] with `local`).
     local: bool,
     /// This rank's massive rows coupled to the layer (local indices), Jacobi's `1/K_ii`
     /// there, and `K_AC` in CSR over them with layer columns.
@@ -86,34 +86,17 @@ pub struct LayerBlock {
 
 impl LayerBlock {
     /// The massless rows of `k` (local indices `rows`, sorted), their blocks and the solver
-    /// of `K_CC`; `d` is Jacobi's inverse diagonal of `k` (local; `None` for the sweep
-    /// around another preconditioner, [`LayerBlock::apply_around`]), `dim` the DOFs per
-    /// node. `None` when no rank has a massless row. Collective.
+    /// of `K_CC` under the `step_layer_` options (ICC(0) in 3D, Cholesky in 2D); `d` is
+    /// Jacobi's inverse diagonal of `k` (local; `None` for the sweep around another
+    /// preconditioner, [`LayerBlock::apply_around`]), `dim` the DOFs per node. Collective.
+    ///
+    /// `local = false`: the whole layer's block on every rank; `None` when no rank has a
+    /// massless row. `local = true`: each rank's own rows only, the block `K_CC` of this
+    /// rank's massless rows and the couplings `K_AC` within this rank, no communication in
+    /// the sweep. The preconditioner stays symmetric (block-diagonal over the ranks, each
+    /// block the sweep of the module's doc on the rank's rows). `None` on a rank without
+    /// massless rows; nothing after the construction is collective.
     pub fn new(
-        k: &Matrix,
-        rows: Vec<usize>,
-        d: Option<&[f64]>,
-        dim: usize,
-    ) -> Result<Option<LayerBlock>> {
-        Self::sweep(k, rows, d, dim, false)
-    }
-
-    /// [`LayerBlock::new`] with each rank's own rows only: the block `K_CC` of this rank's
-    /// massless rows and the couplings `K_AC` within this rank, no communication in the
-    /// sweep. The preconditioner stays symmetric (block-diagonal over the ranks, each block
-    /// the sweep of the module's doc on the rank's rows). `None` on a rank without massless
-    /// rows; nothing after the construction is collective.
-    pub fn local(
-        k: &Matrix,
-        rows: Vec<usize>,
-        d: Option<&[f64]>,
-        dim: usize,
-    ) -> Result<Option<LayerBlock>> {
-        Self::sweep(k, rows, d, dim, true)
-    }
-
-    /// The step sweep's block under the `step_layer_` options: ICC(0) in 3D, Cholesky in 2D.
-    fn sweep(
         k: &Matrix,
         rows: Vec<usize>,
         d: Option<&[f64]>,
@@ -209,7 +192,7 @@ impl LayerBlock {
     }
 
     /// The layer's rows over all ranks and the step sweep's solver of `K_CC` (from the
-    /// options, which [`LayerBlock::new`] and [`LayerBlock::local`] set on every rank): the
+    /// options, which [`LayerBlock::new`] sets on every rank): the
     /// same report on every rank, also on one without layer rows. Collective.
     pub fn report(own_rows: usize, local: bool) -> Result<(usize, String)> {
         let mut total = 0usize;
@@ -376,9 +359,10 @@ impl LayerBlock {
     /// `x_prev` and its product `kx_prev`, so that the two-point extrapolation of the caller
     /// makes the layer's guess. Nothing happens before three consecutive solutions.
     /// Collective.
-    /// With each rank's own block ([`LayerBlock::local`]) there is no layer guess: its
-    /// product would miss the couplings across the partition, which the kept products must
-    /// not (the solve would converge to another right-hand side).
+    ///
+    /// With each rank's own block ([`LayerBlock::new`] with `local`) there is no layer
+    /// guess: its product would miss the couplings across the partition, which the kept
+    /// products must not (the solve would converge to another right-hand side).
     pub fn guess(&mut self, xp: &mut Vector, kxp: &mut Vector) -> Result<()> {
         if self.recorded < 3 || self.local {
             return Ok(());
@@ -627,8 +611,8 @@ pub struct LayerShell {
 
 impl LayerShell {
     /// For this rank's massless rows (local indices, sorted) with `dim` DOFs per node
-    /// (`local`: each rank's own block, [`LayerBlock::local`]); `info` receives the layer's
-    /// size and solver at each set-up.
+    /// (`local`: each rank's own block, [`LayerBlock::new`] with `local`); `info` receives
+    /// the layer's size and solver at each set-up.
     pub fn new(
         rows: Vec<usize>,
         dim: usize,
@@ -648,11 +632,7 @@ impl crate::petsc::PcShell for LayerShell {
             self.built = true;
             let rows = std::mem::take(&mut self.rows);
             let own = rows.len();
-            self.block = if self.local {
-                LayerBlock::local(op, rows, None, self.dim)?
-            } else {
-                LayerBlock::new(op, rows, None, self.dim)?
-            };
+            self.block = LayerBlock::new(op, rows, None, self.dim, self.local)?;
             let report = LayerBlock::report(own, self.local)?;
             self.s = Some(op.create_vecs()?.0);
             if report.0 > 0 {

@@ -55,8 +55,8 @@ pub struct Reuse {
     /// factored exactly (`time::layer`).
     pub layer: bool,
     /// `-step_layer_local`: each rank sweeps its own part of the layer, without the
-    /// couplings across the partition and without communication (`LayerBlock::local`).
-    /// `None`: in 3D (where the couplings across the cut cost no iterations and the layer's
+    /// couplings across the partition and without communication (`LayerBlock::new` with
+    /// `local`). `None`: in 3D (where the couplings across the cut cost no iterations and the layer's
     /// guess none either), not in 2D (where that guess saves half the iterations).
     pub layer_local: Option<bool>,
 }
@@ -70,6 +70,13 @@ impl Default for Reuse {
             layer: true,
             layer_local: None,
         }
+    }
+}
+
+impl Reuse {
+    /// Whether each rank sweeps its own part of the layer, for `dim` DOFs per node.
+    pub fn layer_local_for(&self, dim: usize) -> bool {
+        self.layer_local.unwrap_or(dim == 3)
     }
 }
 
@@ -319,7 +326,7 @@ impl StepOperator {
             && any_rank(!massless.is_empty());
         let contact_layer = if sweep {
             let info = Rc::new(RefCell::new(None));
-            let local = defaults.reuse.and_then(|r| r.layer_local).unwrap_or(k.block_size()? == 3);
+            let local = defaults.reuse.unwrap_or_default().layer_local_for(k.block_size()?);
             let shell = LayerShell::new(massless, k.block_size()?, local, info.clone());
             ksp.wrap_pc(&format!("the mass-free layer's sweep around {pc}"), Box::new(shell))?;
             ksp.pc_set_up()?;
