@@ -901,10 +901,9 @@ fn long_runs_section(quick: bool) -> String {
             .output();
         let wall = start.elapsed().as_secs_f64();
         let (rows, status) = match (&o, RunReader::open(&out)) {
-            (Ok(o), Ok(r)) if o.status.success() => (
-                r.series("energy/step").map(|v| v.len()).unwrap_or(0),
-                r.text("status"),
-            ),
+            (Ok(o), Ok(r)) if o.status.success() => {
+                (r.series("energy/step").map(|v| v.len()).unwrap_or(0), r.text("status"))
+            }
             (Ok(o), _) => (0, format!("FAILED: {}", String::from_utf8_lossy(&o.stderr).trim())),
             (Err(e), _) => (0, format!("FAILED: {e}")),
         };

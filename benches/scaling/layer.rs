@@ -245,9 +245,8 @@ pub fn section(repo: &Path, dir: &Path, quick: bool, part: Option<&str>) -> Stri
         rounds: if quick { 1 } else { 2 },
         around: true,
     });
-    let chosen = |c: &Case| {
-        part.is_none_or(|p| c.label.starts_with(p) || (p == "contact" && c.around))
-    };
+    let chosen =
+        |c: &Case| part.is_none_or(|p| c.label.starts_with(p) || (p == "contact" && c.around));
     cases.retain(chosen);
     for case in cases.iter().filter(|c| c.around) {
         let mut best: Vec<Option<RunSummary>> = vec![None; CONTACT_VARIANTS.len()];
