@@ -2,6 +2,7 @@
 //! shape functions and the element kernels of dynamic linear elasticity.
 
 pub mod element;
+pub mod hyperelastic;
 pub mod kernels;
 pub mod quadrature;
 pub mod shape;

@@ -1,0 +1,638 @@
+//! Element kernels of finite-strain hyperelasticity in the total Lagrangian form, for the
+//! energy-momentum midpoint step (METHOD.md section 5d; Simo and Tarnow, ZAMP 43, 1992;
+//! Gonzalez, CMAME 190, 2000; Betsch, Janz and Hesch, CMAME 335, 2018).
+//!
+//! Per quadrature point, with `G_a = grad_X N_a` in the reference configuration:
+//!
+//! ```text
+//!   F_k = I + sum_a u_k,a (x) G_a,   C_k = F_k^T F_k,   F_m = (F_0 + F_1)/2,   dC = C_1 - C_0
+//!   f_a = int_Omega0 F_m S_alg G_a dV                         (the algorithmic internal force)
+//!   1/2 S_alg : dC = W(C_1) - W(C_0)                           (exact energy: f . (u_1 - u_0) = dW)
+//! ```
+//! `S_alg` is symmetric, so `sum_a f_a = 0` and `sum_a x_m,a x f_a = 0` (`x_m` the midpoint
+//! positions): momentum and angular momentum are kept.
+//!
+//! - Saint Venant-Kirchhoff, `W = lambda/2 (tr E)^2 + mu E:E`, `E = (C - I)/2`: the midpoint
+//!   `S_alg = lambda tr(E_a) I + 2 mu E_a`, `E_a = (E_0 + E_1)/2`, is exact (W is quadratic in C).
+//! - Neo-Hooke, `W = mu/2 (tr C - 3) - mu ln J + lambda/2 (ln J)^2`, written as
+//!   `W = mu/2 (I_1 - 3) + W^(I_3)`, `W^(I) = -mu/2 ln I + lambda/8 (ln I)^2`, `I_3 = det C`:
+//!   the invariant discrete gradient (Betsch, Janz, Hesch) `S_alg = mu I + 2 g D_3`,
+//!   `g = (W^(I_3,1) - W^(I_3,0)) / (I_3,1 - I_3,0)`, `D_3 = (cof C_0 + 4 cof C_a + cof C_1)/6`
+//!   (Simpson's rule is exact for `d/ds det C(s) = cof C(s) : dC`, quadratic in s, so
+//!   `D_3 : dC = I_3,1 - I_3,0` exactly). The quotient is taken without cancellation:
+//!   `g = ln(1 + x)/x * (-mu/2 + lambda/8 (ln I_3,0 + ln I_3,1)) / I_3,0`, `x = dI_3 / I_3,0`,
+//!   and `ln(1 + x)/x` by its series for small `|x|` (`x = 0` gives `g = W^'(I_3,0)`: no
+//!   separate fallback is needed).
+//!
+//! 2D is plane strain: tensors are 3 x 3 with `F_33 = 1`, so `C_33 = 1`, `E_33 = 0` and the
+//! formulas above hold unchanged (`tr C - 3 = tr C_2 - 2`, `det C = det C_2`).
+//!
+//! The tangent `K_ab = d f_a / d u_1,b` (unsymmetric) is
+//! `int [1/2 (G_a . S_alg G_b) I + B_a(F_m)^T DD 2 B_b(F_1)] dV`, with `B_a(F)` the
+//! nonlinear strain-displacement matrix (engineering Voigt form of `sym(F^T (du (x) G_a))`)
+//! and `DD = d S_alg / d C_1` (stress-like <- engineering strain-like Voigt).
+//! Quadrature: the stiffness rule (1 point on simplices, 2 per direction on Q1 cells).
+
+#![allow(clippy::needless_range_loop)] // index-heavy small dense linear algebra
+
+use super::element::ElementKind;
+use super::kernels::{check_len, stiffness_order, table, Material, MAX_DOFS};
+use super::shape::map_gradients;
+
+/// A 3 x 3 tensor, `t[i][j]`.
+pub type Tensor = [[f64; 3]; 3];
+
+/// The constitutive model of a body.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Model {
+    /// Small-strain linear elasticity (the linear step).
+    #[default]
+    Linear,
+    /// Compressible neo-Hooke, `W = mu/2 (tr C - 3) - mu ln J + lambda/2 (ln J)^2`.
+    NeoHookean,
+    /// Saint Venant-Kirchhoff, `W = lambda/2 (tr E)^2 + mu E:E`.
+    SaintVenantKirchhoff,
+}
+
+impl Model {
+    /// The scene's name of the model.
+    pub fn name(self) -> &'static str {
+        match self {
+            Model::Linear => "linear",
+            Model::NeoHookean => "neo_hookean",
+            Model::SaintVenantKirchhoff => "saint_venant_kirchhoff",
+        }
+    }
+
+    /// The model of a scene name.
+    pub fn from_name(name: &str) -> Option<Model> {
+        [Model::Linear, Model::NeoHookean, Model::SaintVenantKirchhoff]
+            .into_iter()
+            .find(|m| m.name() == name)
+    }
+
+    /// Whether the model is a finite-strain one (its bodies step with Newton).
+    pub fn is_finite_strain(self) -> bool {
+        self != Model::Linear
+    }
+}
+
+/// A finite-strain material law: the model and its Lame parameters.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Law {
+    pub model: Model,
+    pub lambda: f64,
+    pub mu: f64,
+}
+
+impl Law {
+    pub fn new(model: Model, m: &Material) -> Law {
+        Law { model, lambda: m.lambda, mu: m.mu }
+    }
+}
+
+/// Why a kernel could not evaluate a cell: `det F <= 0` (or not finite) at a quadrature point.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Inverted {
+    /// `det F` found there.
+    pub det_f: f64,
+    /// Which state: 0 for `u_0`, 1 for `u_1`.
+    pub state: usize,
+}
+
+impl std::fmt::Display for Inverted {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "an element inverts (det F = {:e})", self.det_f)
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Point-wise tensor algebra (3 x 3, also in 2D: plane strain pads F_33 = 1).
+
+fn identity() -> Tensor {
+    [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]]
+}
+
+/// `C = F^T F`.
+pub fn right_cauchy_green(f: &Tensor) -> Tensor {
+    let mut c = [[0.0; 3]; 3];
+    for i in 0..3 {
+        for j in i..3 {
+            let mut s = 0.0;
+            for k in 0..3 {
+                s += f[k][i] * f[k][j];
+            }
+            c[i][j] = s;
+            c[j][i] = s;
+        }
+    }
+    c
+}
+
+pub fn det(a: &Tensor) -> f64 {
+    a[0][0] * (a[1][1] * a[2][2] - a[1][2] * a[2][1])
+        - a[0][1] * (a[1][0] * a[2][2] - a[1][2] * a[2][0])
+        + a[0][2] * (a[1][0] * a[2][1] - a[1][1] * a[2][0])
+}
+
+/// The cofactor matrix, `cof A = det(A) A^{-T}` (quadratic in A; defined for singular A too).
+pub fn cofactor(a: &Tensor) -> Tensor {
+    [
+        [
+            a[1][1] * a[2][2] - a[1][2] * a[2][1],
+            a[1][2] * a[2][0] - a[1][0] * a[2][2],
+            a[1][0] * a[2][1] - a[1][1] * a[2][0],
+        ],
+        [
+            a[0][2] * a[2][1] - a[0][1] * a[2][2],
+            a[0][0] * a[2][2] - a[0][2] * a[2][0],
+            a[0][1] * a[2][0] - a[0][0] * a[2][1],
+        ],
+        [
+            a[0][1] * a[1][2] - a[0][2] * a[1][1],
+            a[0][2] * a[1][0] - a[0][0] * a[1][2],
+            a[0][0] * a[1][1] - a[0][1] * a[1][0],
+        ],
+    ]
+}
+
+fn ddot(a: &Tensor, b: &Tensor) -> f64 {
+    let mut s = 0.0;
+    for i in 0..3 {
+        for j in 0..3 {
+            s += a[i][j] * b[i][j];
+        }
+    }
+    s
+}
+
+fn trace(a: &Tensor) -> f64 {
+    a[0][0] + a[1][1] + a[2][2]
+}
+
+fn lin(a: f64, x: &Tensor, b: f64, y: &Tensor) -> Tensor {
+    let mut z = [[0.0; 3]; 3];
+    for i in 0..3 {
+        for j in 0..3 {
+            z[i][j] = a * x[i][j] + b * y[i][j];
+        }
+    }
+    z
+}
+
+/// `ln(1 + x)/x` without cancellation (1 at x = 0).
+fn log1p_over_x(x: f64) -> f64 {
+    if x.abs() < 0.05 {
+        // sum_k (-x)^k / (k + 1), truncation error below 0.05^14 / 15.
+        let mut s = 0.0;
+        let mut p = 1.0;
+        for k in 0..14 {
+            s += p / (k + 1) as f64;
+            p *= -x;
+        }
+        s
+    } else {
+        x.ln_1p() / x
+    }
+}
+
+/// The derivative of `ln(1 + x)/x`: `(x/(1 + x) - ln(1 + x))/x^2`.
+fn log1p_over_x_prime(x: f64) -> f64 {
+    if x.abs() < 0.05 {
+        // sum_k k (-1)^k x^(k-1) / (k + 1).
+        let mut s = 0.0;
+        let mut p = 1.0;
+        for k in 1..15 {
+            s += -(k as f64) * p / (k + 1) as f64;
+            p *= -x;
+        }
+        s
+    } else {
+        (x / (1.0 + x) - x.ln_1p()) / (x * x)
+    }
+}
+
+impl Law {
+    /// The strain energy density `W(C)` (per reference volume); `None` if `det C <= 0`.
+    pub fn energy(&self, c: &Tensor) -> Option<f64> {
+        let (l, m) = (self.lambda, self.mu);
+        match self.model {
+            Model::Linear | Model::SaintVenantKirchhoff => {
+                let e = lin(0.5, c, -0.5, &identity());
+                let tr = trace(&e);
+                Some(0.5 * l * tr * tr + m * ddot(&e, &e))
+            }
+            Model::NeoHookean => {
+                let i3 = det(c);
+                if i3.is_nan() || i3 <= 0.0 {
+                    return None;
+                }
+                let ln_j = 0.5 * i3.ln();
+                Some(0.5 * m * (trace(c) - 3.0) - m * ln_j + 0.5 * l * ln_j * ln_j)
+            }
+        }
+    }
+
+    /// The second Piola-Kirchhoff stress `S = 2 dW/dC`.
+    /// Saint Venant-Kirchhoff: `S = lambda tr(E) I + 2 mu E`; neo-Hooke:
+    /// `S = mu (I - C^-1) + lambda ln J C^-1`.
+    pub fn stress(&self, c: &Tensor) -> Tensor {
+        let (l, m) = (self.lambda, self.mu);
+        match self.model {
+            Model::Linear | Model::SaintVenantKirchhoff => {
+                let e = lin(0.5, c, -0.5, &identity());
+                lin(l * trace(&e), &identity(), 2.0 * m, &e)
+            }
+            Model::NeoHookean => {
+                let i3 = det(c);
+                let ci = lin(1.0 / i3, &cofactor(c), 0.0, c);
+                let ln_j = 0.5 * i3.ln();
+                lin(m, &identity(), l * ln_j - m, &ci)
+            }
+        }
+    }
+
+    /// The algorithmic stress of the midpoint step between `c0` and `c1`, with
+    /// `1/2 S_alg : (C_1 - C_0) = W(C_1) - W(C_0)` (see the module doc).
+    pub fn midpoint_stress(&self, c0: &Tensor, c1: &Tensor) -> Tensor {
+        let (l, m) = (self.lambda, self.mu);
+        match self.model {
+            Model::Linear | Model::SaintVenantKirchhoff => {
+                let ca = lin(0.5, c0, 0.5, c1);
+                self.stress(&ca)
+            }
+            Model::NeoHookean => {
+                let nh = NeoHookeStep::new(l, m, c0, c1);
+                lin(m, &identity(), 2.0 * nh.g, &nh.d3)
+            }
+        }
+    }
+
+    /// `dS_alg/dC_1 : delta` for a symmetric `delta`.
+    fn midpoint_stress_derivative(
+        &self,
+        c0: &Tensor,
+        c1: &Tensor,
+        nh: Option<&NeoHookeStep>,
+        delta: &Tensor,
+    ) -> Tensor {
+        let (l, m) = (self.lambda, self.mu);
+        match (self.model, nh) {
+            (Model::NeoHookean, Some(nh)) => {
+                // dS = 2 D_3 (dg/dI_3,1) cof C_1 : delta + 2 g dD_3 : delta,
+                // dD_3 : delta = B(C_0 + 2 C_1, delta)/6, B the polar form of cof.
+                let a = lin(1.0, c0, 2.0, c1);
+                let b = cof_polar(&a, delta);
+                let s = 2.0 * nh.dg_di1 * ddot(&nh.cof1, delta);
+                lin(s, &nh.d3, nh.g / 3.0, &b)
+            }
+            _ => {
+                // S_alg = CC : (E_0 + E_1)/2, dE_1 = delta/2: dS = CC : delta / 4.
+                let tr = trace(delta);
+                lin(0.25 * l * tr, &identity(), 0.5 * m, delta)
+            }
+        }
+    }
+}
+
+/// The polar form of the cofactor, `B(A, D) = cof(A + D) - cof(A) - cof(D)`, linear in each
+/// argument (cof is quadratic): `d cof(C)[D] = B(C, D)`.
+fn cof_polar(a: &Tensor, d: &Tensor) -> Tensor {
+    let s = lin(1.0, a, 1.0, d);
+    let (cs, ca, cd) = (cofactor(&s), cofactor(a), cofactor(d));
+    let mut b = [[0.0; 3]; 3];
+    for i in 0..3 {
+        for j in 0..3 {
+            b[i][j] = cs[i][j] - ca[i][j] - cd[i][j];
+        }
+    }
+    b
+}
+
+/// The neo-Hooke step quantities at one point: `g`, `dg/dI_3,1`, `D_3`, `cof C_1`.
+struct NeoHookeStep {
+    g: f64,
+    dg_di1: f64,
+    d3: Tensor,
+    cof1: Tensor,
+}
+
+impl NeoHookeStep {
+    fn new(l: f64, m: f64, c0: &Tensor, c1: &Tensor) -> NeoHookeStep {
+        let (i0, i1) = (det(c0), det(c1));
+        let x = (i1 - i0) / i0;
+        let (l0, l1) = (i0.ln(), i1.ln());
+        let h = -0.5 * m + 0.125 * l * (l0 + l1);
+        let phi = log1p_over_x(x);
+        let g = phi * h / i0;
+        let dg_di1 = (log1p_over_x_prime(x) * h / i0 + phi * 0.125 * l / i1) / i0;
+        let ca = lin(0.5, c0, 0.5, c1);
+        let (cof0, cofa, cof1) = (cofactor(c0), cofactor(&ca), cofactor(c1));
+        let mut d3 = [[0.0; 3]; 3];
+        for i in 0..3 {
+            for j in 0..3 {
+                d3[i][j] = (cof0[i][j] + 4.0 * cofa[i][j] + cof1[i][j]) / 6.0;
+            }
+        }
+        NeoHookeStep { g, dg_di1, d3, cof1 }
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Element kernels.
+
+/// Voigt pairs `(p, q)`: 2D xx, yy, xy; 3D xx, yy, zz, yz, xz, xy.
+const VOIGT2: [(usize, usize); 3] = [(0, 0), (1, 1), (0, 1)];
+const VOIGT3: [(usize, usize); 6] = [(0, 0), (1, 1), (2, 2), (1, 2), (0, 2), (0, 1)];
+
+/// The deformation gradient `F = I + sum_a u_a (x) G_a` (`F_33 = 1` in 2D).
+#[inline(always)]
+fn deformation_gradient<const N: usize, const D: usize>(g: &[[f64; 3]; N], u: &[f64]) -> Tensor {
+    let mut f = identity();
+    for a in 0..N {
+        for i in 0..D {
+            let ui = u[a * D + i];
+            for j in 0..D {
+                f[i][j] += ui * g[a][j];
+            }
+        }
+    }
+    f
+}
+
+/// What an element evaluation yields: the algorithmic force (and, if asked, its tangent with
+/// respect to `u_1`), and the strain energies at both states.
+pub struct ElementStep {
+    pub w0: f64,
+    pub w1: f64,
+}
+
+/// The midpoint internal force of a cell between the nodal displacements `u0` and `u1`
+/// (interlaced, `n d` long): `force[a d + i] = sum_q w_q det J_q (F_m S_alg G_a)_i`, and with
+/// `tangent` its derivative `d force / d u1` (row-major `(n d)^2`). Both overwritten. Returns
+/// the strain energies `int W(C_0)` and `int W(C_1)` of the cell. `Err` if `det F <= 0` at a
+/// quadrature point of either state (or the reference cell is inverted: `state` 0, det 0).
+pub fn midpoint_force(
+    kind: ElementKind,
+    coords: &[[f64; 3]],
+    law: &Law,
+    u0: &[f64],
+    u1: &[f64],
+    force: &mut [f64],
+    tangent: Option<&mut [f64]>,
+) -> Result<ElementStep, Inverted> {
+    match kind {
+        ElementKind::Tri3 => midpoint_impl::<3, 2, 3>(kind, coords, law, u0, u1, force, tangent),
+        ElementKind::Quad4 => midpoint_impl::<4, 2, 3>(kind, coords, law, u0, u1, force, tangent),
+        ElementKind::Tet4 => midpoint_impl::<4, 3, 6>(kind, coords, law, u0, u1, force, tangent),
+        ElementKind::Hex8 => midpoint_impl::<8, 3, 6>(kind, coords, law, u0, u1, force, tangent),
+        ElementKind::Point1 | ElementKind::Line2 => {
+            panic!("hyperelastic kernels for {}: not a cell of a 2D or 3D mesh", kind.name())
+        }
+    }
+}
+
+#[inline(always)]
+fn midpoint_impl<const N: usize, const D: usize, const V: usize>(
+    kind: ElementKind,
+    coords: &[[f64; 3]],
+    law: &Law,
+    u0: &[f64],
+    u1: &[f64],
+    force: &mut [f64],
+    mut tangent: Option<&mut [f64]>,
+) -> Result<ElementStep, Inverted> {
+    let nd = N * D;
+    check_len("hyperelastic coords", kind, coords.len(), N);
+    check_len("hyperelastic u0", kind, u0.len(), nd);
+    check_len("hyperelastic u1", kind, u1.len(), nd);
+    check_len("hyperelastic force", kind, force.len(), nd);
+    let voigt: &[(usize, usize)] = if D == 2 { &VOIGT2 } else { &VOIGT3 };
+    let force = &mut force[..nd];
+    force.fill(0.0);
+    if let Some(k) = tangent.as_deref_mut() {
+        check_len("hyperelastic tangent", kind, k.len(), nd * nd);
+        k[..nd * nd].fill(0.0);
+    }
+    let t = table(kind, stiffness_order(kind));
+    let (mut w0, mut w1) = (0.0, 0.0);
+    for q in 0..t.w.len() {
+        let mut g = [[0.0f64; 3]; N];
+        g.copy_from_slice(&t.dn[q][..N]);
+        let det_j = map_gradients(D, N, coords, &mut g);
+        if det_j.is_nan() || det_j <= 0.0 {
+            return Err(Inverted { det_f: 0.0, state: 0 });
+        }
+        let w = t.w[q] * det_j;
+        let f0 = deformation_gradient::<N, D>(&g, u0);
+        let f1 = deformation_gradient::<N, D>(&g, u1);
+        for (state, f) in [(0, &f0), (1, &f1)] {
+            let j = det(f);
+            if j.is_nan() || j <= 0.0 {
+                return Err(Inverted { det_f: j, state });
+            }
+        }
+        let (c0, c1) = (right_cauchy_green(&f0), right_cauchy_green(&f1));
+        let bad = |state| Inverted { det_f: f64::NAN, state };
+        w0 += w * law.energy(&c0).ok_or(bad(0))?;
+        w1 += w * law.energy(&c1).ok_or(bad(1))?;
+        let fm = lin(0.5, &f0, 0.5, &f1);
+        let nh = (law.model == Model::NeoHookean)
+            .then(|| NeoHookeStep::new(law.lambda, law.mu, &c0, &c1));
+        let s = match &nh {
+            Some(nh) => lin(law.mu, &identity(), 2.0 * nh.g, &nh.d3),
+            None => law.midpoint_stress(&c0, &c1),
+        };
+        // P = F_m S_alg; f_a += w P G_a.
+        let mut p = [[0.0f64; 3]; 3];
+        for i in 0..D {
+            for jj in 0..D {
+                let mut v = 0.0;
+                for k in 0..D {
+                    v += fm[i][k] * s[k][jj];
+                }
+                p[i][jj] = w * v;
+            }
+        }
+        for a in 0..N {
+            for i in 0..D {
+                let mut v = 0.0;
+                for jj in 0..D {
+                    v += p[i][jj] * g[a][jj];
+                }
+                force[a * D + i] += v;
+            }
+        }
+        let Some(k) = tangent.as_deref_mut() else { continue };
+        // DD (stress-like <- engineering strain-like), column by column.
+        let mut dd = [[0.0f64; V]; V];
+        for (jv, &(p_, q_)) in voigt.iter().enumerate() {
+            let mut delta = [[0.0; 3]; 3];
+            if p_ == q_ {
+                delta[p_][p_] = 1.0;
+            } else {
+                delta[p_][q_] = 0.5;
+                delta[q_][p_] = 0.5;
+            }
+            let ds = law.midpoint_stress_derivative(&c0, &c1, nh.as_ref(), &delta);
+            for (iv, &(r, c)) in voigt.iter().enumerate() {
+                dd[iv][jv] = ds[r][c];
+            }
+        }
+        // B_a(F)[I][i]: normal (p, p): F_ip G_a,p; shear (p, q): F_ip G_a,q + F_iq G_a,p.
+        let b_of = |f: &Tensor, ga: &[f64; 3]| -> [[f64; D]; V] {
+            let mut b = [[0.0f64; D]; V];
+            for (iv, &(p_, q_)) in voigt.iter().enumerate() {
+                for i in 0..D {
+                    b[iv][i] = if p_ == q_ {
+                        f[i][p_] * ga[p_]
+                    } else {
+                        f[i][p_] * ga[q_] + f[i][q_] * ga[p_]
+                    };
+                }
+            }
+            b
+        };
+        // DB_b = DD 2 B_b(F_1), scaled by w.
+        let mut db = [[[0.0f64; D]; V]; N];
+        for b in 0..N {
+            let b1 = b_of(&f1, &g[b]);
+            for iv in 0..V {
+                for kk in 0..D {
+                    let mut v = 0.0;
+                    for jv in 0..V {
+                        v += dd[iv][jv] * b1[jv][kk];
+                    }
+                    db[b][iv][kk] = 2.0 * w * v;
+                }
+            }
+        }
+        // S G_b, scaled by w/2, for the geometric term.
+        let mut sg = [[0.0f64; 3]; N];
+        for b in 0..N {
+            for i in 0..D {
+                let mut v = 0.0;
+                for jj in 0..D {
+                    v += s[i][jj] * g[b][jj];
+                }
+                sg[b][i] = 0.5 * w * v;
+            }
+        }
+        for a in 0..N {
+            let ba = b_of(&fm, &g[a]);
+            for b in 0..N {
+                let mut geo = 0.0;
+                for i in 0..D {
+                    geo += g[a][i] * sg[b][i];
+                }
+                for i in 0..D {
+                    let row = &mut k[(a * D + i) * nd + b * D..(a * D + i) * nd + b * D + D];
+                    for kk in 0..D {
+                        let mut v = 0.0;
+                        for iv in 0..V {
+                            v += ba[iv][i] * db[b][iv][kk];
+                        }
+                        row[kk] += v;
+                    }
+                    row[i] += geo;
+                }
+            }
+        }
+    }
+    Ok(ElementStep { w0, w1 })
+}
+
+/// The strain energy `int_K W(C(u)) dV` of a cell (`Err` if it is inverted).
+pub fn strain_energy(
+    kind: ElementKind,
+    coords: &[[f64; 3]],
+    law: &Law,
+    u: &[f64],
+) -> Result<f64, Inverted> {
+    let mut f = [0.0; MAX_DOFS];
+    let n = kind.n_nodes() * kind.dim();
+    midpoint_force(kind, coords, law, u, u, &mut f[..n], None).map(|e| e.w1)
+}
+
+/// The deformation gradient of a cell at the reference point `xi` (3 x 3, `F_33 = 1` in 2D).
+pub fn deformation_gradient_at(
+    kind: ElementKind,
+    coords: &[[f64; 3]],
+    u: &[f64],
+    xi: [f64; 3],
+) -> Tensor {
+    let mut g = [[0.0f64; 3]; super::kernels::MAX_NODES];
+    let n = kind.n_nodes();
+    let d = kind.dim();
+    super::shape::physical_gradients(kind, coords, xi, &mut g[..n]);
+    let mut f = identity();
+    for a in 0..n {
+        for i in 0..d {
+            for j in 0..d {
+                f[i][j] += u[a * d + i] * g[a][j];
+            }
+        }
+    }
+    f
+}
+
+/// The Cauchy stress `sigma = F S F^T / J` of a law at a deformation gradient (`J > 0`).
+pub fn cauchy_stress(law: &Law, f: &Tensor) -> Tensor {
+    let c = right_cauchy_green(f);
+    let s = law.stress(&c);
+    let j = det(f);
+    let mut fs = [[0.0; 3]; 3];
+    for i in 0..3 {
+        for k in 0..3 {
+            for l in 0..3 {
+                fs[i][k] += f[i][l] * s[l][k];
+            }
+        }
+    }
+    let mut sigma = [[0.0; 3]; 3];
+    for i in 0..3 {
+        for jj in 0..3 {
+            for k in 0..3 {
+                sigma[i][jj] += fs[i][k] * f[jj][k] / j;
+            }
+        }
+    }
+    sigma
+}
+
+/// The rotation `R` of the polar decomposition `F = R U` (`det F > 0`), by Higham's
+/// iteration `R <- (R + R^-T)/2` from `R = F`, which converges quadratically.
+pub fn rotation(f: &Tensor) -> Tensor {
+    let mut r = *f;
+    for _ in 0..60 {
+        let d = det(&r);
+        if d.is_nan() || d <= 0.0 {
+            break;
+        }
+        // R^-T = cof(R)/det R.
+        let c = cofactor(&r);
+        let mut next = [[0.0; 3]; 3];
+        let mut change = 0.0f64;
+        for i in 0..3 {
+            for j in 0..3 {
+                next[i][j] = 0.5 * (r[i][j] + c[i][j] / d);
+                change = change.max((next[i][j] - r[i][j]).abs());
+            }
+        }
+        r = next;
+        if change < 1e-15 {
+            break;
+        }
+    }
+    r
+}
+
+/// The angle of a rotation matrix in degrees, `acos((tr R - 1)/2)` (in 2D with `R_33 = 1`).
+pub fn rotation_angle_degrees(r: &Tensor) -> f64 {
+    ((trace(r) - 1.0) / 2.0).clamp(-1.0, 1.0).acos().to_degrees()
+}
+
+#[cfg(test)]
+#[path = "hyperelastic_tests.rs"]
+mod tests;
