@@ -8,7 +8,7 @@
 //! effects: elasticity, mass-free layer (modified1 along "contact"), Dirichlet (zero values), contact (plane obstacle); not built: initial displacement, initial velocity, body force, tractions, Dirichlet lifting, exact errors, stress output
 //! ```
 
-use super::model::{BodySpec, MassKind, Obstacle, Scene, Shape};
+use super::model::{BodySpec, MassKind, Model, Obstacle, Scene, Shape};
 use crate::scene::expr::VecExpr;
 
 /// How a load or prescribed value varies in time.
@@ -97,6 +97,9 @@ pub struct Effects {
     pub layer: Option<(MassKind, String)>,
     /// `[[body]]`, each briefly: `"lower": E = 400, mass consistent` (the values it sets).
     pub bodies: Vec<String>,
+    /// `[material]`'s constitutive model when it is a finite-strain one (bodies that set
+    /// their own say so in `bodies`).
+    pub finite_strain: Option<Model>,
     /// A non-zero initial displacement / velocity is interpolated (else the body starts at rest
     /// in its reference configuration).
     pub initial_displacement: bool,
@@ -153,6 +156,7 @@ impl Scene {
             standard_masses,
             layer,
             bodies: self.bodies.iter().map(body_brief).collect(),
+            finite_strain: Some(self.material.model).filter(|m| m.is_finite_strain()),
             initial_displacement: nonzero(&self.initial_displacement),
             initial_velocity: nonzero(&self.initial_velocity),
             body_force: Variation::of(self.body_force.iter().chain(&self.body_acceleration)),
@@ -207,6 +211,9 @@ fn body_brief(b: &BodySpec) -> String {
         .filter(|&k| b.sets[k])
         .map(|k| format!("{} = {}", names[k], short_number(values[k])))
         .collect();
+    if b.sets[3] {
+        items.push(format!("model {}", b.material.model.name()));
+    }
     if let Some(m) = b.mass {
         items.push(format!("mass {}", m.name()));
     }
@@ -243,8 +250,9 @@ impl Effects {
     /// One line: `effects: A, B, C; not built: X, Y` (`not built: none` when nothing is left).
     ///
     /// The items, always in this order:
-    /// 1. `elasticity` (always built), then with `[[body]]` `bodies (BODY; BODY; ...)`, each
-    ///    `"GROUP": E = .., nu = .., rho = .., mass KIND` with what it sets;
+    /// 1. `elasticity` (always built; `elasticity (finite strain, MODEL)` when `[material]`
+    ///    has a finite-strain model), then with `[[body]]` `bodies (BODY; BODY; ...)`, each
+    ///    `"GROUP": E = .., nu = .., rho = .., model MODEL, mass KIND` with what it sets;
     /// 2. the mass (always built): `consistent mass`, `lumped mass` and/or
     ///    `mass-free layer (KIND along "GROUP" and "GROUP")`;
     /// 3. `initial displacement`, 4. `initial velocity`;
@@ -309,7 +317,10 @@ impl Effects {
             ("exact errors", flag("exact errors", self.exact_errors)),
             ("stress output", with("stress output", stress.as_deref())),
         ];
-        let mut built = vec!["elasticity".to_string()];
+        let mut built = vec![match self.finite_strain {
+            Some(m) => format!("elasticity (finite strain, {})", m.name()),
+            None => "elasticity".to_string(),
+        }];
         if !self.bodies.is_empty() {
             built.push(format!("bodies ({})", self.bodies.join("; ")));
         }

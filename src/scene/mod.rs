@@ -20,9 +20,11 @@
 //! E = 200.0
 //! nu = 0.3
 //! rho = 1.0
+//! model = "linear"                    # linear (small strain) | neo_hookean |
+//!                                     # saint_venant_kirchhoff (finite strain, Newton)
 //! [[body]]                            # optional, any number: a body with its own values
 //! group = "lower"                     # a physical group of the mesh's dimension
-//! E = 400.0                           # any of E, nu, rho; the others from [material]
+//! E = 400.0                           # any of E, nu, rho, model; the others from [material]
 //! mass = "consistent"                 # optional, default mass.kind
 //! [[dirichlet]]
 //! group = "left"
@@ -112,7 +114,7 @@ pub use effects::{Effects, ObstacleEffect, ObstacleKind, Variation};
 pub use model::{
     master_groups, slave_groups, steps_to_end, BodySpec, ContactPair, ContactSpec, DirichletSpec,
     EndSteps, ExactSpec, Field, FrictionSpec, MassKind, MassSpec, MaterialSpec, MeshSource,
-    NeumannSpec, Obstacle, OutputSpec, Scene, Shape, SolverSpec,
+    Model, NeumannSpec, Obstacle, OutputSpec, Scene, Shape, SolverSpec,
 };
 
 use crate::error::{Error, Result};

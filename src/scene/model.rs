@@ -1,6 +1,7 @@
 //! The validated scene ([`Scene`] and its parts) and the rule of `time.end`: what the rest of
 //! the program reads. `validate` builds it from the file's serde form.
 
+pub use crate::fem::hyperelastic::Model;
 use super::expr::VecExpr;
 use crate::error::{Error, Result};
 use serde::Deserialize;
@@ -61,6 +62,8 @@ pub struct MaterialSpec {
     pub nu: f64,
     /// Density, > 0.
     pub rho: f64,
+    /// The constitutive model (`model`, default `linear`: small strain).
+    pub model: Model,
 }
 
 /// One `[[body]]`: a physical group of cells (of the mesh's dimension) with its own material
@@ -72,8 +75,8 @@ pub struct BodySpec {
     pub group: String,
     /// `[material]` with the body's own `E`, `nu`, `rho` where given.
     pub material: MaterialSpec,
-    /// Which of `E`, `nu`, `rho` the body sets (in that order).
-    pub sets: [bool; 3],
+    /// Which of `E`, `nu`, `rho`, `model` the body sets (in that order).
+    pub sets: [bool; 4],
     /// `body[i].mass`; None: `[mass].kind` (see [`Scene::body_mass`]).
     pub mass: Option<MassKind>,
 }

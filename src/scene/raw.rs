@@ -78,6 +78,7 @@ pub(super) struct RawMaterial {
     pub(super) e: f64,
     pub(super) nu: f64,
     pub(super) rho: f64,
+    pub(super) model: Option<String>,
 }
 
 #[derive(Deserialize)]
@@ -89,6 +90,7 @@ pub(super) struct RawBody {
     pub(super) nu: Option<f64>,
     pub(super) rho: Option<f64>,
     pub(super) mass: Option<MassKind>,
+    pub(super) model: Option<String>,
 }
 
 #[derive(Deserialize, Clone, Copy, PartialEq)]

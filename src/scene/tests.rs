@@ -148,7 +148,7 @@ fn full_scene_round_trips() {
         }
         m => panic!("{m:?}"),
     }
-    assert_eq!(s.material, MaterialSpec { e: 200.0, nu: 0.3, rho: 1.0 });
+    assert_eq!(s.material, MaterialSpec { e: 200.0, nu: 0.3, rho: 1.0, model: Model::Linear });
     assert_eq!(s.dirichlet.len(), 2);
     assert_eq!(s.dirichlet[0].group, "left");
     assert_eq!(s.dirichlet[0].components, vec![0, 1]);
@@ -461,11 +461,11 @@ fn unknown_keys() {
     assert!(m.contains("unknown key \"materail\""), "{m}");
     assert_err(
         &minimal_with("rho = 2", "rho = 2\nrho2 = 3"),
-        &["unknown key \"material.rho2\" (allowed: E, nu, rho)", "(line 8)"],
+        &["unknown key \"material.rho2\" (allowed: E, nu, rho, model)", "(line 8)"],
     );
     assert_err(
         &minimal_with("E = 1", "e = 1"),
-        &["unknown key \"material.e\" (allowed: E, nu, rho)"],
+        &["unknown key \"material.e\" (allowed: E, nu, rho, model)"],
     );
     assert_err(
         &full_with("group = \"clamp\"", "group = \"clamp\"\nvalues = [1]"),
@@ -710,6 +710,7 @@ fn effects_follow_the_scene() {
             standard_masses: vec![],
             layer: Some((MassKind::Modified1, "\"bottom\"".into())),
             bodies: vec![],
+            finite_strain: None,
             initial_displacement: false,
             initial_velocity: true,
             body_force: varying,
@@ -736,6 +737,7 @@ fn effects_follow_the_scene() {
             standard_masses: vec![MassKind::Lumped],
             layer: None, // no layer for a lumped mass, though a boundary is named
             bodies: vec![],
+            finite_strain: None,
             initial_displacement: false,
             initial_velocity: false,
             body_force: None,
@@ -1009,10 +1011,10 @@ fn bodies_take_their_own_values_over_the_material() {
     assert_eq!(s.bodies.len(), 3);
     let (lower, upper) = (&s.bodies[0], &s.bodies[1]);
     assert_eq!(lower.group, "lower");
-    assert_eq!(lower.material, MaterialSpec { e: 400.0, nu: 0.25, rho: 2.0 });
-    assert_eq!(lower.sets, [true, false, false]);
-    assert_eq!(upper.material, MaterialSpec { e: 1.0, nu: 0.1, rho: 3e-8 });
-    assert_eq!(upper.sets, [false, true, true]);
+    assert_eq!(lower.material, MaterialSpec { e: 400.0, nu: 0.25, rho: 2.0, model: Model::Linear });
+    assert_eq!(lower.sets, [true, false, false, false]);
+    assert_eq!(upper.material, MaterialSpec { e: 1.0, nu: 0.1, rho: 3e-8, model: Model::Linear });
+    assert_eq!(upper.sets, [false, true, true, false]);
     assert_eq!(s.bodies[2].material, s.material);
     // The body's own mass, else mass.kind, which --mass replaces.
     assert_eq!(s.body_mass(0), MassKind::Consistent);
@@ -1041,7 +1043,7 @@ fn body_errors_name_the_key() {
         (body("E = 3"), vec!["missing key \"body[1].group\""]),
         (
             body("group = \"b\"\ndensity = 3"),
-            vec!["unknown key \"body[1].density\"", "allowed: group, E, nu, rho, mass"],
+            vec!["unknown key \"body[1].density\"", "allowed: group, E, nu, rho, mass, model"],
         ),
         (
             body("group = \"b\"\nmass = \"heavy\""),
@@ -1186,5 +1188,43 @@ fn impossible_friction_values_name_their_key() {
             "{MINIMAL}\n[contact]\npairs = [{{ slave = \"a\", master = \"b\", friction = -2 }}]\n"
         ),
         &["contact.pairs[0].friction = -2 is impossible"],
+    );
+}
+
+#[test]
+fn the_model_is_linear_unless_the_scene_names_another() {
+    let dir = workspace();
+    let s = parse_in(&dir, MINIMAL).unwrap();
+    assert_eq!(s.material.model, Model::Linear);
+    // A linear scene's effects line is what it was before finite strain existed.
+    assert!(s.effects().summary().starts_with("effects: elasticity, "));
+    let text = minimal_with("rho = 2\n", "rho = 2\nmodel = \"neo_hookean\"\n");
+    let text = format!(
+        "{text}\n[[body]]\ngroup = \"hard\"\nmodel = \"saint_venant_kirchhoff\"\n[[body]]\ngroup = \"soft\"\nE = 0.5\n"
+    );
+    let s = parse_in(&dir, &text).unwrap();
+    assert_eq!(s.material.model, Model::NeoHookean);
+    assert_eq!(s.bodies[0].material.model, Model::SaintVenantKirchhoff);
+    assert_eq!(s.bodies[0].sets, [false, false, false, true]);
+    // A body that does not name one takes [material]'s.
+    assert_eq!(s.bodies[1].material.model, Model::NeoHookean);
+    let line = s.effects().summary();
+    assert!(line.contains("elasticity (finite strain, neo_hookean)"), "{line}");
+    assert!(line.contains("\"hard\": model saint_venant_kirchhoff"), "{line}");
+}
+
+#[test]
+fn model_errors_name_the_key() {
+    assert_err(
+        &minimal_with("rho = 2\n", "rho = 2\nmodel = \"mooney\"\n"),
+        &["material.model = \"mooney\" is unknown", "neo_hookean"],
+    );
+    assert_err(
+        &with_bodies("[[body]]\ngroup = \"a\"\nmodel = \"Neo-Hooke\"\n"),
+        &["body[0].model = \"Neo-Hooke\" is unknown"],
+    );
+    assert_err(
+        &minimal_with("nu = 0.25\n", "nu = 0.5\nmodel = \"neo_hookean\"\n"),
+        &["material.nu = 0.5 is impossible", "neo-Hooke's lambda is infinite"],
     );
 }

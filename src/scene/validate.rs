@@ -5,7 +5,7 @@
 use super::expr::{Expr, VecExpr};
 use super::model::{
     obstacle_key, steps_to_end, BodySpec, ContactPair, ContactSpec, DirichletSpec, ExactSpec,
-    Field, FrictionSpec, MassKind, MassSpec, MaterialSpec, MeshSource, NeumannSpec, Obstacle,
+    Field, FrictionSpec, MassKind, MassSpec, MaterialSpec, MeshSource, Model, NeumannSpec, Obstacle,
     OutputSpec, Scene, Shape, SolverSpec,
 };
 use super::raw::{
@@ -134,7 +134,11 @@ fn mesh(m: RawMesh, base_dir: &Path) -> VResult<MeshSource> {
 
 /// `[material]`, then each `[[body]]`'s own values over it.
 fn materials(mat: RawMaterial, raw_bodies: Vec<RawBody>) -> VResult<(MaterialSpec, Vec<BodySpec>)> {
-    let material = material_spec("material", mat.e, mat.nu, mat.rho)?;
+    let model = match &mat.model {
+        Some(name) => model_of("material", name)?,
+        None => Model::Linear,
+    };
+    let material = material_spec("material", mat.e, mat.nu, mat.rho, model)?;
     let mut bodies: Vec<BodySpec> = Vec::new();
     for (i, b) in raw_bodies.into_iter().enumerate() {
         let key = format!("body[{i}]");
@@ -149,8 +153,12 @@ fn materials(mat: RawMaterial, raw_bodies: Vec<RawBody>) -> VResult<(MaterialSpe
             b.e.unwrap_or(material.e),
             b.nu.unwrap_or(material.nu),
             b.rho.unwrap_or(material.rho),
+            match &b.model {
+                Some(name) => model_of(&key, name)?,
+                None => material.model,
+            },
         )?;
-        let sets = [b.e.is_some(), b.nu.is_some(), b.rho.is_some()];
+        let sets = [b.e.is_some(), b.nu.is_some(), b.rho.is_some(), b.model.is_some()];
         bodies.push(BodySpec { group, material: m, sets, mass: b.mass });
     }
     Ok((material, bodies))
@@ -555,18 +563,33 @@ fn compile_vec(v: &[ExprSrc], key: &str) -> VResult<VecExpr> {
     Ok(VecExpr(exprs))
 }
 
+/// The constitutive model of `KEY.model`.
+fn model_of(key: &str, name: &str) -> VResult<Model> {
+    Model::from_name(name).ok_or_else(|| {
+        format!(
+            "{key}.model = \"{name}\" is unknown: use \"linear\", \"neo_hookean\" or \"saint_venant_kirchhoff\""
+        )
+    })
+}
+
 /// A material checked value by value (`key` is `material` or `body[i]`).
-fn material_spec(key: &str, e: f64, nu: f64, rho: f64) -> VResult<MaterialSpec> {
+fn material_spec(key: &str, e: f64, nu: f64, rho: f64, model: Model) -> VResult<MaterialSpec> {
     if !(e > 0.0 && e.is_finite()) {
         return Err(format!("{key}.E = {e} is impossible: Young's modulus must be > 0"));
     }
     if !(nu > -1.0 && nu < 0.5) {
-        return Err(format!("{key}.nu = {nu} is impossible: Poisson's ratio must be in (-1, 0.5)"));
+        let why = match model {
+            Model::NeoHookean => " (neo-Hooke's lambda is infinite at 0.5)",
+            _ => "",
+        };
+        return Err(format!(
+            "{key}.nu = {nu} is impossible: Poisson's ratio must be in (-1, 0.5){why}"
+        ));
     }
     if !(rho > 0.0 && rho.is_finite()) {
         return Err(format!("{key}.rho = {rho} is impossible: the density must be > 0"));
     }
-    Ok(MaterialSpec { e, nu, rho })
+    Ok(MaterialSpec { e, nu, rho, model })
 }
 
 /// The slave/master pairs: `contact.slave` with `contact.master` (one pair) or the list
