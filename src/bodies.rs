@@ -324,6 +324,11 @@ impl Bodies {
         self.cell_region.get(cell).map_or(0, |&r| r as usize)
     }
 
+    /// Whether some body with cells is finite-strain (the run then steps with Newton).
+    pub fn finite_strain(&self) -> bool {
+        self.regions.iter().any(|r| r.n_cells > 0 && r.spec.model.is_finite_strain())
+    }
+
     /// The material of a cell.
     #[inline]
     pub fn material(&self, cell: usize) -> &Material {

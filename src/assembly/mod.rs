@@ -3,6 +3,7 @@
 //! `MatSetValues`/`VecSetValues` (PETSc moves off-rank entries). Every matrix and load vector
 //! of the solver goes through here, with exact preallocation from the partition.
 
+pub mod finite_strain;
 pub mod rows;
 
 use mpi::topology::SimpleCommunicator;

@@ -150,7 +150,15 @@ impl<'g> RowSums<'g> {
     }
 
     /// Send the other ranks' blocks, add what came, and hand every row to `mat` (collective).
-    pub fn into_matrix(mut self, world: &SimpleCommunicator, mut mat: Matrix) -> Result<Matrix> {
+    pub fn into_matrix(self, world: &SimpleCommunicator, mut mat: Matrix) -> Result<Matrix> {
+        self.fill(world, &mut mat)?;
+        Ok(mat)
+    }
+
+    /// [`RowSums::into_matrix`] into an existing matrix of this pattern. An AIJ matrix gets
+    /// every entry of the pattern inserted, so it needs no zeroing and keeps its storage; a
+    /// block AIJ one is added to.
+    pub fn fill(mut self, world: &SimpleCommunicator, mat: &mut Matrix) -> Result<()> {
         let d = self.dim;
         let width = 3 + d * d;
         let ranks = std::mem::take(&mut self.away_rank);
@@ -195,7 +203,7 @@ impl<'g> RowSums<'g> {
                 mat.add_values_blocked(&[(self.graph.first + i) as i32], &cols, &vals)?;
             }
             mat.assemble()?;
-            return Ok(mat);
+            return Ok(());
         }
         for i in 0..self.graph.n_rows() {
             let (a, b) = (self.graph.start[i], self.graph.start[i + 1]);
@@ -214,7 +222,6 @@ impl<'g> RowSums<'g> {
             }
             mat.set_values(&rows, &cols, &vals, false)?;
         }
-        mat.assemble()?;
-        Ok(mat)
+        mat.assemble()
     }
 }

@@ -399,6 +399,12 @@ impl Matrix {
         chk!(ffi::MatAXPY(self.m, alpha, x.m, s))
     }
 
+    /// Every stored entry set to zero; the pattern stays (`MatZeroEntries`).
+    pub fn zero_entries(&mut self) -> Result<()> {
+        // SAFETY: valid handle.
+        chk!(ffi::MatZeroEntries(self.m))
+    }
+
     /// `self *= alpha`.
     pub fn scale(&mut self, alpha: f64) -> Result<()> {
         // SAFETY: valid handle.

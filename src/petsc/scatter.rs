@@ -42,6 +42,12 @@ impl Scatter {
         self.scatter(to, from, ffi::ScatterMode_SCATTER_REVERSE, ffi::InsertMode_INSERT_VALUES)
     }
 
+    /// The reverse direction, summed: `from[from_idx] += to[to_idx]` (ADD_VALUES): element
+    /// contributions gathered at the nodes of a rank's cells go to their owners' rows.
+    pub fn reverse_add(&mut self, to: &Vector, from: &mut Vector) -> Result<()> {
+        self.scatter(to, from, ffi::ScatterMode_SCATTER_REVERSE, ffi::InsertMode_ADD_VALUES)
+    }
+
     fn scatter(
         &mut self,
         x: &Vector,

@@ -282,10 +282,21 @@ impl<'a> Simulation<'a> {
         self.timings.setup = max_over_ranks(d.world, t1.elapsed().as_secs_f64());
         let (u0, v0) = start::initial_state(d)?;
         let mut midpoint = Midpoint::new(op, m, a, dirichlet, d.scene.tau, u0, v0, 0.0, &loads)?;
+        if d.bodies.finite_strain() {
+            if with_contact {
+                return Err(Error::Usage(
+                    "finite strain with [contact] is not available yet: give the bodies model = \"linear\"".into(),
+                ));
+            }
+            midpoint.set_finite_strain(start::newton(d, &self.app, midpoint.u())?)?;
+        }
         crate::phase::trace_memory("integrator");
         let massless_initialized = match self.opts.restart {
             // A restart's state already is consistent.
             Some(_) => None,
+            // The linear projection would put finite-strain massless rows in the small-strain
+            // equilibrium (a rigid rotation is not one): their start stays as given.
+            None if midpoint.is_finite_strain() => None,
             None => start::make_massless_consistent(d, &mut midpoint, contact.as_deref(), &loads)?,
         };
         // The energy correction of contact steps with massless DOFs (on unless

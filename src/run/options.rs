@@ -124,6 +124,9 @@ pub struct AppOptions {
     /// regime alone, as before issue 27 (runs that must repeat to the bit on 2 ranks:
     /// parallel MUMPS does not).
     pub choice_by_run: bool,
+    /// The Newton loop of finite-strain bodies (`time::newton`): `-newton_rtol X` (default
+    /// 1e-10), `-newton_energy_rtol X` (1e-13), `-newton_max_it N` (25).
+    pub newton: crate::time::newton::NewtonOptions,
 }
 
 impl AppOptions {
@@ -204,8 +207,37 @@ impl AppOptions {
                     return Err(Error::Usage(format!("-step_choice {other}: give run or regime")))
                 }
             },
+            newton: newton_options(
+                Petsc::options_get_real("-newton_rtol")?,
+                Petsc::options_get_real("-newton_energy_rtol")?,
+                Petsc::options_get_real("-newton_max_it")?,
+            )?,
         })
     }
+}
+
+/// The Newton loop's tolerances over their defaults.
+fn newton_options(
+    rtol: Option<f64>,
+    energy_rtol: Option<f64>,
+    max_it: Option<f64>,
+) -> Result<crate::time::newton::NewtonOptions> {
+    let mut o = crate::time::newton::NewtonOptions::default();
+    if let Some(x) = positive("-newton_rtol", rtol)? {
+        o.rtol = x;
+    }
+    if let Some(x) = positive("-newton_energy_rtol", energy_rtol)? {
+        o.energy_rtol = x;
+    }
+    if let Some(n) = max_it {
+        if !(n >= 1.0 && n.fract() == 0.0 && n < 1e6) {
+            return Err(Error::Usage(format!(
+                "-newton_max_it {n}: give a whole number of iterations, at least 1"
+            )));
+        }
+        o.max_it = n as usize;
+    }
+    Ok(o)
 }
 
 fn contact_solver(value: Option<&str>) -> Result<ContactSolverKind> {

@@ -10,12 +10,14 @@ use super::options::AppOptions;
 use super::views::Views;
 use super::{diagnostics, physics};
 use crate::assembly;
+use crate::assembly::finite_strain::InternalForce;
 use crate::console::Console;
 use crate::contact::ContactSolver;
 use crate::error::{Error, Result};
 use crate::io::{read_checkpoint, Checkpoint};
 use crate::petsc::Matrix;
 use crate::time::choice::RunFacts;
+use crate::time::newton::Newton;
 use crate::time::{Dirichlet, Energy, Forces, Midpoint, StepOperator, StepSolverDefaults};
 
 /// The step operator `K = 4/tau^2 M + A` and its solver, set up once. The solver's defaults
@@ -41,6 +43,15 @@ pub fn step_operator(
         defaults.symmetric = false;
         why.push_str("; friction makes the contact rows unsymmetric: GMRES");
     }
+    let finite_strain = d.bodies.finite_strain();
+    if finite_strain {
+        // Newton's tangent (`time::newton`) is unsymmetric and changes every iteration: GMRES
+        // through PETSc's KSP on K in AIJ, without the linear step's own CG or the choice by
+        // run length (which may factor K once for the run).
+        defaults.ksp_type = "gmres".into();
+        defaults.symmetric = false;
+        why.push_str("; finite strain: Newton's tangent is unsymmetric: GMRES");
+    }
     if let Some(k) = &solver.ksp_type {
         defaults.ksp_type = k.clone();
     }
@@ -60,7 +71,7 @@ pub fn step_operator(
             .map(|o| crate::petsc::Petsc::options_has(o))
             .collect::<Result<Vec<bool>>>()?
             .contains(&true);
-    if !named && defaults.symmetric && app.choice_by_run {
+    if !named && defaults.symmetric && app.choice_by_run && !finite_strain {
         defaults.run = Some(RunFacts {
             dofs: d.part.n_global_dofs(),
             dim: d.part.dim,
@@ -72,15 +83,17 @@ pub fn step_operator(
         });
     }
     // The step's own CG serves steps without contact (a contact solver rewrites K's rows).
-    defaults.reuse = if with_contact { None } else { app.step_reuse };
-    defaults.layer = app.step_layer_around;
-    defaults.blocked = d.scene.contact.as_ref().is_none_or(|c| c.pairs.is_empty());
+    defaults.reuse = if with_contact || finite_strain { None } else { app.step_reuse };
+    defaults.layer = app.step_layer_around && !finite_strain;
+    defaults.blocked =
+        d.scene.contact.as_ref().is_none_or(|c| c.pairs.is_empty()) && !finite_strain;
     let op = StepOperator::new(
         m,
         a,
         d.scene.tau,
         dirichlet.dofs().to_vec(),
-        dirichlet.nonzero,
+        // The Newton step keeps its Dirichlet increments in its iterate: no lifting.
+        dirichlet.nonzero && !finite_strain,
         Some(&null_space),
         &defaults,
     )?;
@@ -100,6 +113,19 @@ pub fn step_operator(
     };
     console.say(format!("step solver: {ksp_type} + {pc_type} ({chosen}){layer}"));
     Ok((op, regime.cfl))
+}
+
+/// The Newton loop of finite-strain bodies: the internal force over this rank's cells and the
+/// loop's options. Collective.
+pub fn newton(d: &Domain, app: &AppOptions, layout: &crate::petsc::Vector) -> Result<Newton> {
+    use std::rc::Rc;
+    let force =
+        InternalForce::new(d.world, Rc::clone(&d.mesh), Rc::clone(&d.part), &d.bodies, layout)?;
+    // Names by `diagnostics::node_bodies`' numbers: body i, then the cells outside every body.
+    let n = d.bodies.n_bodies();
+    let mut names: Vec<String> = (0..n).map(|i| d.bodies.regions[i + 1].name.clone()).collect();
+    names.push(if n == 0 { "the body".to_string() } else { d.bodies.regions[0].name.clone() });
+    Newton::new(force, layout, app.newton, diagnostics::node_bodies(d), names, d.part.dim)
 }
 
 /// The memory a rank may still use: the node's available memory (`MemAvailable`) shared by

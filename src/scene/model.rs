@@ -1,9 +1,9 @@
 //! The validated scene ([`Scene`] and its parts) and the rule of `time.end`: what the rest of
 //! the program reads. `validate` builds it from the file's serde form.
 
-pub use crate::fem::hyperelastic::Model;
 use super::expr::VecExpr;
 use crate::error::{Error, Result};
+pub use crate::fem::hyperelastic::Model;
 use serde::Deserialize;
 use std::path::PathBuf;
 

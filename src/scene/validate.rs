@@ -5,8 +5,8 @@
 use super::expr::{Expr, VecExpr};
 use super::model::{
     obstacle_key, steps_to_end, BodySpec, ContactPair, ContactSpec, DirichletSpec, ExactSpec,
-    Field, FrictionSpec, MassKind, MassSpec, MaterialSpec, MeshSource, Model, NeumannSpec, Obstacle,
-    OutputSpec, Scene, Shape, SolverSpec,
+    Field, FrictionSpec, MassKind, MassSpec, MaterialSpec, MeshSource, Model, NeumannSpec,
+    Obstacle, OutputSpec, Scene, Shape, SolverSpec,
 };
 use super::raw::{
     ExprSrc, RawBody, RawBodyForce, RawContact, RawDirichlet, RawExact, RawInitial, RawMass,

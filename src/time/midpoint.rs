@@ -17,6 +17,7 @@ use mpi::topology::SimpleCommunicator;
 use mpi::traits::*;
 
 mod correction;
+mod finite_strain;
 mod products;
 
 pub use products::ReuseReport;
@@ -62,6 +63,8 @@ pub struct StepReport {
     pub time: f64,
     /// KSP iterations of the step's solves.
     pub ksp_iterations: usize,
+    /// Newton iterations of the step (finite strain; 0 for the linear step).
+    pub newton_iterations: usize,
     /// The contact solver's result (scenes with contact).
     pub contact: Option<StepContact>,
 }
@@ -139,6 +142,8 @@ pub struct Midpoint {
     corr: Option<(Vector, Vector, Vector)>,
     /// Components per node (the correction works per component).
     dim: usize,
+    /// The Newton loop of finite-strain bodies (`None`: the linear step).
+    newton: Option<Box<super::newton::Newton>>,
     /// `M 1` without the Dirichlet rows (built on first use).
     m_ones: Option<Vector>,
     /// The body of each owned node (in DOF order): the correction keeps each body's momentum.
@@ -265,6 +270,7 @@ impl Midpoint {
             rhs_corr: None,
             corr: None,
             dim: 1,
+            newton: None,
             m_ones: None,
             groups: Vec::new(),
             n_groups: 1,
@@ -407,8 +413,12 @@ impl Midpoint {
 
     fn update_energies(&mut self) -> Result<()> {
         self.m.mult(&self.v, &mut self.mv)?;
-        self.a.mult(&self.u, &mut self.au)?;
         self.energy.kinetic = 0.5 * self.v.dot(&self.mv)?;
+        if let Some(newton) = self.newton.as_mut() {
+            self.energy.potential = newton.strain_energy(&self.u)?;
+            return Ok(());
+        }
+        self.a.mult(&self.u, &mut self.au)?;
         self.energy.potential = 0.5 * self.u.dot(&self.au)?;
         Ok(())
     }
@@ -575,6 +585,14 @@ impl Midpoint {
         forces: &dyn Forces,
         mut contact: Option<&mut (dyn ContactSolver + 'c)>,
     ) -> Result<StepReport> {
+        if self.newton.is_some() {
+            if contact.is_some() {
+                return Err(Error::Usage(
+                    "finite strain with contact is not available yet: use model = \"linear\" for scenes with [contact]".into(),
+                ));
+            }
+            return self.step_finite_strain(n, forces);
+        }
         let tau = self.tau;
         let t_next = self.time_at(n + 1);
         // f(t_{n+1}) when it changes (else f_now stands for both ends of the step).
@@ -720,7 +738,7 @@ impl Midpoint {
                 }
             }
         }
-        Ok(StepReport { time: t_next, ksp_iterations: its, contact: report })
+        Ok(StepReport { time: t_next, ksp_iterations: its, newton_iterations: 0, contact: report })
     }
 
     /// Steps after which released massless contact nodes were put back in static

@@ -18,6 +18,7 @@ pub mod choice;
 pub mod dirichlet;
 pub mod layer;
 pub mod midpoint;
+pub mod newton;
 pub mod operator;
 
 pub use cg::Predictor;

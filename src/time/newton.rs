@@ -1,0 +1,350 @@
+//! The energy-momentum midpoint step of finite-strain bodies: a Newton loop of our own around
+//! the step's KSP (METHOD.md section 5d).
+//!
+//! With `du = u_1 - u_0` the step's equation, times 2 as the linear step's,
+//!
+//! ```text
+//!   r(du) = 4/tau^2 M du - 4/tau M v_0 - (f_0 + f_1) + 2 f_int,alg(u_0, u_0 + du) = 0,
+//!   v_1 = 2 du/tau - v_0,
+//! ```
+//! is solved by Newton: `K_T delta = -r`, `K_T = 4/tau^2 M + 2 d f_int,alg / d u_1`
+//! (unsymmetric: GMRES by default), `du += delta`. Dirichlet DOFs take their increment before
+//! the first iteration and keep it (`delta_D = 0`).
+//!
+//! The step's energy error is exact and cheap: dotting `r/2` with `du`,
+//! `E_1 - E_0 - f^{n+1/2}.du - r_D.du_D/2 = du.r_F/2` (`F` the free rows), since
+//! `1/2 v_1.M v_1 - 1/2 v_0.M v_0 = 2/tau^2 du.M (du - tau v_0)` and
+//! `f_int,alg.du = W(u_1) - W(u_0)`. So Newton stops when both the residual and this energy
+//! error are small: the residual relative to the size of the terms that cancel in it, the
+//! energy error relative to the energy. A full Newton step that makes the residual grow is
+//! halved (backtracking) until it does not, at most [`Newton::MAX_HALVINGS`] times; a step
+//! that inverts an element is halved too.
+
+use mpi::collective::SystemOperation;
+use mpi::topology::SimpleCommunicator;
+use mpi::traits::*;
+
+use crate::assembly::finite_strain::{Evaluation, InternalForce};
+use crate::error::{Error, Result};
+use crate::mass::MassMatrix;
+use crate::petsc::{Ksp, Matrix, Vector};
+
+/// The Newton loop's tolerances (`-newton_rtol`, `-newton_energy_rtol`, `-newton_max_it`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct NewtonOptions {
+    /// The residual's 2-norm relative to the sum of the norms of its terms.
+    pub rtol: f64,
+    /// The step's energy error `|du.r_F|/2` relative to the energy.
+    pub energy_rtol: f64,
+    /// Newton iterations (linear solves) per step at most.
+    pub max_it: usize,
+}
+
+impl Default for NewtonOptions {
+    fn default() -> Self {
+        NewtonOptions { rtol: 1e-10, energy_rtol: 1e-13, max_it: 25 }
+    }
+}
+
+/// What the Newton loops did so far.
+#[derive(Debug, Clone, Copy, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct NewtonStats {
+    /// Steps solved.
+    pub steps: usize,
+    /// Newton iterations (tangent solves) of all steps.
+    pub iterations: usize,
+    /// The most of one step.
+    pub max_iterations: usize,
+    /// Halved Newton corrections (backtracking).
+    pub halvings: usize,
+    /// The largest energy error a converged step left, relative to the energy.
+    pub max_energy_error: f64,
+}
+
+/// One step's result.
+#[derive(Debug, Clone, Copy)]
+pub struct NewtonStep {
+    /// Newton iterations (tangent solves) and their KSP iterations.
+    pub iterations: usize,
+    pub ksp_iterations: usize,
+    /// The strain energy at `u_1`.
+    pub strain_energy: f64,
+    /// The work of the Dirichlet reactions, `r_D.du_D/2`.
+    pub dirichlet_work: f64,
+}
+
+/// The pieces of the integrator one Newton step works with.
+pub struct StepInputs<'a> {
+    pub m: &'a MassMatrix,
+    /// The step operator's matrix, refilled with `K_T` each iteration, and its solver.
+    pub k: &'a mut Matrix,
+    pub ksp: &'a mut Ksp,
+    /// Dirichlet DOFs owned by this rank (global) and their increments over the step.
+    pub dirichlet: &'a [i32],
+    pub dirichlet_du: &'a [f64],
+    pub dirichlet_diag: f64,
+    pub u: &'a Vector,
+    pub mv: &'a Vector,
+    /// `f_0 + f_1` (None without loads).
+    pub f_sum: Option<&'a Vector>,
+    /// The step's increment: in, the first guess; out, the solution.
+    pub du: &'a mut Vector,
+    pub tau: f64,
+    /// The energy the energy error is measured against.
+    pub energy: f64,
+    /// The step, for messages.
+    pub step: usize,
+    pub time: f64,
+}
+
+/// The Newton loop's state, set up once per run.
+pub struct Newton {
+    pub force: InternalForce,
+    tangent: Matrix,
+    pub opts: NewtonOptions,
+    pub stats: NewtonStats,
+    f_int: Vector,
+    r: Vector,
+    mdu: Vector,
+    delta: Vector,
+    u1: Vector,
+    /// The body of each owned node and the bodies' names (messages name the body with the
+    /// largest residual).
+    node_body: Vec<u32>,
+    body_names: Vec<String>,
+    dim: usize,
+}
+
+impl Newton {
+    /// At most this many halvings of one Newton correction.
+    pub const MAX_HALVINGS: usize = 12;
+
+    pub fn new(
+        force: InternalForce,
+        layout: &Vector,
+        opts: NewtonOptions,
+        node_body: Vec<u32>,
+        body_names: Vec<String>,
+        dim: usize,
+    ) -> Result<Newton> {
+        let tangent = force.new_tangent()?;
+        let dup = || layout.duplicate();
+        Ok(Newton {
+            force,
+            tangent,
+            opts,
+            stats: NewtonStats::default(),
+            f_int: dup()?,
+            r: dup()?,
+            mdu: dup()?,
+            delta: dup()?,
+            u1: dup()?,
+            node_body,
+            body_names,
+            dim,
+        })
+    }
+
+    /// The strain energy at `u`. Collective.
+    pub fn strain_energy(&mut self, u: &Vector) -> Result<f64> {
+        self.force.energy(u)?.map_err(|m| Error::Solver(format!("the initial state: {m}")))
+    }
+
+    /// `r(du)` into `self.r` with the Dirichlet rows zeroed; returns (`|r|`, the norms' sum the
+    /// residual is measured against, `du.r_F/2`, `du_D.r_D/2`). Collective.
+    fn residual(&mut self, s: &mut StepInputs) -> Result<(f64, f64, f64, f64)> {
+        let (tau, lo) = (s.tau, s.du.ownership_range().0);
+        s.m.mult(s.du, &mut self.mdu)?;
+        let ci = 4.0 / (tau * tau);
+        let cv = 4.0 / tau;
+        let mut parts = [0.0f64; 4];
+        let mut reaction = 0.0;
+        let mut work = 0.0;
+        let fsum = s.f_sum;
+        Vector::with_slices(
+            [&self.mdu, s.mv, &self.f_int, &*s.du],
+            [&mut self.r],
+            |[mdu, mv, fi, du], [r]| {
+                for i in 0..r.len() {
+                    r[i] = ci * mdu[i] - cv * mv[i] + 2.0 * fi[i];
+                    parts[0] += (ci * mdu[i]).powi(2);
+                    parts[1] += (cv * mv[i]).powi(2);
+                    parts[2] += (2.0 * fi[i]).powi(2);
+                }
+                for &d in s.dirichlet {
+                    let i = d as usize - lo;
+                    reaction += 0.5 * du[i] * r[i];
+                }
+            },
+        )?;
+        if let Some(f) = fsum {
+            Vector::with_slices([f], [&mut self.r], |[f], [r]| {
+                for i in 0..r.len() {
+                    r[i] -= f[i];
+                    parts[3] += f[i] * f[i];
+                }
+            })?;
+            // The loads' part of the reaction rows.
+            Vector::with_slices([f, &*s.du], [], |[f, du], []| {
+                for &d in s.dirichlet {
+                    let i = d as usize - lo;
+                    reaction -= 0.5 * du[i] * f[i];
+                }
+            })?;
+        }
+        self.r.with_local_slice_mut(|r| {
+            for &d in s.dirichlet {
+                r[d as usize - lo] = 0.0;
+            }
+        })?;
+        Vector::with_slices([&self.r, &*s.du], [], |[r, du], []| {
+            for i in 0..r.len() {
+                work += 0.5 * du[i] * r[i];
+            }
+        })?;
+        let world = SimpleCommunicator::world();
+        let mut local = [parts[0], parts[1], parts[2], parts[3], work, reaction];
+        let mut all = [0.0f64; 6];
+        world.all_reduce_into(&local[..], &mut all[..], SystemOperation::sum());
+        local = all;
+        let norm = self.r.norm2()?;
+        let scale = local[..4].iter().map(|x| x.sqrt()).sum::<f64>();
+        Ok((norm, scale, local[4], local[5]))
+    }
+
+    /// `u_1 = u_0 + du` and the internal force there. Collective.
+    fn evaluate(&mut self, s: &StepInputs, tangent: bool) -> Result<Evaluation> {
+        self.u1.waxpy(1.0, s.du, s.u)?;
+        let k = if tangent { Some(&mut self.tangent) } else { None };
+        self.force.evaluate(&self.u1, &mut self.f_int, k)
+    }
+
+    /// The body with the largest residual entry, and that entry. Collective.
+    fn worst_body(&self) -> Result<(String, f64)> {
+        let n = self.body_names.len();
+        let mut local = vec![0.0f64; n];
+        self.r.with_local_slice(|r| {
+            for (i, x) in r.iter().enumerate() {
+                let b =
+                    (self.node_body.get(i / self.dim).copied().unwrap_or(0) as usize).min(n - 1);
+                local[b] = local[b].max(x.abs());
+            }
+        })?;
+        let mut all = vec![0.0f64; n];
+        SimpleCommunicator::world().all_reduce_into(
+            &local[..],
+            &mut all[..],
+            SystemOperation::max(),
+        );
+        let (b, x) =
+            all.iter().enumerate().fold((0, 0.0), |m, (b, &x)| if x > m.1 { (b, x) } else { m });
+        Ok((self.body_names[b].clone(), x))
+    }
+
+    /// One step: `s.du` from its first guess to the solution. Collective.
+    pub fn step(&mut self, mut s: StepInputs) -> Result<NewtonStep> {
+        let opts = self.opts;
+        let lo = s.du.ownership_range().0;
+        s.du.with_local_slice_mut(|du| {
+            for (k, &d) in s.dirichlet.iter().enumerate() {
+                du[d as usize - lo] = s.dirichlet_du[k];
+            }
+        })?;
+        self.force.set_start(s.u)?;
+        let energy_scale = s.energy.abs().max(f64::MIN_POSITIVE);
+        let where_ = |s: &StepInputs| format!("step {} (t = {:e})", s.step, s.time);
+        let mut iterations = 0;
+        let mut ksp_iterations = 0;
+        let mut halvings = 0;
+        let mut halved = 0;
+        let mut last_norm = f64::INFINITY;
+        let mut history: Vec<f64> = Vec::new();
+        loop {
+            let w1 = match self.evaluate(&s, false)? {
+                Evaluation::Energies { w1, .. } => w1,
+                Evaluation::Inverted(m) if iterations > 0 && halvings < Self::MAX_HALVINGS => {
+                    // Back along the last correction: du -= delta/2.
+                    self.delta.scale(0.5)?;
+                    s.du.axpy(-1.0, &self.delta)?;
+                    halvings += 1;
+                    halved += 1;
+                    let _ = m;
+                    continue;
+                }
+                Evaluation::Inverted(m) => {
+                    return Err(Error::Solver(format!("{}: {m}", where_(&s))));
+                }
+            };
+            let (norm, scale, error, reaction) = self.residual(&mut s)?;
+            if norm > last_norm && iterations > 0 && halvings < Self::MAX_HALVINGS {
+                self.delta.scale(0.5)?;
+                s.du.axpy(-1.0, &self.delta)?;
+                halvings += 1;
+                halved += 1;
+                continue;
+            }
+            history.push(norm);
+            // Round-off leaves the residual at about eps times the terms that cancel in it.
+            let floor = norm <= 1e3 * f64::EPSILON * scale;
+            let converged = (norm <= opts.rtol * scale
+                && error.abs() <= opts.energy_rtol * energy_scale)
+                || floor;
+            if converged {
+                self.stats.steps += 1;
+                self.stats.iterations += iterations;
+                self.stats.max_iterations = self.stats.max_iterations.max(iterations);
+                self.stats.halvings += halved;
+                self.stats.max_energy_error =
+                    self.stats.max_energy_error.max(error.abs() / energy_scale);
+                return Ok(NewtonStep {
+                    iterations,
+                    ksp_iterations,
+                    strain_energy: w1,
+                    dirichlet_work: reaction,
+                });
+            }
+            if iterations >= opts.max_it {
+                let (body, worst) = self.worst_body()?;
+                let last: Vec<String> =
+                    history.iter().rev().take(3).rev().map(|x| format!("{x:.3e}")).collect();
+                return Err(Error::Solver(format!(
+                    "{}: Newton did not converge in {} iterations; the largest residual is in {body} ({worst:.3e}); last residuals {} against {:.3e} (-newton_rtol {:e}), energy error {:.3e} of the energy (-newton_energy_rtol {:e}); try a smaller tau or -newton_max_it",
+                    where_(&s),
+                    opts.max_it,
+                    last.join(", "),
+                    opts.rtol * scale,
+                    opts.rtol,
+                    error.abs() / energy_scale,
+                    opts.energy_rtol
+                )));
+            }
+            last_norm = norm;
+            // K_T = 4/tau^2 M + 2 T, Dirichlet rows and columns eliminated.
+            match self.evaluate(&s, true)? {
+                Evaluation::Energies { .. } => {}
+                Evaluation::Inverted(m) => {
+                    return Err(Error::Solver(format!("{}: {m}", where_(&s))))
+                }
+            }
+            s.k.zero_entries()?;
+            s.k.axpy(2.0, &self.tangent, crate::petsc::Pattern::Subset)?;
+            s.m.add_to(s.k, 4.0 / (s.tau * s.tau))?;
+            s.k.zero_rows_columns(s.dirichlet, s.dirichlet_diag, None, None)?;
+            s.ksp.set_operators(s.k, s.k)?;
+            self.r.scale(-1.0)?;
+            self.delta.zero()?;
+            let info = s.ksp.solve(&self.r, &mut self.delta).map_err(|e| match e {
+                Error::Solver(m) => Error::Solver(format!(
+                    "{}: Newton iteration {}: {m}",
+                    where_(&s),
+                    iterations + 1
+                )),
+                other => other,
+            })?;
+            ksp_iterations += info.iterations;
+            s.du.axpy(1.0, &self.delta)?;
+            iterations += 1;
+            halvings = 0;
+        }
+    }
+}
