@@ -67,10 +67,13 @@ impl Progress {
     }
 
     /// Report step `n` done at simulated time `t`; `drift` is the energy balance residual.
-    pub fn update(&mut self, n: usize, t: f64, drift: f64) {
+    /// Step `n` at time `t` done, the energy balance so far `drift`; `newton`: finite strain's
+    /// Newton iterations per step so far.
+    pub fn update(&mut self, n: usize, t: f64, drift: f64, newton: Option<f64>) {
+        let newton = newton.map(|x| format!("  Newton {x:.2} its/step")).unwrap_or_default();
         if let Some(b) = &self.bar {
             b.set_position(n as u64);
-            b.set_message(format!("t = {t:.4e}  energy balance {drift:.1e}"));
+            b.set_message(format!("t = {t:.4e}  energy balance {drift:.1e}{newton}"));
         } else if self.plain {
             let now = Instant::now();
             if now.duration_since(self.last_line) >= Duration::from_secs(10) || n == self.total {
@@ -78,7 +81,7 @@ impl Progress {
                 let el = now.duration_since(self.start).as_secs_f64();
                 let eta = if n > 0 { el / n as f64 * (self.total - n) as f64 } else { 0.0 };
                 eprintln!(
-                    "step {n}/{}  t = {t:.4e}  energy balance {drift:.1e}  elapsed {el:.1} s  ETA {eta:.1} s",
+                    "step {n}/{}  t = {t:.4e}  energy balance {drift:.1e}{newton}  elapsed {el:.1} s  ETA {eta:.1} s",
                     self.total
                 );
             }

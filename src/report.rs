@@ -135,6 +135,9 @@ pub struct RunSummary {
     /// episodes per impact, iterations; `stability::Stability`).
     #[serde(default)]
     pub stability: Option<Stability>,
+    /// Finite strain: what the Newton loops did (`time::newton`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub newton: Option<crate::time::newton::NewtonStats>,
 }
 
 /// One `[[body]]` of a finished run.
@@ -253,6 +256,7 @@ impl RunSummary {
             energy_corrections: Default::default(),
             step_reuse: Default::default(),
             ksp_iterations_step_max: 7,
+            newton: None,
             cfl: 0.5,
             stability: None,
         }

@@ -18,7 +18,7 @@ use super::{cell_coords, MAX_EDOFS};
 use crate::bodies::Bodies;
 use crate::comm::{first_failure, sum_over_ranks};
 use crate::error::{Error, Result};
-use crate::fem::hyperelastic::{midpoint_force, Law};
+use crate::fem::hyperelastic::{midpoint_force, unit_strain_force, Law};
 use crate::fem::{kernels, Material};
 use crate::mesh::Mesh;
 use crate::partition::Partition;
@@ -45,6 +45,10 @@ pub struct InternalForce {
     local: Vector,
     /// `u_0` at the local slots (the step's start, gathered once per step).
     u0: Vec<f64>,
+    /// The 2-norm of the nodes' forces under a unit strain
+    /// (`fem::hyperelastic::unit_strain_force`): round-off in the internal force is about
+    /// `eps` times it.
+    pub unit_force: f64,
 }
 
 /// What an evaluation found: the strain energies of both states (all ranks), or the first
@@ -100,8 +104,44 @@ impl InternalForce {
                 (law, r as u16)
             })
             .collect();
-        let body_names = bodies.regions.iter().map(|r| r.name.clone()).collect();
-        Ok(InternalForce { mesh, part, laws, body_names, slot, gather, local, u0: vec![0.0; k] })
+        // Messages name `body[i] "GROUP"`, or the body of a scene without `[[body]]`.
+        let body_names = match bodies.n_bodies() {
+            0 => vec!["the body".to_string()],
+            _ => bodies.regions.iter().map(|r| r.name.clone()).collect(),
+        };
+        // The unit-strain force of every node, summed over its cells by the owners.
+        let mut scale = vec![0.0; k];
+        let mut xy = [[0.0; 3]; 8];
+        let mut sa = [0.0; 8];
+        for &c in &part.local_cells {
+            let cell = &mesh.cells[c];
+            let n = cell_coords(&mesh, cell, &mut xy);
+            let m = bodies.material(c);
+            unit_strain_force(cell.kind, &xy[..n], m.lambda + 2.0 * m.mu, &mut sa);
+            for (a, &v) in cell.nodes().iter().enumerate() {
+                for i in 0..dim {
+                    scale[slot[v] * dim + i] += sa[a];
+                }
+            }
+        }
+        let mut local = local;
+        let mut gather = gather;
+        local.with_local_slice_mut(|s| s.copy_from_slice(&scale))?;
+        let mut sum = layout.duplicate()?;
+        sum.zero()?;
+        gather.reverse_add(&local, &mut sum)?;
+        let unit_force = sum.norm2()?;
+        Ok(InternalForce {
+            mesh,
+            part,
+            laws,
+            body_names,
+            slot,
+            gather,
+            local,
+            u0: vec![0.0; k],
+            unit_force,
+        })
     }
 
     /// The values of `x` at the local slots.

@@ -555,6 +555,24 @@ pub fn strain_energy(
     midpoint_force(kind, coords, law, u, u, &mut f[..n], None).map(|e| e.w1)
 }
 
+/// The size of each node's internal force under a unit strain, `out[a] = modulus sum_q w_q
+/// det J_q |G_a(x_q)|` (`modulus` e.g. `lambda + 2 mu`): the scale below which a computed
+/// internal force is round-off (its stresses cancel to about `eps modulus`).
+pub fn unit_strain_force(kind: ElementKind, coords: &[[f64; 3]], modulus: f64, out: &mut [f64]) {
+    let n = kind.n_nodes();
+    let d = kind.dim();
+    let t = table(kind, stiffness_order(kind));
+    out[..n].fill(0.0);
+    for q in 0..t.w.len() {
+        let mut g = t.dn[q];
+        let det_j = map_gradients(d, n, coords, &mut g[..n]);
+        for a in 0..n {
+            let norm = (g[a][0] * g[a][0] + g[a][1] * g[a][1] + g[a][2] * g[a][2]).sqrt();
+            out[a] += modulus * t.w[q] * det_j.abs() * norm;
+        }
+    }
+}
+
 /// The deformation gradient of a cell at the reference point `xi` (3 x 3, `F_33 = 1` in 2D).
 pub fn deformation_gradient_at(
     kind: ElementKind,

@@ -34,6 +34,9 @@ pub const ENERGY_SERIES: [&str; 9] = [
     "dirichlet_work",
     "friction_dissipation",
 ];
+/// Finite strain: `newton/iterations` per step, rows as `/energy`'s.
+pub const NEWTON: &str = "newton";
+pub const NEWTON_ITERATIONS: &str = "newton/iterations";
 pub const CONTACT: &str = "contact";
 pub const CONTACT_NODES: &str = "contact/nodes";
 pub const CONTACT_WEIGHTS: &str = "contact/weights";

@@ -259,6 +259,8 @@ pub struct Output {
     /// The series of `layout::ENERGY_SERIES`, in that order.
     energy: Vec<Dataset>,
     contact: Option<ContactDatasets>,
+    /// `newton/iterations`, per step beside `/energy` (finite strain; created on first use).
+    newton: Option<Dataset>,
     n_fields_written: usize,
     n_energies_written: usize,
     n_nodes: usize,
@@ -489,6 +491,7 @@ impl Output {
             fields,
             energy,
             contact: None,
+            newton: None,
             n_fields_written: 0,
             n_energies_written: 0,
             n_nodes: n,
@@ -580,6 +583,26 @@ impl Output {
         }
         self.n_energies_written += 1;
         Ok(())
+    }
+
+    /// The Newton iterations of the step whose energies were written last, in
+    /// `newton/iterations` (the same rows as `/energy`). Collective: every rank calls it for
+    /// the same steps (finite-strain runs, every step).
+    pub fn write_newton(&mut self, iterations: usize) -> Result<()> {
+        let path = self.path.clone();
+        if self.newton.is_none() {
+            let g = group(&self.file, layout::NEWTON, &path)?;
+            let ds = g
+                .new_dataset::<f64>()
+                .chunk((1024,))
+                .shape((0..,))
+                .create("iterations")
+                .map_err(|e| h5err(&path, "create /newton/iterations", e))?;
+            self.newton = Some(ds);
+        }
+        let ds = self.newton.as_ref().expect("created above");
+        let k = self.n_energies_written.saturating_sub(1);
+        append_replicated(ds, k, iterations as f64, &path, "/newton/iterations")
     }
 
     /// The mass matrix's diagnostics: `/mass/{total_mass,first_moment,second_moment}` [dim] and

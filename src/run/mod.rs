@@ -223,7 +223,11 @@ impl<'a> Simulation<'a> {
                 let t_errors = Instant::now();
                 run.record.errors_at(&self.domain, &mut self.views, n + 1, &run.midpoint)?;
                 clock.errors += t_errors.elapsed().as_secs_f64();
-                progress.update(n + 1, report.time, run.record.balance);
+                let newton = run
+                    .midpoint
+                    .newton_stats()
+                    .map(|s| s.iterations as f64 / s.steps.max(1) as f64);
+                progress.update(n + 1, report.time, run.record.balance, newton);
             }
             progress.finish();
             // 4. The summary, the pictures and the file's final metadata.

@@ -218,6 +218,9 @@ impl RunOutput {
         }
         let RunOutput::Open(out) = self else { unreachable!("checked above") };
         out.write_energy(n, t, midpoint.energy())?;
+        if let Some(stats) = midpoint.newton_stats() {
+            out.write_newton(stats.last)?;
+        }
         if blocks.iter().any(Option::is_some) {
             out.write_fields(n, t, &blocks)?;
         }

@@ -329,6 +329,7 @@ pub fn summarize(
         ksp_iterations_step_max: record.ksp_step_max,
         cfl: facts.cfl,
         stability: Some(stability),
+        newton: midpoint.newton_stats(),
     })
 }
 
@@ -372,6 +373,15 @@ pub fn summary_lines(d: &Domain, layer: Option<(usize, usize)>, s: &RunSummary) 
             s.energy_initial, s.energy_final, s.external_work, s.energy_balance
         ),
     ];
+    if let Some(nw) = &s.newton {
+        lines.push(format!(
+            "Newton: {:.2} iterations/step (at most {}), {} halved corrections; the largest energy error a step left {:.2e} of the energy",
+            nw.iterations as f64 / nw.steps.max(1) as f64,
+            nw.max_iterations,
+            nw.halvings,
+            nw.max_energy_error
+        ));
+    }
     if let Some(d) = s.massless_initialization.filter(|&d| d > 0.0) {
         lines.push(format!(
             "massless DOFs: the initial displacement made statically consistent there (largest change {d:.3e})"

@@ -59,6 +59,9 @@ pub struct NewtonStats {
     pub halvings: usize,
     /// The largest energy error a converged step left, relative to the energy.
     pub max_energy_error: f64,
+    /// Newton iterations of the last step.
+    #[serde(skip)]
+    pub last: usize,
 }
 
 /// One step's result.
@@ -251,6 +254,13 @@ impl Newton {
             }
         })?;
         self.force.set_start(s.u)?;
+        // A first guess that inverts an element is halved like a Newton correction.
+        self.delta.copy_from(s.du)?;
+        self.delta.with_local_slice_mut(|x| {
+            for &d in s.dirichlet {
+                x[d as usize - lo] = 0.0;
+            }
+        })?;
         let energy_scale = s.energy.abs().max(f64::MIN_POSITIVE);
         let where_ = |s: &StepInputs| format!("step {} (t = {:e})", s.step, s.time);
         let mut iterations = 0;
@@ -262,7 +272,7 @@ impl Newton {
         loop {
             let w1 = match self.evaluate(&s, false)? {
                 Evaluation::Energies { w1, .. } => w1,
-                Evaluation::Inverted(m) if iterations > 0 && halvings < Self::MAX_HALVINGS => {
+                Evaluation::Inverted(m) if halvings < Self::MAX_HALVINGS => {
                     // Back along the last correction: du -= delta/2.
                     self.delta.scale(0.5)?;
                     s.du.axpy(-1.0, &self.delta)?;
@@ -284,13 +294,16 @@ impl Newton {
                 continue;
             }
             history.push(norm);
-            // Round-off leaves the residual at about eps times the terms that cancel in it.
-            let floor = norm <= 1e3 * f64::EPSILON * scale;
+            // Round-off leaves the residual at about eps times the terms that cancel in it,
+            // and the internal force at about eps times the unit-strain forces (a rotated
+            // body at rest: C = R^T R = I + O(eps)).
+            let floor = norm <= 1e2 * f64::EPSILON * (scale + 2.0 * self.force.unit_force);
             let converged = (norm <= opts.rtol * scale
                 && error.abs() <= opts.energy_rtol * energy_scale)
                 || floor;
             if converged {
                 self.stats.steps += 1;
+                self.stats.last = iterations;
                 self.stats.iterations += iterations;
                 self.stats.max_iterations = self.stats.max_iterations.max(iterations);
                 self.stats.halvings += halved;

@@ -1,0 +1,236 @@
+//! Finite-strain bodies through the program as users run it (mpirun, 1-3 ranks): rigid
+//! rotations carry no energy, a spinning body keeps its energy and angular momentum and its
+//! size, results do not depend on the number of ranks, and bad input ends the run with one
+//! line.
+
+mod common;
+
+use common::*;
+use std::path::Path;
+
+/// The unit square of `h`-sized quads spinning about its centre at `omega` (rad/s), no loads;
+/// `rest`: more tables.
+fn spinning_square(
+    dir: &Path,
+    name: &str,
+    model: &str,
+    omega: f64,
+    tau: f64,
+    steps: usize,
+    rest: &str,
+) -> std::path::PathBuf {
+    small_scene(
+        dir,
+        name,
+        "square_quad.geo",
+        0.25,
+        &format!(
+            "model = \"{model}\"\n[initial]\nvelocity = [\"-{omega}*(y-0.5)\", \"{omega}*(x-0.5)\"]\n[time]\ntau = {tau}\nsteps = {steps}\n[output]\nevery = {}\n{rest}",
+            (steps / 100).max(1)
+        ),
+    )
+}
+
+/// The four side lengths of the unit square (corners found in the reference coordinates) at
+/// each written step.
+fn side_lengths(h5: &Path) -> Vec<[f64; 4]> {
+    let run = reader(h5);
+    let x = run.series("mesh/coordinates").unwrap();
+    let u = run.series("fields/displacement").unwrap();
+    let n = x.len() / 3;
+    let corner = |p: [f64; 2]| {
+        (0..n)
+            .min_by(|&a, &b| {
+                let da = (x[3 * a] - p[0]).powi(2) + (x[3 * a + 1] - p[1]).powi(2);
+                let db = (x[3 * b] - p[0]).powi(2) + (x[3 * b + 1] - p[1]).powi(2);
+                da.total_cmp(&db)
+            })
+            .unwrap()
+    };
+    let c = [[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]].map(corner);
+    u.chunks(2 * n)
+        .map(|uk| {
+            let pos = |v: usize| [x[3 * v] + uk[2 * v], x[3 * v + 1] + uk[2 * v + 1]];
+            [0, 1, 2, 3].map(|i| {
+                let (a, b) = (pos(c[i]), pos(c[(i + 1) % 4]));
+                ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2)).sqrt()
+            })
+        })
+        .collect()
+}
+
+/// The static hoop strain at the rim of a plane-strain disc of radius `b` spinning at
+/// `omega` (free edge, small strain): `rho omega^2 b^2 (1 - 2 nu)(1 + nu) / (4 E)`.
+fn rim_strain(omega: f64, b: f64) -> f64 {
+    let (e, nu, rho) = (100.0, 0.3, 1.0);
+    rho * omega * omega * b * b * (1.0 - 2.0 * nu) * (1.0 + nu) / (4.0 * e)
+}
+
+#[test]
+fn a_spinning_square_keeps_its_energy_angular_momentum_and_size_with_every_mass() {
+    let dir = scratch("spin");
+    let omega = 2.0 * std::f64::consts::PI;
+    let layer = "[mass]\nkind = \"consistent\"\ncontact_boundary = \"bottom\"\n";
+    let scene = spinning_square(&dir, "spin", "neo_hookean", omega, 0.01, 10_000, layer);
+    let scene = {
+        let text = std::fs::read_to_string(&scene).unwrap().replace("h = 0.25", "h = 0.125");
+        std::fs::write(&scene, text).unwrap();
+        scene
+    };
+    // Between the rim strains of the inscribed and the circumscribed disc: the square's mean
+    // side stretch, about which it breathes (it starts unstressed: up to twice as far).
+    let (inner, outer) = (rim_strain(omega, 0.5), rim_strain(omega, 0.5f64.sqrt()));
+    for mass in ["consistent", "modified0", "modified1"] {
+        let s = run_scene(2, &scene, &["--mass", mass]);
+        assert!(s.energy_drift < 1e-10, "{mass}: energy drift {:e}", s.energy_drift);
+        let (l0, l1) = (s.angular_momentum_initial[2], s.angular_momentum_final[2]);
+        assert!(rel_diff(l0, l1) < 1e-10, "{mass}: angular momentum {l0} -> {l1}");
+        let newton = s.newton.expect("Newton statistics");
+        assert_eq!(newton.steps, 10_000);
+        let sides = side_lengths(&dir.join("spin-2.h5"));
+        assert_eq!(sides.len(), 101);
+        for k in 0..4 {
+            let stretch: Vec<f64> = sides.iter().map(|s| s[k] - 1.0).collect();
+            let mean = stretch.iter().sum::<f64>() / stretch.len() as f64;
+            let (lo, hi) = stretch
+                .iter()
+                .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &x| (a.min(x), b.max(x)));
+            assert!(
+                mean > inner && mean < outer,
+                "{mass}: side {k}'s mean stretch {mean:e} outside [{inner:e}, {outer:e}]"
+            );
+            // Started unstressed, an undamped breathing swings to at most twice the static
+            // stretch. With M_H the layer's massless nodes (along the bottom) carry no
+            // centrifugal load, and the sides next to them swing further: only a guard
+            // against growth there.
+            let bound = if mass == "consistent" { 2.0 * outer } else { 3.0 * outer };
+            assert!(
+                lo > -outer && hi < bound,
+                "{mass}: side {k} stretched in [{lo:e}, {hi:e}], outside [-{outer:e}, {bound:e}]"
+            );
+        }
+    }
+    // The small-strain model sees no strain in the rotation's tangent motion: every point
+    // flies off along it, the sides grow to sqrt(1 + (omega t)^2) after t (6.4 after a turn).
+    let linear = spinning_square(&dir, "linear", "linear", omega, 0.01, 100, "");
+    let s = run_scene(2, &linear, &[]);
+    assert!(s.newton.is_none());
+    let sides = side_lengths(&dir.join("linear-2.h5"));
+    let want = (1.0 + omega * omega).sqrt();
+    for side in sides.last().unwrap() {
+        assert!(rel_diff(*side, want) < 1e-9, "linear: side {side} after a turn, theory {want}");
+    }
+}
+
+#[test]
+fn finite_strain_does_not_depend_on_the_number_of_ranks() {
+    let dir = scratch("spin_ranks");
+    let layer = "[mass]\nkind = \"modified1\"\ncontact_boundary = \"bottom\"\n[[dirichlet]]\ngroup = \"left\"\nvalue = [\"0.1*t\", \"0\"]\ncomponents = [\"x\"]\n[body_force]\nacceleration = [\"0\", \"-9.81\"]\n";
+    let scene = spinning_square(&dir, "spin", "saint_venant_kirchhoff", 3.0, 0.01, 50, layer);
+    let runs: Vec<(usize, RunSummary)> = [1, 2, 3].map(|r| (r, run_scene(r, &scene, &[]))).into();
+    let u1 = values(&dir.join("spin-1.h5"), "fields/displacement");
+    let scale = u1.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+    for (r, s) in &runs {
+        // The energy identity holds with the loads and the moving boundary's reaction work.
+        assert!(s.energy_balance < 1e-10, "{r} ranks: energy balance {:e}", s.energy_balance);
+        let u = values(&dir.join(format!("spin-{r}.h5")), "fields/displacement");
+        let diff = u.iter().zip(&u1).fold(0.0f64, |m, (a, b)| m.max((a - b).abs()));
+        assert!(diff < 1e-8 * scale, "{r} ranks: displacements differ by {diff:e} of {scale:e}");
+        let n = values(&dir.join(format!("spin-{r}.h5")), "newton/iterations");
+        assert_eq!(n.len(), 51, "{r} ranks: a Newton count per step");
+        assert!(n[1..].iter().all(|&k| k >= 1.0));
+    }
+}
+
+#[test]
+fn a_rigid_rotation_of_ninety_degrees_is_stress_free_at_finite_strain_only() {
+    let dir = scratch("rotation");
+    // u = (R - I)(X - c) for R the rotation by 90 degrees about z through c.
+    let rotation2 = "[initial]\ndisplacement = [\"-(y-0.5)-(x-0.5)\", \"(x-0.5)-(y-0.5)\"]\n[time]\ntau = 0.01\nsteps = 10\n";
+    let rotation3 = "[initial]\ndisplacement = [\"-(y-0.5)-(x-0.5)\", \"(x-0.5)-(y-0.5)\", \"0\"]\n[time]\ntau = 0.01\nsteps = 10\n";
+    let (lambda, mu) = (100.0 * 0.3 / (1.3 * 0.4), 100.0 / 2.6);
+    for (geo, rest) in [
+        ("square_quad.geo", rotation2),
+        ("square_tri.geo", rotation2),
+        ("cube_hex.geo", rotation3),
+        ("block_tet.geo", rotation3),
+    ] {
+        for model in ["neo_hookean", "saint_venant_kirchhoff", "linear"] {
+            let name = format!("{}_{model}", geo.trim_end_matches(".geo"));
+            let scene = small_scene(&dir, &name, geo, 0.5, &format!("model = \"{model}\"\n{rest}"));
+            let s = run_scene(1, &scene, &[]);
+            if model == "linear" {
+                // The small strain of the rotation is -I in its plane: 2 (lambda + mu) per
+                // unit volume (the block is 10 x 1 x 1, the others unit squares and cubes).
+                let volume = if geo == "block_tet.geo" { 10.0 } else { 1.0 };
+                let want = 2.0 * (lambda + mu) * volume;
+                assert!(
+                    rel_diff(s.energy_initial, want) < 1e-10,
+                    "{name}: {} against {want}",
+                    s.energy_initial
+                );
+            } else {
+                assert!(
+                    s.energy_initial.abs() < 1e-12 * mu,
+                    "{name}: energy {:e}",
+                    s.energy_initial
+                );
+                assert!(
+                    s.energy_final.abs() < 1e-12 * mu,
+                    "{name}: energy {:e} after 10 steps",
+                    s.energy_final
+                );
+                let u = values(&dir.join(format!("{name}-1.h5")), "fields/displacement");
+                let n = u.len() / 11;
+                let moved =
+                    u[10 * n..].iter().zip(&u[..n]).fold(0.0f64, |m, (a, b)| m.max((a - b).abs()));
+                assert!(moved < 1e-12, "{name}: the rotated body at rest moved by {moved:e}");
+            }
+        }
+    }
+}
+
+#[test]
+fn an_element_that_inverts_ends_the_run_with_one_line() {
+    let dir = scratch("invert");
+    // Saint Venant-Kirchhoff's energy stays finite as J -> 0: a fast enough implosion passes
+    // through it (the energy at F = 0 is lambda/2 + mu/2 per unit area, 48; the kinetic energy
+    // 5000 (x^2 + y^2)/2 integrated, 833).
+    let scene = small_scene(
+        &dir,
+        "implode",
+        "square_quad.geo",
+        0.25,
+        "model = \"saint_venant_kirchhoff\"\n[initial]\nvelocity = [\"-100*(x-0.5)\", \"-100*(y-0.5)\"]\n[time]\ntau = 0.001\nsteps = 100\n[output]\nevery = 1\n",
+    );
+    let out = dir.join("implode.h5");
+    let o = massfree(
+        2,
+        &[
+            "run",
+            scene.to_str().unwrap(),
+            "--quiet",
+            "--overwrite",
+            "--output",
+            out.to_str().unwrap(),
+        ],
+    );
+    assert!(!o.status.success(), "the implosion ran through");
+    let err = String::from_utf8_lossy(&o.stderr);
+    let lines: Vec<&str> = err.lines().filter(|l| l.contains("massfree")).collect();
+    assert_eq!(lines.len(), 1, "one line, got:\n{err}");
+    assert!(
+        lines[0].contains("step ") && lines[0].contains("inverts") && lines[0].contains("the body"),
+        "{}",
+        lines[0]
+    );
+    assert!(!err.contains("panicked") && !err.contains("backtrace"), "{err}");
+    // The file keeps the steps before, says it failed, and holds no NaN.
+    let run = reader(&out);
+    let status = run.text("status");
+    assert!(status.contains("failed"), "status {status}");
+    let u = values(&out, "fields/displacement");
+    assert!(u.len() >= 5 * 25 * 2, "the steps before the failure are kept ({} values)", u.len());
+    assert!(u.iter().all(|x| x.is_finite()));
+    assert!(values(&out, "energy/total").iter().all(|x| x.is_finite()));
+}
