@@ -291,6 +291,37 @@ impl NormalConstraints {
         })
     }
 
+    /// The step operator was replaced by a new unconstrained one of the same pattern (a
+    /// finite-strain Newton iteration's tangent): read the kept rows and `K_C` again; the
+    /// operator holds no condition now. Collective.
+    pub fn refresh(&mut self, k: &Matrix) -> Result<()> {
+        let di = self.dim as i32;
+        for row in self.rows.iter_mut() {
+            let mut vals = Vec::with_capacity(row.vals.len());
+            for c in 0..di {
+                let same = k.with_row((row.dof0 + c) as usize, |cc, vv| {
+                    vals.extend_from_slice(vv);
+                    cc == &row.cols[..]
+                })?;
+                if !same {
+                    return Err(Error::Solver(format!(
+                        "contact: row {} of the new step operator has other columns than the old one's",
+                        row.dof0 + c
+                    )));
+                }
+            }
+            row.vals = vals;
+        }
+        for row in self.rows.iter().filter(|r| r.contact.is_some()) {
+            let ids: Vec<i32> = (0..di).map(|c| row.dof0 + c).collect();
+            self.k_c.set_values(&ids, &row.cols, &row.vals, false)?;
+        }
+        self.k_c.assemble()?;
+        self.applied.iter_mut().for_each(|c| *c = Condition::Free);
+        self.dirty.clear();
+        Ok(())
+    }
+
     /// Makes `k` the constrained operator `K~` for the nodes' conditions (collective; every
     /// rank passes the same conditions). Returns whether `k` changed.
     pub fn impose(&mut self, k: &mut Matrix, conds: &[Condition]) -> Result<bool> {

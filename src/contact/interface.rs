@@ -15,6 +15,17 @@ pub trait ContactSolver {
     fn prepare(&mut self, _k: &Matrix) -> Result<()> {
         Ok(())
     }
+    /// The step operator was replaced by a new unconstrained one of the same pattern (each
+    /// Newton iteration of finite-strain bodies): what the solver read from the old one is
+    /// read again (collective).
+    fn operator_replaced(&mut self, k: &Matrix) -> Result<()> {
+        self.prepare(k)
+    }
+    /// Whether the solver can follow an operator that changes every Newton iteration
+    /// ([`ContactSolver::operator_replaced`] cheap; finite strain).
+    fn follows_operator_changes(&self) -> bool {
+        false
+    }
     /// Solves one step (see [`StepSystem`]). Returns the step's contact data and the KSP
     /// iterations of its solves.
     fn solve(&mut self, sys: StepSystem<'_>) -> Result<(StepContact, usize)>;

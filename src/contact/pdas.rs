@@ -158,6 +158,17 @@ impl ContactSolver for ActiveSet<'_> {
         Ok(())
     }
 
+    fn operator_replaced(&mut self, k: &Matrix) -> Result<()> {
+        match self.constraints.as_mut() {
+            Some(c) => c.refresh(k),
+            None => self.prepare(k),
+        }
+    }
+
+    fn follows_operator_changes(&self) -> bool {
+        true
+    }
+
     fn solve(&mut self, sys: StepSystem<'_>) -> Result<(StepContact, usize)> {
         let StepSystem { k, ksp, rhs, u, du, step, time, tau } = sys;
         if self.constraints.is_none() {

@@ -287,10 +287,11 @@ impl<'a> Simulation<'a> {
         let (u0, v0) = start::initial_state(d)?;
         let mut midpoint = Midpoint::new(op, m, a, dirichlet, d.scene.tau, u0, v0, 0.0, &loads)?;
         if d.bodies.finite_strain() {
-            if with_contact {
-                return Err(Error::Usage(
-                    "finite strain with [contact] is not available yet: give the bodies model = \"linear\"".into(),
-                ));
+            if let Some(c) = contact.as_deref().filter(|c| !c.follows_operator_changes()) {
+                return Err(Error::Usage(format!(
+                    "finite strain: {} cannot follow the tangent that changes every Newton iteration (two-body pairs and -contact_solver columns work with model = \"linear\" only)",
+                    if c.is_pair() { "the dual mortar pair solver" } else { "this contact solver" }
+                )));
             }
             midpoint.set_finite_strain(start::newton(d, &self.app, midpoint.u())?)?;
         }

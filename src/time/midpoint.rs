@@ -586,12 +586,7 @@ impl Midpoint {
         mut contact: Option<&mut (dyn ContactSolver + 'c)>,
     ) -> Result<StepReport> {
         if self.newton.is_some() {
-            if contact.is_some() {
-                return Err(Error::Usage(
-                    "finite strain with contact is not available yet: use model = \"linear\" for scenes with [contact]".into(),
-                ));
-            }
-            return self.step_finite_strain(n, forces);
+            return self.step_finite_strain(n, forces, contact);
         }
         let tau = self.tau;
         let t_next = self.time_at(n + 1);

@@ -25,6 +25,7 @@ use mpi::topology::SimpleCommunicator;
 use mpi::traits::*;
 
 use crate::assembly::finite_strain::{Evaluation, InternalForce};
+use crate::contact::{ContactSolver, StepContact, StepSystem};
 use crate::error::{Error, Result};
 use crate::mass::MassMatrix;
 use crate::petsc::{Ksp, Matrix, Vector};
@@ -65,7 +66,7 @@ pub struct NewtonStats {
 }
 
 /// One step's result.
-#[derive(Debug, Clone, Copy)]
+#[derive(Debug, Clone)]
 pub struct NewtonStep {
     /// Newton iterations (tangent solves) and their KSP iterations.
     pub iterations: usize,
@@ -74,6 +75,8 @@ pub struct NewtonStep {
     pub strain_energy: f64,
     /// The work of the Dirichlet reactions, `r_D.du_D/2`.
     pub dirichlet_work: f64,
+    /// The contact solver's result of the last iteration (scenes with contact).
+    pub contact: Option<StepContact>,
 }
 
 /// The pieces of the integrator one Newton step works with.
@@ -108,6 +111,12 @@ pub struct Newton {
     pub stats: NewtonStats,
     f_int: Vector,
     r: Vector,
+    /// With contact: `r + c`, the contact forces `c = 2 B^T lambda` of the last solve, and
+    /// the linearized step's right-hand side (as given, and with the Dirichlet rows set).
+    rc: Vector,
+    c: Vector,
+    rhs: Vector,
+    rhs_free: Vector,
     mdu: Vector,
     delta: Vector,
     u1: Vector,
@@ -139,6 +148,10 @@ impl Newton {
             stats: NewtonStats::default(),
             f_int: dup()?,
             r: dup()?,
+            rc: dup()?,
+            c: dup()?,
+            rhs: dup()?,
+            rhs_free: dup()?,
             mdu: dup()?,
             delta: dup()?,
             u1: dup()?,
@@ -153,14 +166,16 @@ impl Newton {
         self.force.energy(u)?.map_err(|m| Error::Solver(format!("the initial state: {m}")))
     }
 
-    /// `r(du)` into `self.r` with the Dirichlet rows zeroed; returns (`|r|`, the norms' sum the
-    /// residual is measured against, `du.r_F/2`, `du_D.r_D/2`). Collective.
-    fn residual(&mut self, s: &mut StepInputs) -> Result<(f64, f64, f64, f64)> {
+    /// `r(du)` into `self.r` with the Dirichlet rows zeroed, and with contact `r + c` (`c` the
+    /// last contact solve's forces `2 B^T lambda`) into `self.rc`; returns (`|r + c|`, the
+    /// norms' sum the residual is measured against, `du.(r + c)_F/2`, `du_D.r_D/2`).
+    /// Collective.
+    fn residual(&mut self, s: &mut StepInputs, contact: bool) -> Result<(f64, f64, f64, f64)> {
         let (tau, lo) = (s.tau, s.du.ownership_range().0);
         s.m.mult(s.du, &mut self.mdu)?;
         let ci = 4.0 / (tau * tau);
         let cv = 4.0 / tau;
-        let mut parts = [0.0f64; 4];
+        let mut parts = [0.0f64; 5];
         let mut reaction = 0.0;
         let mut work = 0.0;
         let fsum = s.f_sum;
@@ -181,14 +196,12 @@ impl Newton {
             },
         )?;
         if let Some(f) = fsum {
-            Vector::with_slices([f], [&mut self.r], |[f], [r]| {
+            Vector::with_slices([f, &*s.du], [&mut self.r], |[f, du], [r]| {
                 for i in 0..r.len() {
                     r[i] -= f[i];
                     parts[3] += f[i] * f[i];
                 }
-            })?;
-            // The loads' part of the reaction rows.
-            Vector::with_slices([f, &*s.du], [], |[f, du], []| {
+                // The loads' part of the reaction rows.
                 for &d in s.dirichlet {
                     let i = d as usize - lo;
                     reaction -= 0.5 * du[i] * f[i];
@@ -200,19 +213,29 @@ impl Newton {
                 r[d as usize - lo] = 0.0;
             }
         })?;
-        Vector::with_slices([&self.r, &*s.du], [], |[r, du], []| {
+        let total = if contact {
+            Vector::with_slices([&self.r, &self.c], [&mut self.rc], |[r, c], [rc]| {
+                for i in 0..rc.len() {
+                    rc[i] = r[i] + c[i];
+                    parts[4] += c[i] * c[i];
+                }
+            })?;
+            &self.rc
+        } else {
+            &self.r
+        };
+        Vector::with_slices([total, &*s.du], [], |[r, du], []| {
             for i in 0..r.len() {
                 work += 0.5 * du[i] * r[i];
             }
         })?;
         let world = SimpleCommunicator::world();
-        let mut local = [parts[0], parts[1], parts[2], parts[3], work, reaction];
-        let mut all = [0.0f64; 6];
+        let local = [parts[0], parts[1], parts[2], parts[3], parts[4], work, reaction];
+        let mut all = [0.0f64; 7];
         world.all_reduce_into(&local[..], &mut all[..], SystemOperation::sum());
-        local = all;
-        let norm = self.r.norm2()?;
-        let scale = local[..4].iter().map(|x| x.sqrt()).sum::<f64>();
-        Ok((norm, scale, local[4], local[5]))
+        let norm = total.norm2()?;
+        let scale = all[..5].iter().map(|x| x.sqrt()).sum::<f64>();
+        Ok((norm, scale, all[5], all[6]))
     }
 
     /// `u_1 = u_0 + du` and the internal force there. Collective.
@@ -244,9 +267,15 @@ impl Newton {
         Ok((self.body_names[b].clone(), x))
     }
 
-    /// One step: `s.du` from its first guess to the solution. Collective.
-    pub fn step(&mut self, mut s: StepInputs) -> Result<NewtonStep> {
+    /// One step: `s.du` from its first guess to the solution, with the contact solver
+    /// inside each iteration when there is one. Collective.
+    pub fn step<'c>(
+        &mut self,
+        mut s: StepInputs,
+        mut contact: Option<&mut (dyn ContactSolver + 'c)>,
+    ) -> Result<NewtonStep> {
         let opts = self.opts;
+        let with_contact = contact.is_some();
         let lo = s.du.ownership_range().0;
         s.du.with_local_slice_mut(|du| {
             for (k, &d) in s.dirichlet.iter().enumerate() {
@@ -261,6 +290,7 @@ impl Newton {
                 x[d as usize - lo] = 0.0;
             }
         })?;
+        self.c.zero()?;
         let energy_scale = s.energy.abs().max(f64::MIN_POSITIVE);
         let where_ = |s: &StepInputs| format!("step {} (t = {:e})", s.step, s.time);
         let mut iterations = 0;
@@ -269,24 +299,27 @@ impl Newton {
         let mut halved = 0;
         let mut last_norm = f64::INFINITY;
         let mut history: Vec<f64> = Vec::new();
+        let mut report: Option<StepContact> = None;
+        let mut set_repeated = false;
         loop {
             let w1 = match self.evaluate(&s, false)? {
                 Evaluation::Energies { w1, .. } => w1,
-                Evaluation::Inverted(m) if halvings < Self::MAX_HALVINGS => {
+                Evaluation::Inverted(_) if halvings < Self::MAX_HALVINGS => {
                     // Back along the last correction: du -= delta/2.
                     self.delta.scale(0.5)?;
                     s.du.axpy(-1.0, &self.delta)?;
                     halvings += 1;
                     halved += 1;
-                    let _ = m;
                     continue;
                 }
                 Evaluation::Inverted(m) => {
                     return Err(Error::Solver(format!("{}: {m}", where_(&s))));
                 }
             };
-            let (norm, scale, error, reaction) = self.residual(&mut s)?;
-            if norm > last_norm && iterations > 0 && halvings < Self::MAX_HALVINGS {
+            let (norm, scale, error, reaction) = self.residual(&mut s, with_contact)?;
+            // A contact solve is a full step of the constrained problem: not halved.
+            if norm > last_norm && iterations > 0 && halvings < Self::MAX_HALVINGS && !with_contact
+            {
                 self.delta.scale(0.5)?;
                 s.du.axpy(-1.0, &self.delta)?;
                 halvings += 1;
@@ -298,9 +331,11 @@ impl Newton {
             // and the internal force at about eps times the unit-strain forces (a rotated
             // body at rest: C = R^T R = I + O(eps)).
             let floor = norm <= 1e2 * f64::EPSILON * (scale + 2.0 * self.force.unit_force);
-            let converged = (norm <= opts.rtol * scale
+            let converged = ((norm <= opts.rtol * scale
                 && error.abs() <= opts.energy_rtol * energy_scale)
-                || floor;
+                || floor)
+                // With contact: at least one constrained solve, and its active set repeated.
+                && (!with_contact || (iterations > 0 && set_repeated));
             if converged {
                 self.stats.steps += 1;
                 self.stats.last = iterations;
@@ -314,6 +349,7 @@ impl Newton {
                     ksp_iterations,
                     strain_energy: w1,
                     dirichlet_work: reaction,
+                    contact: report,
                 });
             }
             if iterations >= opts.max_it {
@@ -332,7 +368,7 @@ impl Newton {
                 )));
             }
             last_norm = norm;
-            // K_T = 4/tau^2 M + 2 T, Dirichlet rows and columns eliminated.
+            // K_T = 4/tau^2 M + 2 T.
             match self.evaluate(&s, true)? {
                 Evaluation::Energies { .. } => {}
                 Evaluation::Inverted(m) => {
@@ -342,20 +378,76 @@ impl Newton {
             s.k.zero_entries()?;
             s.k.axpy(2.0, &self.tangent, crate::petsc::Pattern::Subset)?;
             s.m.add_to(s.k, 4.0 / (s.tau * s.tau))?;
-            s.k.zero_rows_columns(s.dirichlet, s.dirichlet_diag, None, None)?;
-            s.ksp.set_operators(s.k, s.k)?;
-            self.r.scale(-1.0)?;
-            self.delta.zero()?;
-            let info = s.ksp.solve(&self.r, &mut self.delta).map_err(|e| match e {
-                Error::Solver(m) => Error::Solver(format!(
-                    "{}: Newton iteration {}: {m}",
-                    where_(&s),
-                    iterations + 1
-                )),
-                other => other,
+            let Some(solver) = contact.as_deref_mut() else {
+                // Dirichlet rows and columns eliminated; delta_D = 0.
+                s.k.zero_rows_columns(s.dirichlet, s.dirichlet_diag, None, None)?;
+                s.ksp.set_operators(s.k, s.k)?;
+                self.r.scale(-1.0)?;
+                self.delta.zero()?;
+                let info = s.ksp.solve(&self.r, &mut self.delta).map_err(|e| match e {
+                    Error::Solver(m) => Error::Solver(format!(
+                        "{}: Newton iteration {}: {m}",
+                        where_(&s),
+                        iterations + 1
+                    )),
+                    other => other,
+                })?;
+                ksp_iterations += info.iterations;
+                s.du.axpy(1.0, &self.delta)?;
+                iterations += 1;
+                halvings = 0;
+                continue;
+            };
+            // With contact the solver sees the linearized step `K_T du = K_T du^k - r(du^k)
+            // [- 2 B^T lambda]` in the increment itself, as the linear step's: its constraints
+            // and forces are those of the new increment.
+            s.k.mult(s.du, &mut self.rhs)?;
+            self.rhs.axpy(-1.0, &self.r)?;
+            self.rhs_free.copy_from(&self.rhs)?;
+            s.k.zero_rows_columns(
+                s.dirichlet,
+                s.dirichlet_diag,
+                Some(&*s.du),
+                Some(&mut self.rhs),
+            )?;
+            solver.operator_replaced(s.k)?;
+            self.delta.copy_from(s.du)?;
+            let (rep, its) = solver
+                .solve(StepSystem {
+                    k: s.k,
+                    ksp: s.ksp,
+                    rhs: &self.rhs,
+                    u: s.u,
+                    du: s.du,
+                    step: s.step,
+                    time: s.time,
+                    tau: s.tau,
+                })
+                .map_err(|e| match e {
+                    Error::Solver(m) if !m.starts_with("contact") => Error::Solver(format!(
+                        "{}: Newton iteration {}: {m}",
+                        where_(&s),
+                        iterations + 1
+                    )),
+                    other => other,
+                })?;
+            ksp_iterations += its;
+            set_repeated = report.as_ref().is_some_and(|r| r.row.active == rep.row.active);
+            report = Some(rep);
+            // delta = du^{k+1} - du^k (for an inverted iterate's halving).
+            self.delta.aypx(-1.0, s.du)?;
+            // c = 2 B^T lambda = rhs - K_T du^{k+1} on the free rows (K_T unconstrained).
+            self.tangent.mult(s.du, &mut self.c)?;
+            s.m.mult(s.du, &mut self.mdu)?;
+            let ci = 4.0 / (s.tau * s.tau);
+            Vector::with_slices([&self.rhs_free, &self.mdu], [&mut self.c], |[b, mdu], [c]| {
+                for i in 0..c.len() {
+                    c[i] = b[i] - ci * mdu[i] - 2.0 * c[i];
+                }
+                for &d in s.dirichlet {
+                    c[d as usize - lo] = 0.0;
+                }
             })?;
-            ksp_iterations += info.iterations;
-            s.du.axpy(1.0, &self.delta)?;
             iterations += 1;
             halvings = 0;
         }

@@ -2,6 +2,7 @@
 //! Dirichlet increments and energy accounting around one Newton loop.
 
 use super::{Midpoint, StepReport};
+use crate::contact::ContactSolver;
 use crate::error::Result;
 use crate::time::newton::{Newton, StepInputs};
 use crate::time::Forces;
@@ -24,11 +25,13 @@ impl Midpoint {
         self.newton.as_ref().map(|n| n.stats)
     }
 
-    /// One step `n -> n + 1` of the energy-momentum midpoint rule (no contact).
-    pub(super) fn step_finite_strain(
+    /// One step `n -> n + 1` of the energy-momentum midpoint rule, with the contact solver
+    /// inside each Newton iteration when there is one.
+    pub(super) fn step_finite_strain<'c>(
         &mut self,
         n: usize,
         forces: &dyn Forces,
+        contact: Option<&mut (dyn ContactSolver + 'c)>,
     ) -> Result<StepReport> {
         let tau = self.tau;
         let t_next = self.time_at(n + 1);
@@ -53,27 +56,34 @@ impl Midpoint {
         self.du.scale(tau)?;
         let energy = self.energy.kinetic + self.energy.potential;
         let newton = self.newton.as_mut().expect("finite strain");
-        let step = newton.step(StepInputs {
-            m: &self.m,
-            k: &mut self.op.k,
-            ksp: &mut self.op.ksp,
-            dirichlet: &dofs,
-            dirichlet_du: &du_d,
-            dirichlet_diag: self.op.dirichlet_diag,
-            u: &self.u,
-            mv: &self.mv,
-            f_sum: loads.then_some(&self.rhs),
-            du: &mut self.du,
-            tau,
-            energy,
-            step: n + 1,
-            time: t_next,
-        })?;
+        let step = newton.step(
+            StepInputs {
+                m: &self.m,
+                k: &mut self.op.k,
+                ksp: &mut self.op.ksp,
+                dirichlet: &dofs,
+                dirichlet_du: &du_d,
+                dirichlet_diag: self.op.dirichlet_diag,
+                u: &self.u,
+                mv: &self.mv,
+                f_sum: loads.then_some(&self.rhs),
+                du: &mut self.du,
+                tau,
+                energy,
+                step: n + 1,
+                time: t_next,
+            },
+            contact,
+        )?;
         self.ksp_iterations += step.ksp_iterations;
         if loads {
             self.energy.external_work += self.load_work(varying)?;
         }
         self.energy.dirichlet_work += step.dirichlet_work;
+        if let Some(c) = &step.contact {
+            self.energy.contact_work += c.work + c.tangential_work;
+            self.energy.friction_dissipation += c.dissipation;
+        }
         if loads && varying {
             std::mem::swap(&mut self.f_now, &mut self.f_next);
         }
@@ -88,7 +98,7 @@ impl Midpoint {
             time: t_next,
             ksp_iterations: step.ksp_iterations,
             newton_iterations: step.iterations,
-            contact: None,
+            contact: step.contact,
         })
     }
 }
