@@ -299,9 +299,6 @@ impl<'a> Simulation<'a> {
         let massless_initialized = match self.opts.restart {
             // A restart's state already is consistent.
             Some(_) => None,
-            // The linear projection would put finite-strain massless rows in the small-strain
-            // equilibrium (a rigid rotation is not one): their start stays as given.
-            None if midpoint.is_finite_strain() => None,
             None => start::make_massless_consistent(d, &mut midpoint, contact.as_deref(), &loads)?,
         };
         // The energy correction of contact steps with massless DOFs (on unless

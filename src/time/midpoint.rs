@@ -356,6 +356,9 @@ impl Midpoint {
         if !any {
             return Ok(None);
         }
+        if self.newton.is_some() {
+            return self.project_massless_finite(&local, loads, hold).map(Some);
+        }
         // r = f - A u
         let mut r = self.u.duplicate()?;
         if loads {

@@ -452,4 +452,69 @@ impl Newton {
             halvings = 0;
         }
     }
+
+    /// Puts the free massless DOFs (`free`, local) in static equilibrium at the current state,
+    /// `f_int,C(u) = f_C` with every other DOF held: Newton with the static tangent
+    /// `d f_int(u)/du = 2 d f_int,alg(u, u)/d u_1` (the algorithmic force is symmetric in its
+    /// two states), the held rows and columns eliminated (`diag` on their diagonal), on the
+    /// step operator's matrix and solver (each step refills them). `u` is changed in place.
+    /// Returns the largest change and the KSP iterations. Collective.
+    #[allow(clippy::too_many_arguments)]
+    pub fn static_massless(
+        &mut self,
+        k: &mut Matrix,
+        ksp: &mut Ksp,
+        u: &mut Vector,
+        loads: Option<&Vector>,
+        free: &[bool],
+        diag: f64,
+    ) -> Result<(f64, usize)> {
+        let (lo, _) = u.ownership_range();
+        let held: Vec<i32> =
+            (0..free.len()).filter(|&i| !free[i]).map(|i| (lo + i) as i32).collect();
+        let start = u.duplicate()?;
+        let mut start = start;
+        start.copy_from(u)?;
+        let mut its = 0;
+        let mut first = None;
+        for _ in 0..self.opts.max_it {
+            self.force.set_start(u)?;
+            match self.force.evaluate(u, &mut self.f_int, Some(&mut self.tangent))? {
+                Evaluation::Energies { .. } => {}
+                Evaluation::Inverted(m) => {
+                    return Err(Error::Solver(format!("the massless layer's equilibrium: {m}")))
+                }
+            }
+            self.r.copy_from(&self.f_int)?;
+            if let Some(f) = loads {
+                self.r.axpy(-1.0, f)?;
+            }
+            let mut scale = 0.0f64;
+            self.r.with_local_slice_mut(|r| {
+                for i in 0..r.len() {
+                    if free[i] {
+                        scale = scale.max(r[i].abs());
+                    } else {
+                        r[i] = 0.0;
+                    }
+                }
+            })?;
+            let norm = self.r.norm2()?;
+            let reference = *first.get_or_insert(norm);
+            let floor = 1e2 * f64::EPSILON * self.force.unit_force;
+            if norm <= 1e-12 * reference || norm <= floor {
+                break;
+            }
+            k.zero_entries()?;
+            k.axpy(2.0, &self.tangent, crate::petsc::Pattern::Subset)?;
+            k.zero_rows_columns(&held, diag, None, None)?;
+            ksp.set_operators(k, k)?;
+            self.r.scale(-1.0)?;
+            self.delta.zero()?;
+            its += ksp.solve(&self.r, &mut self.delta)?.iterations;
+            u.axpy(1.0, &self.delta)?;
+        }
+        start.axpy(-1.0, u)?;
+        Ok((start.norm_inf()?, its))
+    }
 }

@@ -106,7 +106,7 @@ impl Midpoint {
     /// (it exchanges energy with each body's motion relative to its mean translation and
     /// leaves every body's momentum balance, impulse = momentum change, as it was). `M1` is
     /// `M` times ones (the mass per DOF), built once.
-    fn without_translations(&mut self, x: &mut Vector) -> Result<()> {
+    pub(super) fn without_translations(&mut self, x: &mut Vector) -> Result<()> {
         self.remove_translations(x, false)
     }
 
