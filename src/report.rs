@@ -138,6 +138,19 @@ pub struct RunSummary {
     /// Finite strain: what the Newton loops did (`time::newton`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub newton: Option<crate::time::newton::NewtonStats>,
+    /// Each body's largest rotation (of its mean deformation gradient).
+    #[serde(default)]
+    pub rotations: Vec<BodyRotation>,
+}
+
+/// One body's largest rotation over a run (`run::rotation`).
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct BodyRotation {
+    pub body: String,
+    /// The largest rotation angle of the body's mean deformation gradient, in degrees.
+    pub degrees: f64,
+    /// When it was reached.
+    pub time: f64,
 }
 
 /// One `[[body]]` of a finished run.
@@ -257,6 +270,7 @@ impl RunSummary {
             step_reuse: Default::default(),
             ksp_iterations_step_max: 7,
             newton: None,
+            rotations: Vec::new(),
             cfl: 0.5,
             stability: None,
         }

@@ -85,6 +85,8 @@ fn a_spinning_square_keeps_its_energy_angular_momentum_and_size_with_every_mass(
         assert!(s.energy_drift < 1e-10, "{mass}: energy drift {:e}", s.energy_drift);
         let (l0, l1) = (s.angular_momentum_initial[2], s.angular_momentum_final[2]);
         assert!(rel_diff(l0, l1) < 1e-10, "{mass}: angular momentum {l0} -> {l1}");
+        // A hundred turns: the rotation passed 179 degrees (a finite-strain body: no warning).
+        assert!(s.rotations[0].degrees > 179.0, "{mass}: {:?}", s.rotations);
         let newton = s.newton.expect("Newton statistics");
         assert_eq!(newton.steps, 10_000);
         let sides = side_lengths(&dir.join("spin-2.h5"));
@@ -115,6 +117,28 @@ fn a_spinning_square_keeps_its_energy_angular_momentum_and_size_with_every_mass(
     let linear = spinning_square(&dir, "linear", "linear", omega, 0.01, 100, "");
     let s = run_scene(2, &linear, &[]);
     assert!(s.newton.is_none());
+    // Its mean deformation gradient I + t W (W = omega's skew tensor) has the polar rotation
+    // atan(omega t): the summary's largest rotation after one turn.
+    let want = omega.atan().to_degrees();
+    assert!(
+        (s.rotations[0].degrees - want).abs() < 1e-6,
+        "rotation {:?}, theory {want}",
+        s.rotations
+    );
+    // The run warns once, when the body passes 5 degrees (omega t = 5 degrees after 0.0139,
+    // the second step).
+    let o =
+        massfree(2, &["run", linear.to_str().unwrap(), "--quiet", "--overwrite", "--no-output"]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    let warnings: Vec<&str> = err.lines().filter(|l| l.contains("warning")).collect();
+    assert_eq!(warnings.len(), 1, "{err}");
+    assert!(
+        warnings[0].contains("the body has turned")
+            && warnings[0].contains("t = 2e-2")
+            && warnings[0].contains("neo_hookean"),
+        "{}",
+        warnings[0]
+    );
     let sides = side_lengths(&dir.join("linear-2.h5"));
     let want = (1.0 + omega * omega).sqrt();
     for side in sides.last().unwrap() {

@@ -21,6 +21,7 @@ pub mod options;
 pub mod output;
 pub mod physics;
 pub mod record;
+pub mod rotation;
 pub mod start;
 pub mod stress;
 pub mod views;
@@ -81,6 +82,8 @@ struct Stepping<'a> {
     facts: SetupFacts,
     /// The first step of the loop (0, or a restart's checkpoint step).
     first: usize,
+    /// How far each body has turned (and the warning for small-strain bodies that turn).
+    rotations: rotation::BodyRotations,
 }
 
 /// The time loop's clock: its start and the output, error and stress work inside it, which the
@@ -206,6 +209,7 @@ impl<'a> Simulation<'a> {
                 let report = run.midpoint.step(n, &run.loads, run.contact.as_deref_mut())?;
                 let seconds = t_step.elapsed().as_secs_f64();
                 run.record.step(&report, run.midpoint.energy(), seconds, run.midpoint.tau());
+                run.rotations.step(&self.domain, self.console, run.midpoint.u(), report.time)?;
                 self.say_energies(n + 1, report.time, run.midpoint.energy());
                 let stop = self.output_step(n + 1, &run, report.contact.as_ref(), &mut clock)?;
                 phase::step_done(n + 1);
@@ -355,7 +359,9 @@ impl<'a> Simulation<'a> {
             massless_initialized,
             cfl,
         };
-        let run = Stepping { midpoint, contact, loads, record, facts, first };
+        let mut rotations = rotation::BodyRotations::new(d)?;
+        rotations.step(d, console, midpoint.u(), midpoint.time_at(first))?;
+        let run = Stepping { midpoint, contact, loads, record, facts, first, rotations };
         let at_start = run.contact.as_deref().map(|solver| ContactStep {
             solver,
             row: run.record.history.last_row().expect("the history's first row"),
@@ -445,8 +451,9 @@ impl<'a> Simulation<'a> {
         run.facts.timings = self.timings.clone();
         let path = self.output.open_file().map(|o| o.path().to_path_buf());
         let d = &self.domain;
-        let summary =
+        let mut summary =
             record::summarize(d, &run.facts, run.record, &run.midpoint, contact, path, pictures)?;
+        summary.rotations = run.rotations.summary(d);
         self.output.finish(world, &summary, d.n_steps)?;
         Ok(summary)
     }

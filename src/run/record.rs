@@ -330,6 +330,7 @@ pub fn summarize(
         cfl: facts.cfl,
         stability: Some(stability),
         newton: midpoint.newton_stats(),
+        rotations: Vec::new(),
     })
 }
 
@@ -373,6 +374,12 @@ pub fn summary_lines(d: &Domain, layer: Option<(usize, usize)>, s: &RunSummary) 
             s.energy_initial, s.energy_final, s.external_work, s.energy_balance
         ),
     ];
+    for r in s.rotations.iter().filter(|r| r.degrees >= 0.1) {
+        lines.push(format!(
+            "rotation: {} turned {:.1} degrees at most (t = {:e})",
+            r.body, r.degrees, r.time
+        ));
+    }
     if let Some(nw) = &s.newton {
         lines.push(format!(
             "Newton: {:.2} iterations/step (at most {}), {} halved corrections; the largest energy error a step left {:.2e} of the energy",
