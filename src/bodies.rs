@@ -329,6 +329,15 @@ impl Bodies {
         self.regions.iter().any(|r| r.n_cells > 0 && r.spec.model.is_finite_strain())
     }
 
+    /// The finite-strain law of a cell (`None`: small strain).
+    pub fn law(&self, cell: usize) -> Option<crate::fem::hyperelastic::Law> {
+        let r = &self.regions[self.region_of(cell)];
+        r.spec
+            .model
+            .is_finite_strain()
+            .then(|| crate::fem::hyperelastic::Law::new(r.spec.model, &r.material))
+    }
+
     /// The material of a cell.
     #[inline]
     pub fn material(&self, cell: usize) -> &Material {

@@ -312,3 +312,49 @@ fn the_disc_at_finite_strain_hits_the_plane_as_the_linear_one_and_keeps_its_ener
         cl.max_pressure
     );
 }
+
+#[test]
+fn the_stress_output_of_finite_strain_bodies_is_the_cauchy_stress_of_the_deformed_body() {
+    let dir = scratch("cauchy");
+    let (lambda, mu) = (100.0 * 0.3 / (1.3 * 0.4), 100.0 / 2.6);
+    let fields = "[output]\nfields = [\"displacement\", \"stress\", \"von_mises\"]\n";
+    // A uniform stretch F = diag(1.2, 1) (plane strain), J = 1.2: neo-Hooke's Cauchy stress
+    // sigma = (mu (F F^T - I) + lambda ln J I) / J.
+    let stretch = format!("model = \"neo_hookean\"\n[initial]\ndisplacement = [\"0.2*x\", \"0\"]\n[time]\ntau = 0.01\nsteps = 1\n{fields}");
+    let scene = small_scene(&dir, "stretch", "square_tri.geo", 0.5, &stretch);
+    run_scene(1, &scene, &[]);
+    let s = values(&dir.join("stretch-1.h5"), "fields/stress");
+    let j: f64 = 1.2;
+    let want = [
+        (mu * (1.44 - 1.0) + lambda * j.ln()) / j,
+        0.0,
+        0.0,
+        lambda * j.ln() / j,
+        0.0,
+        lambda * j.ln() / j,
+    ];
+    for cell in s[..s.len() / 2].chunks(6) {
+        for k in 0..6 {
+            assert!((cell[k] - want[k]).abs() < 1e-10 * mu, "stress {cell:?} against {want:?}");
+        }
+    }
+    // A rigid rotation of 90 degrees: no stress at finite strain; the linear model's is
+    // lambda tr(eps) I + 2 mu eps with eps = -I in the plane.
+    for (model, sxx, szz) in
+        [("neo_hookean", 0.0, 0.0), ("linear", -2.0 * (lambda + mu), -2.0 * lambda)]
+    {
+        let text = format!("model = \"{model}\"\n[initial]\ndisplacement = [\"-(y-0.5)-(x-0.5)\", \"(x-0.5)-(y-0.5)\"]\n[time]\ntau = 0.01\nsteps = 1\n{fields}");
+        let scene = small_scene(&dir, &format!("turned_{model}"), "square_quad.geo", 0.5, &text);
+        run_scene(1, &scene, &[]);
+        let s = values(&dir.join(format!("turned_{model}-1.h5")), "fields/stress");
+        for cell in s[..s.len() / 2].chunks(6) {
+            let want = [sxx, 0.0, 0.0, sxx, 0.0, szz];
+            for k in 0..6 {
+                assert!(
+                    (cell[k] - want[k]).abs() < 1e-10 * mu,
+                    "{model}: stress {cell:?} against {want:?}"
+                );
+            }
+        }
+    }
+}

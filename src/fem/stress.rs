@@ -65,7 +65,20 @@ pub fn trace(t: &Tensor) -> f64 {
 /// physical gradients `g[a] = grad N_a` of `n` nodes, `eps_ij = sum_a (u_a,i g_a,j + u_a,j
 /// g_a,i) / 2` for `i, j < d`; the other entries (2D: xz, yz, zz) are 0 (plane strain).
 pub fn strain(d: usize, n: usize, g: &[[f64; 3]], u_nodal: &[f64]) -> Tensor {
-    let mut gu = [[0.0; 3]; 3]; // gu[i][j] = du_i/dx_j
+    let gu = gradient(d, n, g, u_nodal);
+    let mut eps = [[0.0; 3]; 3];
+    for i in 0..d {
+        for j in 0..d {
+            eps[i][j] = 0.5 * (gu[i][j] + gu[j][i]);
+        }
+    }
+    eps
+}
+
+/// The displacement gradient `gu[i][j] = du_i/dx_j = sum_a u_a,i g_a,j` (`i, j < d`, the
+/// other entries 0).
+pub fn gradient(d: usize, n: usize, g: &[[f64; 3]], u_nodal: &[f64]) -> Tensor {
+    let mut gu = [[0.0; 3]; 3];
     for a in 0..n {
         for i in 0..d {
             let ua = u_nodal[a * d + i];
@@ -74,13 +87,7 @@ pub fn strain(d: usize, n: usize, g: &[[f64; 3]], u_nodal: &[f64]) -> Tensor {
             }
         }
     }
-    let mut eps = [[0.0; 3]; 3];
-    for i in 0..d {
-        for j in 0..d {
-            eps[i][j] = 0.5 * (gu[i][j] + gu[j][i]);
-        }
-    }
-    eps
+    gu
 }
 
 /// Small strain `eps = sym grad u_h` of a cell at reference point `xi` (see [`strain`]).
@@ -217,6 +224,8 @@ pub struct Sample {
     pub weight: f64,
     pub n: [f64; MAX_NODES],
     pub eps: Tensor,
+    /// The displacement gradient `grad u` there (finite strain: `F = I + grad u`).
+    pub grad: Tensor,
 }
 
 /// Most points of the stress rule (Hex8: 2 x 2 x 2).
@@ -242,7 +251,14 @@ pub fn samples(
         if det.is_nan() || det <= 0.0 {
             return Err(inverted(kind, det, q));
         }
-        out[q] = Sample { weight: t.w[q] * det, n: t.n[q], eps: strain(d, n, &g, u_nodal) };
+        let grad = gradient(d, n, &g, u_nodal);
+        let mut eps = [[0.0; 3]; 3];
+        for i in 0..d {
+            for j in 0..d {
+                eps[i][j] = 0.5 * (grad[i][j] + grad[j][i]);
+            }
+        }
+        out[q] = Sample { weight: t.w[q] * det, n: t.n[q], eps, grad };
     }
     Ok(t.w.len())
 }
@@ -272,14 +288,57 @@ pub fn integrate(
     cell: &mut [f64],
     nodal: &mut [f64],
 ) -> f64 {
+    integrate_with(samples, n, d, |s| (s.eps, hooke(&s.eps, mat)), q, cell, nodal)
+}
+
+/// [`integrate`] for a finite-strain law: at each point the Green-Lagrange strain
+/// `E = (F^T F - I)/2` and the Cauchy stress `sigma = F S F^T / J` of the deformed body
+/// (`F = I + grad u`; averaged with the reference weights).
+pub fn integrate_finite(
+    samples: &[Sample],
+    n: usize,
+    d: usize,
+    law: &crate::fem::hyperelastic::Law,
+    q: Quantity,
+    cell: &mut [f64],
+    nodal: &mut [f64],
+) -> f64 {
+    use crate::fem::hyperelastic::{cauchy_stress, right_cauchy_green};
+    let point = |s: &Sample| {
+        let mut f = s.grad;
+        for (i, row) in f.iter_mut().enumerate() {
+            row[i] += 1.0;
+        }
+        let c = right_cauchy_green(&f);
+        let mut e = [[0.0; 3]; 3];
+        for i in 0..3 {
+            for j in 0..3 {
+                e[i][j] = 0.5 * (c[i][j] - if i == j { 1.0 } else { 0.0 });
+            }
+        }
+        (e, cauchy_stress(law, &f))
+    };
+    integrate_with(samples, n, d, point, q, cell, nodal)
+}
+
+/// [`integrate`] with the strain and the stress at each point given by `point`.
+fn integrate_with(
+    samples: &[Sample],
+    n: usize,
+    d: usize,
+    point: impl Fn(&Sample) -> (Tensor, Tensor),
+    q: Quantity,
+    cell: &mut [f64],
+    nodal: &mut [f64],
+) -> f64 {
     let c = q.components();
     cell[..c].fill(0.0);
     nodal[..n * c].fill(0.0);
     let mut measure = 0.0;
     let mut val = [0.0; 6];
     for s in samples {
-        let sigma = hooke(&s.eps, mat);
-        q.eval(&s.eps, &sigma, d, &mut val);
+        let (eps, sigma) = point(s);
+        q.eval(&eps, &sigma, d, &mut val);
         measure += s.weight;
         for k in 0..c {
             cell[k] += s.weight * val[k];

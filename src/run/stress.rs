@@ -31,7 +31,9 @@ use mpi::traits::*;
 use crate::assembly;
 use crate::bodies::Bodies;
 use crate::error::{Error, Result};
-use crate::fem::stress::{integrate, lumped_weights, samples, Quantity, Sample, MAX_SAMPLES};
+use crate::fem::stress::{
+    integrate, integrate_finite, lumped_weights, samples, Quantity, Sample, MAX_SAMPLES,
+};
 use crate::fem::MAX_NODES;
 use crate::io::{natural_range, Location};
 use crate::mesh::Mesh;
@@ -252,9 +254,13 @@ impl StressOutput {
             let k = samples(kind, &xy[..n], &ue[..n * dim], &mut s)
                 .map_err(|e| cell_error(&mesh, c, e))?;
             let mat = bodies.material(c);
+            let law = bodies.law(c);
             for job in &mut jobs {
                 let nc = job.q.components();
-                integrate(&s[..k], n, dim, mat, job.q, &mut cv, &mut nv);
+                match &law {
+                    Some(law) => integrate_finite(&s[..k], n, dim, law, job.q, &mut cv, &mut nv),
+                    None => integrate(&s[..k], n, dim, mat, job.q, &mut cv, &mut nv),
+                };
                 if let Some(cell) = job.cell.as_mut() {
                     cell[i * nc..(i + 1) * nc].copy_from_slice(&cv[..nc]);
                 }
