@@ -358,3 +358,52 @@ fn the_stress_output_of_finite_strain_bodies_is_the_cauchy_stress_of_the_deforme
         }
     }
 }
+
+#[test]
+fn newton_converges_quadratically_on_a_beam_bent_at_finite_strain() {
+    let dir = scratch("newton_rate");
+    // A cantilever (10 x 1) under a tip-heavy traction, three long steps: large rotations.
+    let scene = scene_text(
+        &dir,
+        "bend.toml",
+        "name = \"bend\"\n[mesh]\ngeo = \"../meshes/beam_quad.geo\"\nparams = { h = 0.25 }\n[material]\nE = 200.0\nnu = 0.3\nrho = 1.0\nmodel = \"neo_hookean\"\n[[dirichlet]]\ngroup = \"left\"\n[[neumann]]\ngroup = \"top\"\ntraction = [\"0\", \"-3\"]\n[time]\ntau = 0.2\nsteps = 3\n",
+    );
+    for ranks in [1, 2] {
+        let o = massfree(
+            ranks,
+            &[
+                "run",
+                scene.to_str().unwrap(),
+                "--quiet",
+                "--overwrite",
+                "--no-output",
+                "--",
+                "-newton_monitor",
+            ],
+        );
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let out = String::from_utf8_lossy(&o.stdout);
+        // "step N Newton K: residual R (relative X), ..." per iteration.
+        let mut rel: Vec<(usize, f64)> = Vec::new();
+        for l in out.lines().filter(|l| l.contains(" Newton ")) {
+            let step: usize = l.split_whitespace().nth(1).unwrap().parse().unwrap();
+            let x: f64 =
+                l.split("(relative ").nth(1).unwrap().split(')').next().unwrap().parse().unwrap();
+            rel.push((step, x));
+        }
+        let mut pairs = 0;
+        for w in rel.windows(2) {
+            let ((s0, a), (s1, b)) = (w[0], w[1]);
+            // Quadratic: the exponent log b / log a near 2 while neither is round-off.
+            if s0 == s1 && a < 0.1 && a > 1e-7 && b > 1e-13 {
+                let order = b.ln() / a.ln();
+                assert!(
+                    order > 1.8,
+                    "{ranks} ranks: step {s0}: {a:e} -> {b:e} (order {order:.2})\n{out}"
+                );
+                pairs += 1;
+            }
+        }
+        assert!(pairs >= 3, "{ranks} ranks: too few iterations to see the rate\n{out}");
+    }
+}

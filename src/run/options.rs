@@ -125,7 +125,8 @@ pub struct AppOptions {
     /// parallel MUMPS does not).
     pub choice_by_run: bool,
     /// The Newton loop of finite-strain bodies (`time::newton`): `-newton_rtol X` (default
-    /// 1e-10), `-newton_energy_rtol X` (1e-13), `-newton_max_it N` (25).
+    /// 1e-10), `-newton_energy_rtol X` (1e-13), `-newton_max_it N` (25), `-newton_monitor`
+    /// (each iteration's residual on stdout).
     pub newton: crate::time::newton::NewtonOptions,
 }
 
@@ -211,6 +212,7 @@ impl AppOptions {
                 Petsc::options_get_real("-newton_rtol")?,
                 Petsc::options_get_real("-newton_energy_rtol")?,
                 Petsc::options_get_real("-newton_max_it")?,
+                Petsc::options_has("-newton_monitor")?,
             )?,
         })
     }
@@ -221,8 +223,9 @@ fn newton_options(
     rtol: Option<f64>,
     energy_rtol: Option<f64>,
     max_it: Option<f64>,
+    monitor: bool,
 ) -> Result<crate::time::newton::NewtonOptions> {
-    let mut o = crate::time::newton::NewtonOptions::default();
+    let mut o = crate::time::newton::NewtonOptions { monitor, ..Default::default() };
     if let Some(x) = positive("-newton_rtol", rtol)? {
         o.rtol = x;
     }

@@ -39,11 +39,13 @@ pub struct NewtonOptions {
     pub energy_rtol: f64,
     /// Newton iterations (linear solves) per step at most.
     pub max_it: usize,
+    /// Print each iteration's residual and energy error (`-newton_monitor`).
+    pub monitor: bool,
 }
 
 impl Default for NewtonOptions {
     fn default() -> Self {
-        NewtonOptions { rtol: 1e-10, energy_rtol: 1e-13, max_it: 25 }
+        NewtonOptions { rtol: 1e-10, energy_rtol: 1e-13, max_it: 25, monitor: false }
     }
 }
 
@@ -168,14 +170,16 @@ impl Newton {
 
     /// `r(du)` into `self.r` with the Dirichlet rows zeroed, and with contact `r + c` (`c` the
     /// last contact solve's forces `2 B^T lambda`) into `self.rc`; returns (`|r + c|`, the
-    /// norms' sum the residual is measured against, `du.(r + c)_F/2`, `du_D.r_D/2`).
+    /// norms' sum the residual is measured against, `du.(r + c)_F/2`, `du_D.r_D/2`, the sum
+    /// of the terms' works `|du.term|/2`, the scale of the energy error next to the energy).
     /// Collective.
-    fn residual(&mut self, s: &mut StepInputs, contact: bool) -> Result<(f64, f64, f64, f64)> {
+    fn residual(&mut self, s: &mut StepInputs, contact: bool) -> Result<(f64, f64, f64, f64, f64)> {
         let (tau, lo) = (s.tau, s.du.ownership_range().0);
         s.m.mult(s.du, &mut self.mdu)?;
         let ci = 4.0 / (tau * tau);
         let cv = 4.0 / tau;
         let mut parts = [0.0f64; 5];
+        let mut works = [0.0f64; 4];
         let mut reaction = 0.0;
         let mut work = 0.0;
         let fsum = s.f_sum;
@@ -188,6 +192,9 @@ impl Newton {
                     parts[0] += (ci * mdu[i]).powi(2);
                     parts[1] += (cv * mv[i]).powi(2);
                     parts[2] += (2.0 * fi[i]).powi(2);
+                    works[0] += 0.5 * ci * mdu[i] * du[i];
+                    works[1] += 0.5 * cv * mv[i] * du[i];
+                    works[2] += fi[i] * du[i];
                 }
                 for &d in s.dirichlet {
                     let i = d as usize - lo;
@@ -200,6 +207,7 @@ impl Newton {
                 for i in 0..r.len() {
                     r[i] -= f[i];
                     parts[3] += f[i] * f[i];
+                    works[3] += 0.5 * f[i] * du[i];
                 }
                 // The loads' part of the reaction rows.
                 for &d in s.dirichlet {
@@ -230,12 +238,16 @@ impl Newton {
             }
         })?;
         let world = SimpleCommunicator::world();
-        let local = [parts[0], parts[1], parts[2], parts[3], parts[4], work, reaction];
-        let mut all = [0.0f64; 7];
+        let local = [
+            parts[0], parts[1], parts[2], parts[3], parts[4], work, reaction, works[0], works[1],
+            works[2], works[3],
+        ];
+        let mut all = [0.0f64; 11];
         world.all_reduce_into(&local[..], &mut all[..], SystemOperation::sum());
         let norm = total.norm2()?;
         let scale = all[..5].iter().map(|x| x.sqrt()).sum::<f64>();
-        Ok((norm, scale, all[5], all[6]))
+        let work_scale = all[7..].iter().map(|x| x.abs()).sum::<f64>();
+        Ok((norm, scale, all[5], all[6], work_scale))
     }
 
     /// `u_1 = u_0 + du` and the internal force there. Collective.
@@ -291,7 +303,6 @@ impl Newton {
             }
         })?;
         self.c.zero()?;
-        let energy_scale = s.energy.abs().max(f64::MIN_POSITIVE);
         let where_ = |s: &StepInputs| format!("step {} (t = {:e})", s.step, s.time);
         let mut iterations = 0;
         let mut ksp_iterations = 0;
@@ -316,7 +327,10 @@ impl Newton {
                     return Err(Error::Solver(format!("{}: {m}", where_(&s))));
                 }
             };
-            let (norm, scale, error, reaction) = self.residual(&mut s, with_contact)?;
+            let (norm, scale, error, reaction, work_scale) = self.residual(&mut s, with_contact)?;
+            // The energy error next to the energy, or to the step's works when it is smaller
+            // (a body starting at rest under loads).
+            let energy_scale = s.energy.abs().max(work_scale).max(f64::MIN_POSITIVE);
             // A contact solve is a full step of the constrained problem: not halved.
             if norm > last_norm && iterations > 0 && halvings < Self::MAX_HALVINGS && !with_contact
             {
@@ -327,6 +341,14 @@ impl Newton {
                 continue;
             }
             history.push(norm);
+            if opts.monitor && SimpleCommunicator::world().rank() == 0 {
+                println!(
+                    "step {} Newton {iterations}: residual {norm:.6e} (relative {:.3e}), energy error {:.3e} of the energy",
+                    s.step,
+                    norm / scale.max(f64::MIN_POSITIVE),
+                    error.abs() / energy_scale
+                );
+            }
             // Round-off leaves the residual at about eps times the terms that cancel in it,
             // and the internal force at about eps times the unit-strain forces (a rotated
             // body at rest: C = R^T R = I + O(eps)).
