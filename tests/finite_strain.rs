@@ -407,3 +407,38 @@ fn newton_converges_quadratically_on_a_beam_bent_at_finite_strain() {
         assert!(pairs >= 3, "{ranks} ranks: too few iterations to see the rate\n{out}");
     }
 }
+
+#[test]
+fn the_free_flying_l_block_keeps_its_energy_and_momenta_after_the_load() {
+    let dir = scratch("l_block");
+    let scene = scene_variant("l_block.toml", &dir, &[]);
+    // The loads end at t = 5 (step 50): from there the block flies free.
+    let early = run_scene(2, &scene, &["--steps", "51"]);
+    let late = run_scene(1, &scene, &["--steps", "200"]);
+    // Equal and opposite loads: no resultant, so no momentum, against the load's impulse
+    // |(256, 512, 768)| times the hat's integral 2.5.
+    let impulse = (256.0f64.powi(2) + 512.0f64.powi(2) + 768.0f64.powi(2)).sqrt() * 2.5;
+    for s in [&early, &late] {
+        let p = s.momentum_final.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+        assert!(p < 1e-10 * impulse, "momentum {:?}", s.momentum_final);
+        assert!(s.energy_balance < 1e-10, "energy balance {:e}", s.energy_balance);
+    }
+    // The load's moment set it spinning; after the load the angular momentum stays.
+    let (l5, l20) = (&early.angular_momentum_final, &late.angular_momentum_final);
+    let size = l5.iter().map(|x| x * x).sum::<f64>().sqrt();
+    assert!(size > 1e3, "angular momentum {l5:?}");
+    for k in 0..3 {
+        assert!(
+            (l5[k] - l20[k]).abs() < 1e-10 * size,
+            "angular momentum {l5:?} at t = 5.1, {l20:?} at t = 20"
+        );
+    }
+    assert!(late.rotations[0].degrees > 90.0, "it turned {:?}", late.rotations);
+    // The energy from t = 5 on (1 rank's run).
+    let t = values(&dir.join("l_block-1.h5"), "energy/time");
+    let e = values(&dir.join("l_block-1.h5"), "energy/total");
+    let free: Vec<f64> =
+        t.iter().zip(&e).filter(|(t, _)| **t > 5.0 + 1e-9).map(|(_, e)| *e).collect();
+    let (lo, hi) = free.iter().fold((f64::INFINITY, 0.0f64), |(a, b), &x| (a.min(x), b.max(x)));
+    assert!(free.len() == 150 && (hi - lo) < 1e-10 * hi, "free flight energy in [{lo}, {hi}]");
+}
