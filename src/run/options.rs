@@ -125,7 +125,7 @@ pub struct AppOptions {
     /// parallel MUMPS does not).
     pub choice_by_run: bool,
     /// The Newton loop of finite-strain bodies (`time::newton`): `-newton_rtol X` (default
-    /// 1e-10), `-newton_energy_rtol X` (1e-13), `-newton_max_it N` (25), `-newton_monitor`
+    /// 1e-10), `-newton_energy_rtol X` (1e-14), `-newton_max_it N` (25), `-newton_monitor`
     /// (each iteration's residual on stdout).
     pub newton: crate::time::newton::NewtonOptions,
 }

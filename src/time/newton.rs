@@ -45,7 +45,7 @@ pub struct NewtonOptions {
 
 impl Default for NewtonOptions {
     fn default() -> Self {
-        NewtonOptions { rtol: 1e-10, energy_rtol: 1e-13, max_it: 25, monitor: false }
+        NewtonOptions { rtol: 1e-10, energy_rtol: 1e-14, max_it: 25, monitor: false }
     }
 }
 
