@@ -442,3 +442,56 @@ fn the_free_flying_l_block_keeps_its_energy_and_momenta_after_the_load() {
     let (lo, hi) = free.iter().fold((f64::INFINITY, 0.0f64), |(a, b), &x| (a.min(x), b.max(x)));
     assert!(free.len() == 150 && (hi - lo) < 1e-10 * hi, "free flight energy in [{lo}, {hi}]");
 }
+
+/// The L2 and H1 errors of the summary's last error sample.
+fn last_errors(s: &RunSummary) -> (f64, f64) {
+    let e = s.errors.last().expect("an error sample");
+    (e.l2, e.h1_semi)
+}
+
+#[test]
+fn a_manufactured_motion_at_finite_strain_converges_at_second_order_in_h_and_tau() {
+    let dir = scratch("manufactured");
+    // In space: the body force of tools/manufactured_finite_strain.py makes a motion with
+    // strains up to 0.3 exact; tau small enough that the time error is below the space error.
+    let tables =
+        std::fs::read_to_string(repo().join("tests/data/manufactured_neo_hooke.toml")).unwrap();
+    let walls = "[[dirichlet]]\ngroup = \"left\"\n[[dirichlet]]\ngroup = \"right\"\n[[dirichlet]]\ngroup = \"top\"\n[[dirichlet]]\ngroup = \"bottom\"\n";
+    let mut space = Vec::new();
+    for h in [0.25, 0.125, 0.0625] {
+        let name = format!("space_{}", (1.0 / h) as usize);
+        let rest = format!("model = \"neo_hookean\"\n{walls}[initial]\nvelocity = [\"pi*sin(pi*x)*sin(pi*y)/5\", \"0\"]\n[time]\ntau = 0.001\nsteps = 100\n{tables}error_steps = [100]\n");
+        space.push(last_errors(&run_scene(
+            2,
+            &small_scene(&dir, &name, "square_quad.geo", h, &rest),
+            &[],
+        )));
+    }
+    for w in space.windows(2) {
+        let (l2, h1) = ((w[0].0 / w[1].0).log2(), (w[0].1 / w[1].1).log2());
+        assert!((1.9..2.2).contains(&l2), "L2 rate {l2:.3} ({space:?})");
+        assert!((0.9..1.2).contains(&h1), "H1 rate {h1:.3} ({space:?})");
+    }
+    // In time: a homogeneous motion u = A(t) X, which the elements hold exactly (its body
+    // force rho A'' X; F uniform, so Div P = 0), leaves the midpoint rule's error alone.
+    let motion = "[\"0.3*sin(2*pi*t)*x\", \"0.3*(1 - cos(2*pi*t))*y\"]";
+    let mut time = Vec::new();
+    for n in [20, 40, 80] {
+        let boundary: String = ["left", "right", "top", "bottom"]
+            .map(|g| format!("[[dirichlet]]\ngroup = \"{g}\"\nvalue = {motion}\n"))
+            .concat();
+        let rest = format!(
+            "model = \"neo_hookean\"\n{boundary}[initial]\nvelocity = [\"0.6*pi*x\", \"0\"]\n[body_force]\nvalue = [\"-1.2*pi^2*sin(2*pi*t)*x\", \"1.2*pi^2*cos(2*pi*t)*y\"]\n[time]\ntau = {}\nsteps = {n}\n[exact]\ndisplacement = {motion}\nvelocity = [\"0.6*pi*cos(2*pi*t)*x\", \"0.6*pi*sin(2*pi*t)*y\"]\ngradient = [[\"0.3*sin(2*pi*t)\", \"0\"], [\"0\", \"0.3*(1 - cos(2*pi*t))\"]]\n",
+            0.4 / n as f64
+        );
+        time.push(last_errors(&run_scene(
+            2,
+            &small_scene(&dir, &format!("time_{n}"), "square_tri.geo", 0.25, &rest),
+            &[],
+        )));
+    }
+    // The first halving is not yet asymptotic (rate 2.3): the second is.
+    let rate = (time[1].0 / time[2].0).log2();
+    assert!((1.9..2.2).contains(&rate), "tau rate {rate:.3} ({time:?})");
+    assert!((time[0].0 / time[1].0).log2() > 1.9, "{time:?}");
+}
