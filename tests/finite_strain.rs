@@ -495,3 +495,32 @@ fn a_manufactured_motion_at_finite_strain_converges_at_second_order_in_h_and_tau
     assert!((1.9..2.2).contains(&rate), "tau rate {rate:.3} ({time:?})");
     assert!((time[0].0 / time[1].0).log2() > 1.9, "{time:?}");
 }
+
+#[test]
+fn at_small_amplitude_the_finite_strain_beam_is_the_linear_one_to_second_order() {
+    let dir = scratch("small_amplitude");
+    // The paper's beam (section 7.1) with its loads and initial velocity scaled by s: the
+    // linear solution scales by s, the neo-Hooke one differs from it by O(s^2).
+    let scaled = |s: f64, model: &str| {
+        let name = format!("beam_{model}_{}", (1.0 / s).round() as usize);
+        let text = format!(
+            "name = \"{name}\"\n[mesh]\ngeo = \"../meshes/beam_quad.geo\"\nparams = {{ h = 0.25 }}\n[material]\nE = 200.0\nnu = 0.3\nrho = 1.0\nmodel = \"{model}\"\n[[dirichlet]]\ngroup = \"left\"\n[[dirichlet]]\ngroup = \"right\"\n[[neumann]]\ngroup = \"top\"\ntraction = [\"{s}*40/13*(5 - x)*sin(2*pi*t)\", \"{s}*140/13*x*(10 - x)*sin(2*pi*t)\"]\n[body_force]\nvalue = [\"{s}*200/13*y*(x - 5)*sin(2*pi*t)\", \"{s}*(0.08*pi^2*x*y^2*(x - 10) + 140/13*x*(x - 10) + 40/13*y^2)*sin(2*pi*t)\"]\n[initial]\nvelocity = [\"0\", \"{s}*0.04*pi*x*(10 - x)*y^2\"]\n[time]\ntau = 2e-3\nsteps = 100\n[output]\nevery = 100\n"
+        );
+        let scene = scene_text(&dir, &format!("{name}.toml"), &text);
+        run_scene(2, &scene, &[]);
+        values(&dir.join(format!("{name}-2.h5")), "fields/displacement")
+    };
+    let mut gaps = Vec::new();
+    for s in [0.02, 0.01] {
+        let (nh, lin) = (scaled(s, "neo_hookean"), scaled(s, "linear"));
+        let n = nh.len() / 2;
+        let size = lin[n..].iter().fold(0.0f64, |m, x| m.max(x.abs()));
+        let gap = nh[n..].iter().zip(&lin[n..]).fold(0.0f64, |m, (a, b)| m.max((a - b).abs()));
+        gaps.push((s, size, gap));
+    }
+    // Halving the amplitude halves the linear solution and quarters the difference.
+    let order = (gaps[0].2 / gaps[1].2).log2();
+    assert!(rel_diff(gaps[0].1, 2.0 * gaps[1].1) < 1e-9, "{gaps:?}");
+    assert!((1.9..2.1).contains(&order), "the difference falls at order {order:.3}: {gaps:?}");
+    assert!(gaps[1].2 < 0.05 * gaps[1].1, "{gaps:?}");
+}
