@@ -156,11 +156,6 @@ impl InternalForce {
         Ok(())
     }
 
-    /// An empty tangent of the cell-graph pattern (AIJ), to be filled by [`Self::evaluate`].
-    pub fn new_tangent(&self) -> Result<Matrix> {
-        super::new_matrix(&self.mesh, &self.part)
-    }
-
     /// `force = f_int,alg(u_0, u_1)` and, with `tangent`, `d f_int,alg / d u_1` written into
     /// it. Collective; every rank returns the same [`Evaluation`] (on an inverted cell `force`
     /// and `tangent` are left as they are).

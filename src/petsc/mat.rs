@@ -399,6 +399,13 @@ impl Matrix {
         chk!(ffi::MatAXPY(self.m, alpha, x.m, s))
     }
 
+    /// `self = x` entry by entry for matrices of the same nonzero structure (`MatCopy` with
+    /// `SAME_NONZERO_PATTERN`: one copy of the value arrays).
+    pub fn copy_values_from(&mut self, x: &Matrix) -> Result<()> {
+        // SAFETY: valid handles of the same layout and structure (PETSc checks the sizes).
+        chk!(ffi::MatCopy(x.m, self.m, ffi::MatStructure_SAME_NONZERO_PATTERN))
+    }
+
     /// Every stored entry set to zero; the pattern stays (`MatZeroEntries`).
     pub fn zero_entries(&mut self) -> Result<()> {
         // SAFETY: valid handle.

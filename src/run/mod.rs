@@ -297,7 +297,9 @@ impl<'a> Simulation<'a> {
                     if c.is_pair() { "the dual mortar pair solver" } else { "this contact solver" }
                 )));
             }
-            midpoint.set_finite_strain(start::newton(d, &self.app, midpoint.u())?)?;
+            let newton =
+                start::newton(d, &self.app, midpoint.u(), &midpoint.operator().k, midpoint.mass())?;
+            midpoint.set_finite_strain(newton)?;
         }
         crate::phase::trace_memory("integrator");
         let massless_initialized = match self.opts.restart {

@@ -124,7 +124,13 @@ pub fn step_operator(
 
 /// The Newton loop of finite-strain bodies: the internal force over this rank's cells and the
 /// loop's options. Collective.
-pub fn newton(d: &Domain, app: &AppOptions, layout: &crate::petsc::Vector) -> Result<Newton> {
+pub fn newton(
+    d: &Domain,
+    app: &AppOptions,
+    layout: &crate::petsc::Vector,
+    k: &Matrix,
+    m: &crate::mass::MassMatrix,
+) -> Result<Newton> {
     use std::rc::Rc;
     let force =
         InternalForce::new(d.world, Rc::clone(&d.mesh), Rc::clone(&d.part), &d.bodies, layout)?;
@@ -132,7 +138,8 @@ pub fn newton(d: &Domain, app: &AppOptions, layout: &crate::petsc::Vector) -> Re
     let n = d.bodies.n_bodies();
     let mut names: Vec<String> = (0..n).map(|i| d.bodies.regions[i + 1].name.clone()).collect();
     names.push(if n == 0 { "the body".to_string() } else { d.bodies.regions[0].name.clone() });
-    Newton::new(force, layout, app.newton, diagnostics::node_bodies(d), names, d.part.dim)
+    let bodies = diagnostics::node_bodies(d);
+    Newton::new(force, layout, k, m, d.scene.tau, app.newton, bodies, names, d.part.dim)
 }
 
 /// The memory a rank may still use: the node's available memory (`MemAvailable`) shared by

@@ -108,7 +108,9 @@ pub struct StepInputs<'a> {
 /// The Newton loop's state, set up once per run.
 pub struct Newton {
     pub force: InternalForce,
+    /// `d f_int,alg / d u_1` and `4/tau^2 M`, both in the step operator's structure.
     tangent: Matrix,
+    inertia: Matrix,
     pub opts: NewtonOptions,
     pub stats: NewtonStats,
     f_int: Vector,
@@ -133,19 +135,29 @@ impl Newton {
     /// At most this many halvings of one Newton correction.
     pub const MAX_HALVINGS: usize = 12;
 
+    /// `k` is the step operator (`4/tau^2 M + A`, unconstrained or not: only its structure
+    /// is used): the tangent and the inertia term `4/tau^2 M` are kept in its structure, so
+    /// that each iteration forms `K_T = 4/tau^2 M + 2 T` by two plain array operations.
+    #[allow(clippy::too_many_arguments)]
     pub fn new(
         force: InternalForce,
         layout: &Vector,
+        k: &Matrix,
+        m: &MassMatrix,
+        tau: f64,
         opts: NewtonOptions,
         node_body: Vec<u32>,
         body_names: Vec<String>,
         dim: usize,
     ) -> Result<Newton> {
-        let tangent = force.new_tangent()?;
+        let tangent = k.duplicate(false)?;
+        let mut inertia = k.duplicate(false)?;
+        m.add_to(&mut inertia, 4.0 / (tau * tau))?;
         let dup = || layout.duplicate();
         Ok(Newton {
             force,
             tangent,
+            inertia,
             opts,
             stats: NewtonStats::default(),
             f_int: dup()?,
@@ -397,9 +409,8 @@ impl Newton {
                     return Err(Error::Solver(format!("{}: {m}", where_(&s))))
                 }
             }
-            s.k.zero_entries()?;
-            s.k.axpy(2.0, &self.tangent, crate::petsc::Pattern::Subset)?;
-            s.m.add_to(s.k, 4.0 / (s.tau * s.tau))?;
+            s.k.copy_values_from(&self.inertia)?;
+            s.k.axpy(2.0, &self.tangent, crate::petsc::Pattern::Same)?;
             let Some(solver) = contact.as_deref_mut() else {
                 // Dirichlet rows and columns eliminated; delta_D = 0.
                 s.k.zero_rows_columns(s.dirichlet, s.dirichlet_diag, None, None)?;
@@ -527,8 +538,8 @@ impl Newton {
             if norm <= 1e-12 * reference || norm <= floor {
                 break;
             }
-            k.zero_entries()?;
-            k.axpy(2.0, &self.tangent, crate::petsc::Pattern::Subset)?;
+            k.copy_values_from(&self.tangent)?;
+            k.scale(2.0)?;
             k.zero_rows_columns(&held, diag, None, None)?;
             ksp.set_operators(k, k)?;
             self.r.scale(-1.0)?;
