@@ -11,6 +11,8 @@ use std::process::Command;
 
 use massfree::report::RunSummary;
 
+#[path = "scaling/finite_strain.rs"]
+mod finite_strain;
 #[path = "scaling/layer.rs"]
 mod layer;
 #[path = "scaling/step_floor.rs"]
@@ -136,7 +138,7 @@ fn main() {
         std::process::exit(1);
     }
     let quick = args.iter().any(|a| a == "--quick");
-    // --only scaling|solvers|mass|disc|contact3d|two_body|friction|output|stress|suite|setup|step|layer|long runs one
+    // --only scaling|solvers|mass|disc|contact3d|two_body|friction|output|stress|suite|setup|step|layer|long|finite_strain runs one
     // section (step:N,M some parts of it).
     let only = args.iter().position(|a| a == "--only").and_then(|i| args.get(i + 1)).cloned();
     let want = |section: &str| only.as_deref().is_none_or(|o| o == section);
@@ -804,6 +806,9 @@ fn main() {
     }
     if want("long") {
         md += &long_runs_section(quick);
+    }
+    if want("finite_strain") {
+        md += &finite_strain::section(&repo(), &bench_dir(), quick);
     }
     let path = bench_dir().join("scaling.md");
     std::fs::write(&path, &md).unwrap();

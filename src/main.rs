@@ -146,6 +146,11 @@ enum Command {
         /// Override the scene's mass treatment: consistent, lumped, modified0, modified1.
         #[arg(long, value_name = "KIND")]
         mass: Option<String>,
+        /// Override the constitutive model of [material] and of every body that does not name
+        /// its own: linear (small strain), neo_hookean or saint_venant_kirchhoff (finite
+        /// strain).
+        #[arg(long, value_name = "MODEL")]
+        model: Option<String>,
         /// Override the friction of every obstacle and pair: Coulomb's coefficient (0:
         /// frictionless).
         #[arg(long, value_name = "MU")]
@@ -288,6 +293,7 @@ fn run(
             verbose,
             params,
             mass,
+            model,
             friction,
             partition,
             replicated_mesh,
@@ -309,6 +315,9 @@ fn run(
             }
             if let Some(kind) = &mass {
                 scene.set_mass_kind(kind)?;
+            }
+            if let Some(m) = &model {
+                scene.set_model(m)?;
             }
             if let Some(mu) = friction {
                 scene.set_friction(mu)?;

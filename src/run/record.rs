@@ -329,7 +329,11 @@ pub fn summarize(
         ksp_iterations_step_max: record.ksp_step_max,
         cfl: facts.cfl,
         stability: Some(stability),
-        newton: midpoint.newton_stats(),
+        newton: midpoint.newton_stats().map(|mut s| {
+            s.force_seconds = max_over_ranks(d.world, s.force_seconds);
+            s.tangent_seconds = max_over_ranks(d.world, s.tangent_seconds);
+            s
+        }),
         rotations: Vec::new(),
     })
 }
@@ -382,11 +386,15 @@ pub fn summary_lines(d: &Domain, layer: Option<(usize, usize)>, s: &RunSummary) 
     }
     if let Some(nw) = &s.newton {
         lines.push(format!(
-            "Newton: {:.2} iterations/step (at most {}), {} halved corrections; the largest energy error a step left {:.2e} of the energy",
+            "Newton: {:.2} iterations/step (at most {}), {} halved corrections; the largest energy error a step left {:.2e} of the energy; internal force {:.3} ms, with its tangent {:.3} ms ({:.3e} cells/s/rank)",
             nw.iterations as f64 / nw.steps.max(1) as f64,
             nw.max_iterations,
             nw.halvings,
-            nw.max_energy_error
+            nw.max_energy_error,
+            1e3 * nw.force_seconds / nw.force_evaluations.max(1) as f64,
+            1e3 * nw.tangent_seconds / nw.tangent_evaluations.max(1) as f64,
+            s.n_cells as f64 * nw.tangent_evaluations as f64
+                / (d.size as f64 * nw.tangent_seconds.max(1e-12))
         ));
     }
     if let Some(d) = s.massless_initialization.filter(|&d| d > 0.0) {

@@ -488,6 +488,24 @@ impl Scene {
         Ok(())
     }
 
+    /// The constitutive model of `[material]` and of every body that does not name its own
+    /// (`--model`).
+    pub fn set_model(&mut self, name: &str) -> Result<()> {
+        let model = Model::from_name(name).ok_or_else(|| {
+            Error::Usage(format!(
+                "--model {name}: unknown model (allowed: linear, neo_hookean, saint_venant_kirchhoff)"
+            ))
+        })?;
+        if model == Model::NeoHookean && self.material.nu >= 0.5 {
+            return Err(Error::Usage(format!("--model {name}: material.nu must be below 0.5")));
+        }
+        self.material.model = model;
+        for b in self.bodies.iter_mut().filter(|b| !b.sets[3]) {
+            b.material.model = model;
+        }
+        Ok(())
+    }
+
     /// Give every obstacle and pair Coulomb's friction `mu` (`--friction`; 0: frictionless).
     pub fn set_friction(&mut self, mu: f64) -> Result<()> {
         if !(mu >= 0.0 && mu.is_finite()) {

@@ -65,6 +65,16 @@ pub struct NewtonStats {
     /// Newton iterations of the last step.
     #[serde(skip)]
     pub last: usize,
+    /// Evaluations of the internal force alone and with its tangent, and their seconds (the
+    /// slowest rank's in a run's summary).
+    #[serde(default)]
+    pub force_evaluations: usize,
+    #[serde(default)]
+    pub force_seconds: f64,
+    #[serde(default)]
+    pub tangent_evaluations: usize,
+    #[serde(default)]
+    pub tangent_seconds: f64,
 }
 
 /// One step's result.
@@ -264,9 +274,19 @@ impl Newton {
 
     /// `u_1 = u_0 + du` and the internal force there. Collective.
     fn evaluate(&mut self, s: &StepInputs, tangent: bool) -> Result<Evaluation> {
+        let t0 = std::time::Instant::now();
         self.u1.waxpy(1.0, s.du, s.u)?;
         let k = if tangent { Some(&mut self.tangent) } else { None };
-        self.force.evaluate(&self.u1, &mut self.f_int, k)
+        let e = self.force.evaluate(&self.u1, &mut self.f_int, k);
+        let seconds = t0.elapsed().as_secs_f64();
+        if tangent {
+            self.stats.tangent_evaluations += 1;
+            self.stats.tangent_seconds += seconds;
+        } else {
+            self.stats.force_evaluations += 1;
+            self.stats.force_seconds += seconds;
+        }
+        e
     }
 
     /// The body with the largest residual entry, and that entry. Collective.

@@ -1,0 +1,122 @@
+//! What finite strain costs (`./run bench --only finite_strain`): the same runs with
+//! `--model linear` and `--model neo_hookean`, side by side in one launch of the benchmark:
+//! Newton iterations per step, the time of a step against the linear one, the internal force
+//! and its tangent per evaluation and as a rate (cells per second and rank), on
+//! - the beam of section 7.1 (2D Q1) at about 10^5 and 10^6 DOFs, its tau scaled to CFL 1;
+//! - the block (3D Q1 hexahedra) at CFL 1;
+//! - the ball dropped on a plane (3D P1, the mass-free layer, contact) at about 10^5 DOFs.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use massfree::report::RunSummary;
+
+/// A shipped scene with its mesh path made absolute and `tau` replaced if given.
+fn scene(repo: &Path, name: &str, tau: Option<f64>, dir: &Path) -> PathBuf {
+    let text = std::fs::read_to_string(repo.join("scenes").join(name)).expect("scene");
+    let mut out = String::new();
+    for line in text.lines() {
+        match tau {
+            Some(t) if line.trim_start().starts_with("tau =") => out += &format!("tau = {t:e}\n"),
+            _ => {
+                out += &line.replace("\"../meshes/", &format!("\"{}/meshes/", repo.display()));
+                out += "\n";
+            }
+        }
+    }
+    let path = dir.join(format!("finite-{name}"));
+    std::fs::write(&path, out).expect("write scene");
+    path
+}
+
+fn run(repo: &Path, dir: &Path, scene: &Path, ranks: usize, args: &[String]) -> Option<RunSummary> {
+    let summary = dir.join("finite-summary.toml");
+    let _ = std::fs::remove_file(&summary);
+    let o = Command::new("mpirun")
+        .args(["--oversubscribe", "-n", &ranks.to_string()])
+        .arg(repo.join("target/release/massfree"))
+        .arg("run")
+        .arg(scene)
+        .args(["--quiet", "--no-output", "--summary"])
+        .arg(&summary)
+        .args(args)
+        .env("OMPI_ALLOW_RUN_AS_ROOT", "1")
+        .env("OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1")
+        .env("OMPI_MCA_btl_vader_single_copy_mechanism", "none")
+        .output()
+        .ok()?;
+    if !o.status.success() {
+        eprintln!("bench: finite strain run failed: {}", String::from_utf8_lossy(&o.stderr));
+        return None;
+    }
+    toml::from_str(&std::fs::read_to_string(&summary).ok()?).ok()
+}
+
+pub fn section(repo: &Path, dir: &Path, quick: bool) -> String {
+    let mut md = String::from(
+        "\nFinite strain against the linear step (the same run with `--model linear` and `--model neo_hookean`, interleaved; stepping time per step; f: the internal force alone, f + K: with its tangent, per evaluation; rate: cells x tangent evaluations / (ranks x their seconds)):\n\n| case | ranks | DOFs | steps | linear ms/step | finite ms/step | ratio | Newton its/step | KSP its/step (linear, finite) | f ms | f + K ms | f + K cells/s/rank |\n|---|---|---|---|---|---|---|---|---|---|---|---|\n",
+    );
+    let s = |v: &[&str]| v.iter().map(|x| x.to_string()).collect::<Vec<_>>();
+    // c_p = 16.41 for E = 200, nu = 0.3, rho = 1: tau = h / c_p is CFL 1.
+    let beams: &[(&str, usize)] =
+        if quick { &[("0.125", 10)] } else { &[("0.03125", 20), ("0.0078125", 10)] };
+    let mut cases: Vec<(String, PathBuf, Vec<String>, Vec<usize>)> = Vec::new();
+    for &(h, steps) in beams {
+        let tau = h.parse::<f64>().unwrap() / 16.41;
+        cases.push((
+            format!("beam 2D Q1, h = {h}"),
+            scene(repo, "beam.toml", Some(tau), dir),
+            s(&["--param", &format!("h={h}"), "--steps", &steps.to_string()]),
+            vec![1, 2],
+        ));
+    }
+    let block_h = if quick { "0.25" } else { "0.0625" };
+    let tau = block_h.parse::<f64>().unwrap() / 16.41;
+    cases.push((
+        format!("block 3D Q1, h = {block_h}"),
+        scene(repo, "block_hex.toml", Some(tau), dir),
+        s(&["--param", &format!("h={block_h}"), "--steps", if quick { "5" } else { "10" }]),
+        vec![1, 2],
+    ));
+    let (bh, bhc, bsteps) = if quick { ("0.2", "0.04", "60") } else { ("0.08", "0.03", "60") };
+    cases.push((
+        format!("ball on a plane, M_H^0, h = {bh}, hc = {bhc} (steps 1-60: the impact)"),
+        scene(repo, "sphere.toml", None, dir),
+        s(&["--param", &format!("h={bh}"), "--param", &format!("hc={bhc}"), "--steps", bsteps]),
+        vec![2],
+    ));
+    for (label, path, args, ranks) in cases {
+        for r in ranks {
+            eprintln!("bench: finite strain, {label}, {r} rank(s)");
+            let with = |model: &str| {
+                let mut a = args.clone();
+                a.extend(["--model".to_string(), model.to_string()]);
+                run(repo, dir, &path, r, &a)
+            };
+            // Interleaved: linear, finite, linear; the linear time is the faster of its two.
+            let (l1, f, l2) = (with("linear"), with("neo_hookean"), with("linear"));
+            let (Some(l1), Some(f), Some(l2)) = (l1, f, l2) else {
+                md += &format!("| {label} | {r} | failed |\n");
+                continue;
+            };
+            let per = |t: &RunSummary| 1e3 * t.timings.stepping / t.steps.max(1) as f64;
+            let lin = per(&l1).min(per(&l2));
+            let fin = per(&f);
+            let nw = f.newton.expect("Newton statistics");
+            md += &format!(
+                "| {label} | {r} | {} | {} | {lin:.2} | {fin:.2} | {:.2} | {:.2} | {:.1}, {:.1} | {:.3} | {:.3} | {:.2e} |\n",
+                f.n_dofs,
+                f.steps,
+                fin / lin,
+                nw.iterations as f64 / nw.steps.max(1) as f64,
+                l1.ksp_iterations as f64 / l1.steps.max(1) as f64,
+                f.ksp_iterations as f64 / f.steps.max(1) as f64,
+                1e3 * nw.force_seconds / nw.force_evaluations.max(1) as f64,
+                1e3 * nw.tangent_seconds / nw.tangent_evaluations.max(1) as f64,
+                f.n_cells as f64 * nw.tangent_evaluations as f64
+                    / (r as f64 * nw.tangent_seconds.max(1e-12)),
+            );
+        }
+    }
+    md
+}
