@@ -7,50 +7,10 @@
 //! - the ball dropped on a plane (3D P1, the mass-free layer, contact) at about 10^5 DOFs.
 
 use std::path::{Path, PathBuf};
-use std::process::Command;
 
 use massfree::report::RunSummary;
 
-/// A shipped scene with its mesh path made absolute and `tau` replaced if given.
-fn scene(repo: &Path, name: &str, tau: Option<f64>, dir: &Path) -> PathBuf {
-    let text = std::fs::read_to_string(repo.join("scenes").join(name)).expect("scene");
-    let mut out = String::new();
-    for line in text.lines() {
-        match tau {
-            Some(t) if line.trim_start().starts_with("tau =") => out += &format!("tau = {t:e}\n"),
-            _ => {
-                out += &line.replace("\"../meshes/", &format!("\"{}/meshes/", repo.display()));
-                out += "\n";
-            }
-        }
-    }
-    let path = dir.join(format!("finite-{name}"));
-    std::fs::write(&path, out).expect("write scene");
-    path
-}
-
-fn run(repo: &Path, dir: &Path, scene: &Path, ranks: usize, args: &[String]) -> Option<RunSummary> {
-    let summary = dir.join("finite-summary.toml");
-    let _ = std::fs::remove_file(&summary);
-    let o = Command::new("mpirun")
-        .args(["--oversubscribe", "-n", &ranks.to_string()])
-        .arg(repo.join("target/release/massfree"))
-        .arg("run")
-        .arg(scene)
-        .args(["--quiet", "--no-output", "--summary"])
-        .arg(&summary)
-        .args(args)
-        .env("OMPI_ALLOW_RUN_AS_ROOT", "1")
-        .env("OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1")
-        .env("OMPI_MCA_btl_vader_single_copy_mechanism", "none")
-        .output()
-        .ok()?;
-    if !o.status.success() {
-        eprintln!("bench: finite strain run failed: {}", String::from_utf8_lossy(&o.stderr));
-        return None;
-    }
-    toml::from_str(&std::fs::read_to_string(&summary).ok()?).ok()
-}
+use super::layer::{run, scene};
 
 pub fn section(repo: &Path, dir: &Path, quick: bool) -> String {
     let mut md = String::from(
@@ -91,7 +51,7 @@ pub fn section(repo: &Path, dir: &Path, quick: bool) -> String {
             let with = |model: &str| {
                 let mut a = args.clone();
                 a.extend(["--model".to_string(), model.to_string()]);
-                run(repo, dir, &path, r, &a)
+                run(repo, r, &path, &a, dir)
             };
             // Interleaved: linear, finite, linear; the linear time is the faster of its two.
             let (l1, f, l2) = (with("linear"), with("neo_hookean"), with("linear"));

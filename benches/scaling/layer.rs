@@ -20,7 +20,15 @@ use std::process::Command;
 
 use massfree::report::RunSummary;
 
-fn run(repo: &Path, ranks: usize, scene: &Path, args: &[String], dir: &Path) -> Option<RunSummary> {
+/// `mpirun -n ranks massfree run scene --quiet --no-output args`: its summary, or None (the
+/// failure's stderr printed).
+pub fn run(
+    repo: &Path,
+    ranks: usize,
+    scene: &Path,
+    args: &[String],
+    dir: &Path,
+) -> Option<RunSummary> {
     let summary = dir.join("layer.toml");
     let _ = std::fs::remove_file(&summary);
     let o = Command::new("mpirun")
@@ -37,14 +45,14 @@ fn run(repo: &Path, ranks: usize, scene: &Path, args: &[String], dir: &Path) -> 
         .output()
         .ok()?;
     if !o.status.success() {
-        eprintln!("bench: layer run failed: {}", String::from_utf8_lossy(&o.stderr));
+        eprintln!("bench: run failed: {}", String::from_utf8_lossy(&o.stderr));
         return None;
     }
     toml::from_str(&std::fs::read_to_string(&summary).ok()?).ok()
 }
 
 /// A shipped scene with its mesh path made absolute and the step `tau` if given.
-fn scene(repo: &Path, name: &str, tau: Option<f64>, dir: &Path) -> PathBuf {
+pub fn scene(repo: &Path, name: &str, tau: Option<f64>, dir: &Path) -> PathBuf {
     let text = std::fs::read_to_string(repo.join("scenes").join(name)).expect("scene");
     let mut out = String::new();
     for line in text.lines() {

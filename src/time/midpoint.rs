@@ -723,20 +723,27 @@ impl Midpoint {
             self.update_energies()?;
         }
         if project {
-            let before = self.energy.total();
-            if self.project_massless(forces.present(), &hold)?.is_some() {
-                self.update_energies()?;
-                let removed = self.energy.total() - before;
-                self.energy.contact_work += removed;
-                self.release_energy += removed;
-                self.release_projections += 1;
-                if self.correct {
-                    // Put back by the next steps' correction.
-                    self.corrections.pending += removed;
-                }
-            }
+            self.release(forces.present(), &hold)?;
         }
         Ok(StepReport { time: t_next, ksp_iterations: its, newton_iterations: 0, contact: report })
+    }
+
+    /// After a step that released massless contact nodes: the massless DOFs but `hold` put
+    /// back in static equilibrium, the energy that took booked as contact work (and, with the
+    /// correction, put back by the next steps). Collective.
+    fn release(&mut self, loads: bool, hold: &[i32]) -> Result<()> {
+        let before = self.energy.total();
+        if self.project_massless(loads, hold)?.is_some() {
+            self.update_energies()?;
+            let removed = self.energy.total() - before;
+            self.energy.contact_work += removed;
+            self.release_energy += removed;
+            self.release_projections += 1;
+            if self.correct {
+                self.corrections.pending += removed;
+            }
+        }
+        Ok(())
     }
 
     /// Steps after which released massless contact nodes were put back in static

@@ -198,17 +198,7 @@ impl Midpoint {
         self.energy.kinetic = 0.5 * self.v.dot(&self.mv)?;
         self.energy.potential = step.strain_energy;
         if project {
-            let before = self.energy.total();
-            if self.project_massless(loads, &hold)?.is_some() {
-                self.update_energies()?;
-                let removed = self.energy.total() - before;
-                self.energy.contact_work += removed;
-                self.release_energy += removed;
-                self.release_projections += 1;
-                if self.correct {
-                    self.corrections.pending += removed;
-                }
-            }
+            self.release(loads, &hold)?;
         }
         Ok(StepReport {
             time: t_next,
