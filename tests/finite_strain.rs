@@ -524,3 +524,40 @@ fn at_small_amplitude_the_finite_strain_beam_is_the_linear_one_to_second_order()
     assert!((1.9..2.1).contains(&order), "the difference falls at order {order:.3}: {gaps:?}");
     assert!(gaps[1].2 < 0.05 * gaps[1].1, "{gaps:?}");
 }
+
+#[test]
+fn a_block_at_finite_strain_slides_down_a_slope_at_g_sin_minus_mu_cos() {
+    let dir = scratch("slope_finite");
+    // The unit square (E = 1e4: nearly rigid) on the plane y = 0 with gravity turned by
+    // theta = 30 degrees, Coulomb mu = 0.3, the mass-free layer along its bottom.
+    let (g, theta, mu, steps) = (10.0, std::f64::consts::PI / 6.0, 0.3, 100);
+    let scene = scene_text(
+        &dir,
+        "slope.toml",
+        &format!(
+            "name = \"slope\"\n[mesh]\ngeo = \"../meshes/square_quad.geo\"\nparams = {{ h = 0.25 }}\n[material]\nE = 1e4\nnu = 0.3\nrho = 1.0\nmodel = \"neo_hookean\"\n[body_force]\nacceleration = [\"{g}*sin(pi/6)\", \"-{g}*cos(pi/6)\"]\n[time]\ntau = 1e-2\nsteps = {steps}\n[mass]\nkind = \"modified1\"\n[contact]\nboundary = \"bottom\"\nobstacle = {{ type = \"plane\", point = [0.0, 0.0], normal = [0.0, 1.0] }}\nfriction = {mu}\n[output]\nevery = 10\n"
+        ),
+    );
+    let a = g * (theta.sin() - mu * theta.cos());
+    let t = steps as f64 * 1e-2;
+    let mut runs = Vec::new();
+    for ranks in [1, 2] {
+        let s = run_scene(ranks, &scene, &[]);
+        // Impulse = momentum change: the mean acceleration P(T) / (m T), m = 1; the normal
+        // force's start-up oscillation leaves it within 1%.
+        let a_run = s.momentum_final[0] / t;
+        assert!(rel_diff(a_run, a) < 0.01, "{ranks} ranks: acceleration {a_run} against {a}");
+        // The dissipation is mu m g cos theta per unit of sliding.
+        let u = values(&dir.join(format!("slope-{ranks}.h5")), "fields/displacement");
+        let last = &u[u.len() - 50..];
+        let x = (0..25).map(|k| last[2 * k]).sum::<f64>() / 25.0;
+        assert!(rel_diff(x, a * t * t / 2.0) < 0.01, "distance {x} against {}", a * t * t / 2.0);
+        let d = s.contact.as_ref().unwrap().friction_dissipation;
+        assert!(rel_diff(d, mu * g * theta.cos() * x) < 0.01, "dissipation {d}");
+        assert!(s.energy_balance < 1e-8, "balance {:e}", s.energy_balance);
+        runs.push(s);
+    }
+    assert!(rel_diff(runs[0].momentum_final[0], runs[1].momentum_final[0]) < 1e-8);
+    let (d1, d2) = (runs[0].contact.as_ref().unwrap(), runs[1].contact.as_ref().unwrap());
+    assert!(rel_diff(d1.friction_dissipation, d2.friction_dissipation) < 1e-8);
+}
