@@ -561,3 +561,79 @@ fn a_block_at_finite_strain_slides_down_a_slope_at_g_sin_minus_mu_cos() {
     let (d1, d2) = (runs[0].contact.as_ref().unwrap(), runs[1].contact.as_ref().unwrap());
     assert!(rel_diff(d1.friction_dissipation, d2.friction_dissipation) < 1e-8);
 }
+
+/// The total contact force per step and whether any node is active.
+fn contact_force(h5: &Path) -> (Vec<f64>, Vec<bool>) {
+    force_history(h5)
+}
+
+#[test]
+fn a_soft_ball_follows_hertz_slowly_and_keeps_its_energy_flattened_by_a_fifth() {
+    let dir = scratch("soft_ball");
+    let model = ("rho = 1.0\n", "rho = 1.0\nmodel = \"neo_hookean\"\n");
+    // Slowly (v = 0.0167, indentation 1% of R): Hertz's impact, as for the linear ball.
+    // E* = E / (1 - nu^2), delta = (15 m v^2 / (16 E* sqrt R))^(2/5), F = 4/3 E* sqrt(R)
+    // delta^(3/2), t_c = 2.87 (m^2 / (R E*^2 v))^(1/5).
+    let slow = scene_variant("sphere.toml", &dir, &[model]);
+    let s = run_scene(2, &slow, &[]);
+    let (m, es, v) = (s.mass.total_mass[2], 100.0 / (1.0 - 0.09), 0.0167);
+    let delta = (15.0 * m * v * v / (16.0 * es)).powf(0.4);
+    let (f_max, t_c) = (4.0 / 3.0 * es * delta.powf(1.5), 2.87 * (m * m / (es * es * v)).powf(0.2));
+    let (force, any) = contact_force(&dir.join("sphere-2.h5"));
+    let duration = any.iter().filter(|&&a| a).count() as f64 * 0.01;
+    let peak = force.iter().cloned().fold(0.0, f64::max);
+    assert!((duration / t_c - 1.0).abs() < 0.10, "contact time {duration} vs Hertz {t_c}");
+    assert!((peak / f_max - 1.0).abs() < 0.10, "peak force {peak} vs Hertz {f_max}");
+    assert_eq!(s.contact.as_ref().unwrap().episodes_max, 1);
+    // Fast (v = 1.7): the ball is flattened by more than a fifth of its height; the mass-free
+    // layer and the energy correction keep the energy across the impact, each node touches
+    // once, and 1, 2 and 3 ranks give the same impact.
+    let dir = dir.join("fast");
+    std::fs::create_dir_all(&dir).unwrap();
+    let fast = scene_variant(
+        "sphere.toml",
+        &dir,
+        &[
+            model,
+            ("\"-0.0167\"", "\"-1.7\""),
+            ("steps = 220", "steps = 100"),
+            ("every = 10", "every = 1"),
+        ],
+    );
+    let runs: Vec<(usize, RunSummary)> = [1, 2, 3].map(|r| (r, run_scene(r, &fast, &[]))).into();
+    let (f2, _) = contact_force(&dir.join("sphere-2.h5"));
+    let f_peak = f2.iter().cloned().fold(0.0, f64::max);
+    for (r, s) in &runs {
+        let c = s.contact.as_ref().unwrap();
+        let drift = rel_diff(s.energy_final, s.energy_initial);
+        assert!(
+            drift < 1e-8,
+            "{r} ranks: energy {} -> {} ({drift:e})",
+            s.energy_initial,
+            s.energy_final
+        );
+        assert_eq!(c.episodes_max, 1, "{r} ranks: a node touched twice");
+        assert!(c.last_contact_step < s.steps, "{r} ranks: the ball must leave the plane");
+        let dp = s.momentum_final[2] - s.momentum_initial[2];
+        assert!(
+            rel_diff(c.impulse[2], dp) < 1e-8,
+            "{r} ranks: impulse {} vs momentum change {dp}",
+            c.impulse[2]
+        );
+        let (f, _) = contact_force(&dir.join(format!("sphere-{r}.h5")));
+        let diff = f.iter().zip(&f2).fold(0.0f64, |m, (a, b)| m.max((a - b).abs()));
+        assert!(diff < 1e-8 * f_peak, "{r} ranks: contact forces differ by {diff:e} of {f_peak:e}");
+    }
+    // The flattening: the ball's height at its most compressed over its diameter.
+    let run = reader(&dir.join("sphere-2.h5"));
+    let x = run.series("mesh/coordinates").unwrap();
+    let u = run.series("fields/displacement").unwrap();
+    let n = x.len() / 3;
+    let height = |k: usize| {
+        let z = (0..n).map(|v| x[3 * v + 2] + u[k * 3 * n + 3 * v + 2]);
+        let (lo, hi) = z.fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), z| (a.min(z), b.max(z)));
+        hi - lo
+    };
+    let least = (0..u.len() / (3 * n)).map(height).fold(f64::INFINITY, f64::min);
+    assert!(1.0 - least / height(0) > 0.2, "flattened by {:.3} only", 1.0 - least / height(0));
+}
