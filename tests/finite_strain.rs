@@ -637,3 +637,21 @@ fn a_soft_ball_follows_hertz_slowly_and_keeps_its_energy_flattened_by_a_fifth() 
     let least = (0..u.len() / (3 * n)).map(height).fold(f64::INFINITY, f64::min);
     assert!(1.0 - least / height(0) > 0.2, "flattened by {:.3} only", 1.0 - least / height(0));
 }
+
+#[test]
+fn a_kept_tangent_reaches_the_newton_solution() {
+    let dir = scratch("tangent_reuse");
+    let scene = scene_variant("l_block.toml", &dir, &[]);
+    let newton = run_scene(2, &scene, &["--steps", "60"]);
+    let u_newton = values(&dir.join("l_block-2.h5"), "fields/displacement");
+    let kept = run_scene(2, &scene, &["--steps", "60", "--", "-newton_tangent_reuse", "0.1"]);
+    let u_kept = values(&dir.join("l_block-2.h5"), "fields/displacement");
+    let stats = kept.newton.unwrap();
+    assert!(stats.kept_tangent > 0 && newton.newton.unwrap().kept_tangent == 0);
+    // Both converge the same equations to the same tolerances: the same motion, and the
+    // energy identity holds as tightly.
+    let scale = u_newton.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+    let diff = u_newton.iter().zip(&u_kept).fold(0.0f64, |m, (a, b)| m.max((a - b).abs()));
+    assert!(diff < 1e-8 * scale, "the kept tangent's motion differs by {diff:e} of {scale:e}");
+    assert!(kept.energy_balance < 1e-10, "energy balance {:e}", kept.energy_balance);
+}

@@ -213,6 +213,7 @@ impl AppOptions {
                 Petsc::options_get_real("-newton_energy_rtol")?,
                 Petsc::options_get_real("-newton_max_it")?,
                 Petsc::options_has("-newton_monitor")?,
+                Petsc::options_get_real("-newton_tangent_reuse")?,
             )?,
         })
     }
@@ -224,8 +225,17 @@ fn newton_options(
     energy_rtol: Option<f64>,
     max_it: Option<f64>,
     monitor: bool,
+    tangent_reuse: Option<f64>,
 ) -> Result<crate::time::newton::NewtonOptions> {
     let mut o = crate::time::newton::NewtonOptions { monitor, ..Default::default() };
+    if let Some(x) = tangent_reuse {
+        if !(0.0..1.0).contains(&x) {
+            return Err(Error::Usage(format!(
+                "-newton_tangent_reuse {x}: give a contraction factor in [0, 1) (0: a new tangent every iteration)"
+            )));
+        }
+        o.tangent_reuse = x;
+    }
     if let Some(x) = positive("-newton_rtol", rtol)? {
         o.rtol = x;
     }

@@ -41,11 +41,22 @@ pub struct NewtonOptions {
     pub max_it: usize,
     /// Print each iteration's residual and energy error (`-newton_monitor`).
     pub monitor: bool,
+    /// `-newton_tangent_reuse X`: steps without contact keep the last tangent and its
+    /// preconditioner while an iteration with it shrinks the residual at least by this
+    /// factor (a chord iteration: one internal force and one solve); 0: a new tangent every
+    /// iteration (Newton, quadratic).
+    pub tangent_reuse: f64,
 }
 
 impl Default for NewtonOptions {
     fn default() -> Self {
-        NewtonOptions { rtol: 1e-10, energy_rtol: 1e-14, max_it: 25, monitor: false }
+        NewtonOptions {
+            rtol: 1e-10,
+            energy_rtol: 1e-14,
+            max_it: 25,
+            monitor: false,
+            tangent_reuse: 0.0,
+        }
     }
 }
 
@@ -60,6 +71,9 @@ pub struct NewtonStats {
     pub max_iterations: usize,
     /// Halved Newton corrections (backtracking).
     pub halvings: usize,
+    /// Iterations that solved with a kept tangent (`-newton_tangent_reuse`).
+    #[serde(default)]
+    pub kept_tangent: usize,
     /// The largest energy error a converged step left, relative to the energy.
     pub max_energy_error: f64,
     /// Newton iterations of the last step.
@@ -139,6 +153,9 @@ pub struct Newton {
     node_body: Vec<u32>,
     body_names: Vec<String>,
     dim: usize,
+    /// The step operator and its preconditioner hold the last tangent with the Dirichlet
+    /// rows eliminated (no contact solver or static solve has rewritten it since).
+    kept: bool,
 }
 
 impl Newton {
@@ -182,6 +199,7 @@ impl Newton {
             node_body,
             body_names,
             dim,
+            kept: false,
         })
     }
 
@@ -311,6 +329,21 @@ impl Newton {
         Ok((self.body_names[b].clone(), x))
     }
 
+    /// `delta = K^-1 (-r)` with the step's solver as it is set up (`self.r` holds `-r`);
+    /// returns its KSP iterations.
+    fn solve_step(&mut self, s: &mut StepInputs, iterations: usize) -> Result<usize> {
+        let info = s.ksp.solve(&self.r, &mut self.delta).map_err(|e| match e {
+            Error::Solver(m) => Error::Solver(format!(
+                "step {} (t = {:e}): Newton iteration {}: {m}",
+                s.step,
+                s.time,
+                iterations + 1
+            )),
+            other => other,
+        })?;
+        Ok(info.iterations)
+    }
+
     /// One step: `s.du` from its first guess to the solution, with the contact solver
     /// inside each iteration when there is one. Collective.
     pub fn step<'c>(
@@ -341,6 +374,10 @@ impl Newton {
         let mut halvings = 0;
         let mut halved = 0;
         let mut last_norm = f64::INFINITY;
+        let mut used_kept = false;
+        if with_contact {
+            self.kept = false;
+        }
         let mut history: Vec<f64> = Vec::new();
         let mut report: Option<StepContact> = None;
         let mut set_repeated = false;
@@ -363,8 +400,19 @@ impl Newton {
             // The energy error next to the energy, or to the step's works when it is smaller
             // (a body starting at rest under loads).
             let energy_scale = s.energy.abs().max(work_scale).max(f64::MIN_POSITIVE);
+            // A kept tangent that does not shrink the residual enough is replaced; one that
+            // makes it grow, before any halving.
+            let stale = used_kept && norm > opts.tangent_reuse * last_norm;
+            used_kept = false;
+            if stale {
+                self.kept = false;
+            }
             // A contact solve is a full step of the constrained problem: not halved.
-            if norm > last_norm && iterations > 0 && halvings < Self::MAX_HALVINGS && !with_contact
+            if norm > last_norm
+                && iterations > 0
+                && halvings < Self::MAX_HALVINGS
+                && !with_contact
+                && !stale
             {
                 self.delta.scale(0.5)?;
                 s.du.axpy(-1.0, &self.delta)?;
@@ -422,6 +470,18 @@ impl Newton {
                 )));
             }
             last_norm = norm;
+            if !with_contact && opts.tangent_reuse > 0.0 && self.kept {
+                // The chord iteration with the kept tangent and preconditioner.
+                self.r.scale(-1.0)?;
+                self.delta.zero()?;
+                ksp_iterations += self.solve_step(&mut s, iterations)?;
+                s.du.axpy(1.0, &self.delta)?;
+                iterations += 1;
+                halvings = 0;
+                used_kept = true;
+                self.stats.kept_tangent += 1;
+                continue;
+            }
             // K_T = 4/tau^2 M + 2 T.
             match self.evaluate(&s, true)? {
                 Evaluation::Energies { .. } => {}
@@ -435,17 +495,10 @@ impl Newton {
                 // Dirichlet rows and columns eliminated; delta_D = 0.
                 s.k.zero_rows_columns(s.dirichlet, s.dirichlet_diag, None, None)?;
                 s.ksp.set_operators(s.k, s.k)?;
+                self.kept = true;
                 self.r.scale(-1.0)?;
                 self.delta.zero()?;
-                let info = s.ksp.solve(&self.r, &mut self.delta).map_err(|e| match e {
-                    Error::Solver(m) => Error::Solver(format!(
-                        "{}: Newton iteration {}: {m}",
-                        where_(&s),
-                        iterations + 1
-                    )),
-                    other => other,
-                })?;
-                ksp_iterations += info.iterations;
+                ksp_iterations += self.solve_step(&mut s, iterations)?;
                 s.du.axpy(1.0, &self.delta)?;
                 iterations += 1;
                 halvings = 0;
@@ -522,6 +575,7 @@ impl Newton {
         free: &[bool],
         diag: f64,
     ) -> Result<(f64, usize)> {
+        self.kept = false;
         let (lo, _) = u.ownership_range();
         let held: Vec<i32> =
             (0..free.len()).filter(|&i| !free[i]).map(|i| (lo + i) as i32).collect();
