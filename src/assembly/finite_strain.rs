@@ -45,6 +45,8 @@ pub struct InternalForce {
     local: Vector,
     /// `u_0` at the local slots (the step's start, gathered once per step).
     u0: Vec<f64>,
+    /// The tangent's row sums, kept between evaluations.
+    rows: Option<super::rows::RowStorage>,
     /// The 2-norm of the nodes' forces under a unit strain
     /// (`fem::hyperelastic::unit_strain_force`): round-off in the internal force is about
     /// `eps` times it.
@@ -140,6 +142,7 @@ impl InternalForce {
             gather,
             local,
             u0: vec![0.0; k],
+            rows: None,
             unit_force,
         })
     }
@@ -169,9 +172,14 @@ impl InternalForce {
         let u1 = self.gathered(u1)?;
         let dim = self.part.dim;
         let mut out = vec![0.0; u1.len()];
-        let mut sums = match tangent.is_some() {
-            true => Some(RowSums::new(self.part.graph(&self.mesh), &self.mesh, &self.part)),
-            false => None,
+        let graph = self.part.graph(&self.mesh);
+        let mut sums = match (tangent.is_some(), self.rows.take()) {
+            (true, Some(kept)) => Some(RowSums::from_storage(graph, kept)),
+            (true, None) => Some(RowSums::new(graph, &self.mesh, &self.part)),
+            (false, kept) => {
+                self.rows = kept;
+                None
+            }
         };
         let (mut w0, mut w1) = (0.0, 0.0);
         let mut xy = [[0.0; 3]; 8];
@@ -257,7 +265,7 @@ impl InternalForce {
         force.zero()?;
         self.gather.reverse_add(&self.local, force)?;
         if let (Some(sums), Some(k)) = (sums, tangent) {
-            sums.fill(&world, k)?;
+            self.rows = Some(sums.fill_keeping(&world, k)?);
         }
         Ok(Evaluation::Energies { w0: sum_over_ranks(&world, w0), w1: sum_over_ranks(&world, w1) })
     }

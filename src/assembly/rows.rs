@@ -20,6 +20,14 @@ use crate::partition::graph::NodeGraph;
 use crate::partition::Partition;
 use crate::petsc::Matrix;
 
+/// The storage of a [`RowSums`] kept between assemblies of one pattern: its blocks and its
+/// seam rows.
+pub struct RowStorage {
+    blocks: Vec<f64>,
+    seam: Vec<bool>,
+    dim: usize,
+}
+
 /// This rank's rows being summed (see the module doc).
 pub struct RowSums<'g> {
     graph: &'g NodeGraph,
@@ -159,6 +167,35 @@ impl<'g> RowSums<'g> {
     /// every entry of the pattern inserted, so it needs no zeroing and keeps its storage; a
     /// block AIJ one is added to.
     pub fn fill(mut self, world: &SimpleCommunicator, mat: &mut Matrix) -> Result<()> {
+        self.write(world, mat)
+    }
+
+    /// [`RowSums::fill`], keeping the row storage for the next assembly of the same pattern
+    /// ([`RowSums::from_storage`]: no new allocation, the seam rows not found again).
+    pub fn fill_keeping(
+        mut self,
+        world: &SimpleCommunicator,
+        mat: &mut Matrix,
+    ) -> Result<RowStorage> {
+        self.write(world, mat)?;
+        Ok(RowStorage { blocks: self.blocks, seam: self.seam, dim: self.dim })
+    }
+
+    /// Sums restarted on a kept storage (its blocks zeroed).
+    pub fn from_storage(graph: &'g NodeGraph, mut storage: RowStorage) -> RowSums<'g> {
+        storage.blocks.fill(0.0);
+        RowSums {
+            graph,
+            dim: storage.dim,
+            blocks: storage.blocks,
+            away: Vec::new(),
+            away_rank: Vec::new(),
+            seam: storage.seam,
+            deferred: Vec::new(),
+        }
+    }
+
+    fn write(&mut self, world: &SimpleCommunicator, mat: &mut Matrix) -> Result<()> {
         let d = self.dim;
         let width = 3 + d * d;
         let ranks = std::mem::take(&mut self.away_rank);
