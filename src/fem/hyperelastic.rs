@@ -313,20 +313,36 @@ fn cof_polar(a: &Tensor, d: &Tensor) -> Tensor {
 /// The neo-Hooke step quantities at one point: `g`, `dg/dI_3,1`, `D_3`, `cof C_1`.
 struct NeoHookeStep {
     g: f64,
+    /// `dg/dI_3,1` and `cof C_1` (for the tangent only; zero without it).
     dg_di1: f64,
     d3: Tensor,
     cof1: Tensor,
+    /// `ln I_3` of both states (the energies reuse them).
+    l0: f64,
+    l1: f64,
 }
 
 impl NeoHookeStep {
     fn new(l: f64, m: f64, c0: &Tensor, c1: &Tensor) -> NeoHookeStep {
-        let (i0, i1) = (det(c0), det(c1));
+        NeoHookeStep::with_invariants(l, m, c0, c1, det(c0), det(c1), true)
+    }
+
+    /// With `I_3 = det C` of both states given (the kernel has them as `(det F)^2`), and the
+    /// tangent's parts only when `tangent`.
+    fn with_invariants(
+        l: f64,
+        m: f64,
+        c0: &Tensor,
+        c1: &Tensor,
+        i0: f64,
+        i1: f64,
+        tangent: bool,
+    ) -> NeoHookeStep {
         let x = (i1 - i0) / i0;
         let (l0, l1) = (i0.ln(), i1.ln());
         let h = -0.5 * m + 0.125 * l * (l0 + l1);
         let phi = log1p_over_x(x);
         let g = phi * h / i0;
-        let dg_di1 = (log1p_over_x_prime(x) * h / i0 + phi * 0.125 * l / i1) / i0;
         let ca = lin(0.5, c0, 0.5, c1);
         let (cof0, cofa, cof1) = (cofactor(c0), cofactor(&ca), cofactor(c1));
         let mut d3 = [[0.0; 3]; 3];
@@ -335,7 +351,16 @@ impl NeoHookeStep {
                 d3[i][j] = (cof0[i][j] + 4.0 * cofa[i][j] + cof1[i][j]) / 6.0;
             }
         }
-        NeoHookeStep { g, dg_di1, d3, cof1 }
+        let dg_di1 = match tangent {
+            true => (log1p_over_x_prime(x) * h / i0 + phi * 0.125 * l / i1) / i0,
+            false => 0.0,
+        };
+        NeoHookeStep { g, dg_di1, d3, cof1, l0, l1 }
+    }
+
+    /// `W = mu/2 (tr C - 3) - mu/2 ln I_3 + lambda/8 (ln I_3)^2` of one state.
+    fn energy(l: f64, m: f64, c: &Tensor, ln_i3: f64) -> f64 {
+        0.5 * m * (trace(c) - 3.0) - 0.5 * m * ln_i3 + 0.125 * l * ln_i3 * ln_i3
     }
 }
 
@@ -427,19 +452,31 @@ fn midpoint_impl<const N: usize, const D: usize, const V: usize>(
         let w = t.w[q] * det_j;
         let f0 = deformation_gradient::<N, D>(&g, u0);
         let f1 = deformation_gradient::<N, D>(&g, u1);
-        for (state, f) in [(0, &f0), (1, &f1)] {
-            let j = det(f);
+        let (j0, j1) = (det(&f0), det(&f1));
+        for (state, j) in [(0, j0), (1, j1)] {
             if j.is_nan() || j <= 0.0 {
                 return Err(Inverted { det_f: j, state });
             }
         }
         let (c0, c1) = (right_cauchy_green(&f0), right_cauchy_green(&f1));
-        let bad = |state| Inverted { det_f: f64::NAN, state };
-        w0 += w * law.energy(&c0).ok_or(bad(0))?;
-        w1 += w * law.energy(&c1).ok_or(bad(1))?;
         let fm = lin(0.5, &f0, 0.5, &f1);
-        let nh = (law.model == Model::NeoHookean)
-            .then(|| NeoHookeStep::new(law.lambda, law.mu, &c0, &c1));
+        // Neo-Hooke with I_3 = J^2 (det C = (det F)^2) and its energies from the step's logs.
+        let nh = (law.model == Model::NeoHookean).then(|| {
+            let (l, m) = (law.lambda, law.mu);
+            let t = tangent.is_some();
+            NeoHookeStep::with_invariants(l, m, &c0, &c1, j0 * j0, j1 * j1, t)
+        });
+        match &nh {
+            Some(nh) => {
+                w0 += w * NeoHookeStep::energy(law.lambda, law.mu, &c0, nh.l0);
+                w1 += w * NeoHookeStep::energy(law.lambda, law.mu, &c1, nh.l1);
+            }
+            None => {
+                let bad = |state| Inverted { det_f: f64::NAN, state };
+                w0 += w * law.energy(&c0).ok_or(bad(0))?;
+                w1 += w * law.energy(&c1).ok_or(bad(1))?;
+            }
+        }
         let s = match &nh {
             Some(nh) => lin(law.mu, &identity(), 2.0 * nh.g, &nh.d3),
             None => law.midpoint_stress(&c0, &c1),

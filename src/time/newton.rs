@@ -429,13 +429,15 @@ impl Newton {
                     error.abs() / energy_scale
                 );
             }
-            // Round-off leaves the residual at about eps times the terms that cancel in it,
+            // Round-off leaves the residual at a few eps times the terms that cancel in it,
             // and the internal force at about eps times the unit-strain forces (a rotated
-            // body at rest: C = R^T R = I + O(eps)).
-            let floor = norm <= 1e2 * f64::EPSILON * (scale + 2.0 * self.force.unit_force);
-            let converged = ((norm <= opts.rtol * scale
-                && error.abs() <= opts.energy_rtol * energy_scale)
-                || floor)
+            // body at rest: C = R^T R = I + O(eps)). At that floor the step is done when the
+            // energy error is too, or when the residual no longer falls (round-off).
+            let at_floor = norm <= 100.0 * f64::EPSILON * (scale + 2.0 * self.force.unit_force);
+            let energy_ok = error.abs() <= opts.energy_rtol * energy_scale;
+            let stalled = history.len() >= 2 && norm > 0.5 * history[history.len() - 2];
+            let floor = at_floor && (energy_ok || stalled);
+            let converged = ((norm <= opts.rtol * scale && energy_ok) || floor)
                 // With contact: at least one constrained solve, and its active set repeated.
                 && (!with_contact || (iterations > 0 && set_repeated));
             if converged {
