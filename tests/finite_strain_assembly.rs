@@ -1,0 +1,96 @@
+//! The assembled tangent of finite-strain bodies against central differences of the assembled
+//! internal force, at random states of every element kind with both models (one rank, PETSc
+//! initialized once in the single test).
+
+use std::path::Path;
+
+use massfree::assembly::finite_strain::{Evaluation, InternalForce};
+use massfree::assembly::{new_matrix, new_vector};
+use massfree::bodies::Bodies;
+use massfree::mesh::gmsh::mesh_geo;
+use massfree::mesh::msh::read_msh;
+use massfree::partition::Partition;
+use massfree::petsc::{Petsc, Vector};
+
+/// A small deterministic generator: uniform in [-1, 1).
+struct Rng(u64);
+impl Rng {
+    fn next(&mut self) -> f64 {
+        self.0 = self.0.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+        ((self.0 >> 11) as f64 / (1u64 << 53) as f64) * 2.0 - 1.0
+    }
+}
+
+fn random_vector(layout: &Vector, size: f64, rng: &mut Rng) -> Vector {
+    let mut v = layout.duplicate().unwrap();
+    v.with_local_slice_mut(|x| x.iter_mut().for_each(|x| *x = size * rng.next())).unwrap();
+    v
+}
+
+fn force(f: &mut InternalForce, u1: &Vector, out: &mut Vector) {
+    match f.evaluate(u1, out, None).unwrap() {
+        Evaluation::Energies { .. } => {}
+        Evaluation::Inverted(m) => panic!("{m}"),
+    }
+}
+
+#[test]
+fn the_assembled_tangent_is_the_derivative_of_the_assembled_force() {
+    let _universe = mpi::initialize().expect("MPI initialized twice");
+    let _petsc = Petsc::init(&["finite-strain-assembly".to_string()], "test").unwrap();
+    let world = mpi::topology::SimpleCommunicator::world();
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let cache = Path::new(env!("CARGO_TARGET_TMPDIR")).join("mesh-cache");
+    let mut rng = Rng(17);
+    for (geo, h, dim) in [
+        ("square_tri.geo", 0.25, 2),
+        ("square_quad.geo", 0.25, 2),
+        ("cube_hex.geo", 0.5, 3),
+        ("block_tet.geo", 0.5, 3),
+    ] {
+        let msh = mesh_geo(&root.join("meshes").join(geo), &[("h".into(), h)], dim, false, &cache)
+            .unwrap();
+        let mesh = read_msh(&msh).unwrap();
+        let part = std::rc::Rc::new(Partition::new(&mesh, 0, 1).unwrap());
+        let mesh = std::rc::Rc::new(mesh);
+        for model in ["neo_hookean", "saint_venant_kirchhoff"] {
+            let text = format!(
+                "[mesh]\nmsh = \"{}\"\n[material]\nE = 100\nnu = 0.3\nrho = 1\nmodel = \"{model}\"\n[time]\ntau = 0.1\nsteps = 1\n",
+                msh.display()
+            );
+            let scene = massfree::scene::parse(&text, "t.toml", root).unwrap();
+            let bodies = Bodies::resolve(&scene, &mesh).unwrap();
+            let layout = new_vector(&part).unwrap();
+            let mut f =
+                InternalForce::new(&world, mesh.clone(), part.clone(), &bodies, &layout).unwrap();
+            // Random states with strains of about 0.1 (displacements of 0.02 per node on
+            // cells of size 0.25-0.5), and a random direction.
+            let u0 = random_vector(&layout, 0.02, &mut rng);
+            let u1 = random_vector(&layout, 0.02, &mut rng);
+            let dir = random_vector(&layout, 1.0, &mut rng);
+            f.set_start(&u0).unwrap();
+            let mut k = new_matrix(&mesh, &part).unwrap();
+            let mut f1 = layout.duplicate().unwrap();
+            match f.evaluate(&u1, &mut f1, Some(&mut k)).unwrap() {
+                Evaluation::Energies { .. } => {}
+                Evaluation::Inverted(m) => panic!("{geo} {model}: {m}"),
+            }
+            let mut kd = layout.duplicate().unwrap();
+            k.mult(&dir, &mut kd).unwrap();
+            // Central differences of the assembled force along the direction.
+            let step = 1e-6;
+            let (mut plus, mut minus) = (layout.duplicate().unwrap(), layout.duplicate().unwrap());
+            plus.waxpy(step, &dir, &u1).unwrap();
+            minus.waxpy(-step, &dir, &u1).unwrap();
+            let (mut fp, mut fm) = (layout.duplicate().unwrap(), layout.duplicate().unwrap());
+            force(&mut f, &plus, &mut fp);
+            force(&mut f, &minus, &mut fm);
+            fp.axpy(-1.0, &fm).unwrap();
+            fp.scale(0.5 / step).unwrap();
+            let scale = kd.norm_inf().unwrap();
+            fp.axpy(-1.0, &kd).unwrap();
+            let err = fp.norm_inf().unwrap();
+            assert!(err < 1e-6 * scale, "{geo} {model}: |K d - FD| = {err:e} of {scale:e}");
+        }
+    }
+}
