@@ -78,7 +78,8 @@ impl Model {
     }
 }
 
-/// A finite-strain material law: the model and its Lame parameters.
+/// A finite-strain material law: the model and its Lame parameters (built for the
+/// finite-strain models; `Model::Linear` is evaluated as Saint Venant-Kirchhoff here).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Law {
     pub model: Model,

@@ -406,12 +406,6 @@ impl Matrix {
         chk!(ffi::MatCopy(x.m, self.m, ffi::MatStructure_SAME_NONZERO_PATTERN))
     }
 
-    /// Every stored entry set to zero; the pattern stays (`MatZeroEntries`).
-    pub fn zero_entries(&mut self) -> Result<()> {
-        // SAFETY: valid handle.
-        chk!(ffi::MatZeroEntries(self.m))
-    }
-
     /// `self *= alpha`.
     pub fn scale(&mut self, alpha: f64) -> Result<()> {
         // SAFETY: valid handle.

@@ -496,9 +496,6 @@ impl Scene {
                 "--model {name}: unknown model (allowed: linear, neo_hookean, saint_venant_kirchhoff)"
             ))
         })?;
-        if model == Model::NeoHookean && self.material.nu >= 0.5 {
-            return Err(Error::Usage(format!("--model {name}: material.nu must be below 0.5")));
-        }
         self.material.model = model;
         for b in self.bodies.iter_mut().filter(|b| !b.sets[3]) {
             b.material.model = model;

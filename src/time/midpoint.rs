@@ -142,8 +142,10 @@ pub struct Midpoint {
     corr: Option<(Vector, Vector, Vector)>,
     /// Components per node (the correction works per component).
     dim: usize,
-    /// The Newton loop of finite-strain bodies (`None`: the linear step).
+    /// The Newton loop of finite-strain bodies (`None`: the linear step), and its step's
+    /// loads `f_0 + f_1` (kept between steps).
     newton: Option<Box<super::newton::Newton>>,
+    f_sum: Option<Vector>,
     /// `M 1` without the Dirichlet rows (built on first use).
     m_ones: Option<Vector>,
     /// The body of each owned node (in DOF order): the correction keeps each body's momentum.
@@ -271,6 +273,7 @@ impl Midpoint {
             corr: None,
             dim: 1,
             newton: None,
+            f_sum: None,
             m_ones: None,
             groups: Vec::new(),
             n_groups: 1,

@@ -329,21 +329,6 @@ impl Newton {
         Ok((self.body_names[b].clone(), x))
     }
 
-    /// `delta = K^-1 (-r)` with the step's solver as it is set up (`self.r` holds `-r`);
-    /// returns its KSP iterations.
-    fn solve_step(&mut self, s: &mut StepInputs, iterations: usize) -> Result<usize> {
-        let info = s.ksp.solve(&self.r, &mut self.delta).map_err(|e| match e {
-            Error::Solver(m) => Error::Solver(format!(
-                "step {} (t = {:e}): Newton iteration {}: {m}",
-                s.step,
-                s.time,
-                iterations + 1
-            )),
-            other => other,
-        })?;
-        Ok(info.iterations)
-    }
-
     /// One step: `s.du` from its first guess to the solution, with the contact solver
     /// inside each iteration when there is one. Collective.
     pub fn step<'c>(
@@ -472,93 +457,90 @@ impl Newton {
                 )));
             }
             last_norm = norm;
-            if !with_contact && opts.tangent_reuse > 0.0 && self.kept {
-                // The chord iteration with the kept tangent and preconditioner.
-                self.r.scale(-1.0)?;
-                self.delta.zero()?;
-                ksp_iterations += self.solve_step(&mut s, iterations)?;
-                s.du.axpy(1.0, &self.delta)?;
-                iterations += 1;
-                halvings = 0;
-                used_kept = true;
-                self.stats.kept_tangent += 1;
-                continue;
-            }
+            // A chord iteration keeps the tangent and its preconditioner; otherwise
             // K_T = 4/tau^2 M + 2 T.
-            match self.evaluate(&s, true)? {
-                Evaluation::Energies { .. } => {}
-                Evaluation::Inverted(m) => {
-                    return Err(Error::Solver(format!("{}: {m}", where_(&s))))
+            let chord = !with_contact && opts.tangent_reuse > 0.0 && self.kept;
+            if chord {
+                self.stats.kept_tangent += 1;
+            } else {
+                match self.evaluate(&s, true)? {
+                    Evaluation::Energies { .. } => {}
+                    Evaluation::Inverted(m) => {
+                        return Err(Error::Solver(format!("{}: {m}", where_(&s))))
+                    }
                 }
-            }
-            s.k.copy_values_from(&self.inertia)?;
-            s.k.axpy(2.0, &self.tangent, crate::petsc::Pattern::Same)?;
-            let Some(solver) = contact.as_deref_mut() else {
+                s.k.copy_values_from(&self.inertia)?;
+                s.k.axpy(2.0, &self.tangent, crate::petsc::Pattern::Same)?;
+                if let Some(solver) = contact.as_deref_mut() {
+                    let (rep, its) = self.contact_iteration(&mut s, solver, iterations)?;
+                    ksp_iterations += its;
+                    set_repeated = report.as_ref().is_some_and(|r| r.row.active == rep.row.active);
+                    report = Some(rep);
+                    iterations += 1;
+                    halvings = 0;
+                    continue;
+                }
                 // Dirichlet rows and columns eliminated; delta_D = 0.
                 s.k.zero_rows_columns(s.dirichlet, s.dirichlet_diag, None, None)?;
                 s.ksp.set_operators(s.k, s.k)?;
                 self.kept = true;
-                self.r.scale(-1.0)?;
-                self.delta.zero()?;
-                ksp_iterations += self.solve_step(&mut s, iterations)?;
-                s.du.axpy(1.0, &self.delta)?;
-                iterations += 1;
-                halvings = 0;
-                continue;
-            };
-            // With contact the solver sees the linearized step `K_T du = K_T du^k - r(du^k)
-            // [- 2 B^T lambda]` in the increment itself, as the linear step's: its constraints
-            // and forces are those of the new increment.
-            s.k.mult(s.du, &mut self.rhs)?;
-            self.rhs.axpy(-1.0, &self.r)?;
-            self.rhs_free.copy_from(&self.rhs)?;
-            s.k.zero_rows_columns(
-                s.dirichlet,
-                s.dirichlet_diag,
-                Some(&*s.du),
-                Some(&mut self.rhs),
-            )?;
-            solver.operator_replaced(s.k)?;
-            self.delta.copy_from(s.du)?;
-            let (rep, its) = solver
-                .solve(StepSystem {
-                    k: s.k,
-                    ksp: s.ksp,
-                    rhs: &self.rhs,
-                    u: s.u,
-                    du: s.du,
-                    step: s.step,
-                    time: s.time,
-                    tau: s.tau,
-                })
-                .map_err(|e| match e {
-                    Error::Solver(m) if !m.starts_with("contact") => Error::Solver(format!(
-                        "{}: Newton iteration {}: {m}",
-                        where_(&s),
-                        iterations + 1
-                    )),
-                    other => other,
-                })?;
-            ksp_iterations += its;
-            set_repeated = report.as_ref().is_some_and(|r| r.row.active == rep.row.active);
-            report = Some(rep);
-            // delta = du^{k+1} - du^k (for an inverted iterate's halving).
-            self.delta.aypx(-1.0, s.du)?;
-            // c = 2 B^T lambda = rhs - K_T du^{k+1} on the free rows (K_T unconstrained).
-            self.tangent.mult(s.du, &mut self.c)?;
-            s.m.mult(s.du, &mut self.mdu)?;
-            let ci = 4.0 / (s.tau * s.tau);
-            Vector::with_slices([&self.rhs_free, &self.mdu], [&mut self.c], |[b, mdu], [c]| {
-                for i in 0..c.len() {
-                    c[i] = b[i] - ci * mdu[i] - 2.0 * c[i];
-                }
-                for &d in s.dirichlet {
-                    c[d as usize - lo] = 0.0;
-                }
-            })?;
+            }
+            self.r.scale(-1.0)?;
+            self.delta.zero()?;
+            let info = s.ksp.solve(&self.r, &mut self.delta);
+            ksp_iterations += info.map_err(|e| in_iteration(e, &s, iterations))?.iterations;
+            s.du.axpy(1.0, &self.delta)?;
             iterations += 1;
             halvings = 0;
+            used_kept = chord;
         }
+    }
+
+    /// One Newton iteration with the contact solver inside: it sees the linearized step
+    /// `K_T du = K_T du^k - r(du^k) [- 2 B^T lambda]` in the increment itself, as the linear
+    /// step's, so its constraints and forces are those of the new increment. `s.k` holds the
+    /// unconstrained `K_T`. Leaves `delta = du^{k+1} - du^k` (for an inverted iterate's
+    /// halving) and the contact forces `c = 2 B^T lambda = rhs - K_T du^{k+1}` on the free
+    /// rows. Returns the solver's step data and KSP iterations. Collective.
+    fn contact_iteration(
+        &mut self,
+        s: &mut StepInputs,
+        solver: &mut dyn ContactSolver,
+        iterations: usize,
+    ) -> Result<(StepContact, usize)> {
+        let lo = s.du.ownership_range().0;
+        s.k.mult(s.du, &mut self.rhs)?;
+        self.rhs.axpy(-1.0, &self.r)?;
+        self.rhs_free.copy_from(&self.rhs)?;
+        s.k.zero_rows_columns(s.dirichlet, s.dirichlet_diag, Some(&*s.du), Some(&mut self.rhs))?;
+        solver.operator_replaced(s.k)?;
+        self.delta.copy_from(s.du)?;
+        let system = StepSystem {
+            k: s.k,
+            ksp: s.ksp,
+            rhs: &self.rhs,
+            u: s.u,
+            du: s.du,
+            step: s.step,
+            time: s.time,
+            tau: s.tau,
+        };
+        let solved = solver.solve(system);
+        let (rep, its) = solved.map_err(|e| in_iteration(e, s, iterations))?;
+        self.delta.aypx(-1.0, s.du)?;
+        // K_T unconstrained: 4/tau^2 M du + 2 T du.
+        self.tangent.mult(s.du, &mut self.c)?;
+        s.m.mult(s.du, &mut self.mdu)?;
+        let ci = 4.0 / (s.tau * s.tau);
+        Vector::with_slices([&self.rhs_free, &self.mdu], [&mut self.c], |[b, mdu], [c]| {
+            for i in 0..c.len() {
+                c[i] = b[i] - ci * mdu[i] - 2.0 * c[i];
+            }
+            for &d in s.dirichlet {
+                c[d as usize - lo] = 0.0;
+            }
+        })?;
+        Ok((rep, its))
     }
 
     /// Puts the free massless DOFs (`free`, local) in static equilibrium at the current state,
@@ -625,5 +607,19 @@ impl Newton {
         }
         start.axpy(-1.0, u)?;
         Ok((start.norm_inf()?, its))
+    }
+}
+
+/// A solver error of Newton iteration `iterations + 1` of the step, said so (the contact
+/// solver's own messages stay as they are).
+fn in_iteration(e: Error, s: &StepInputs, iterations: usize) -> Error {
+    match e {
+        Error::Solver(m) if !m.starts_with("contact") => Error::Solver(format!(
+            "step {} (t = {:e}): Newton iteration {}: {m}",
+            s.step,
+            s.time,
+            iterations + 1
+        )),
+        other => other,
     }
 }

@@ -113,11 +113,16 @@ impl Midpoint {
         if loads && varying {
             forces.assemble(t_next, &mut self.f_next)?;
         }
-        // f_0 + f_1 (the step's rhs vector is free here).
+        // f_0 + f_1, in a vector kept between steps (outside `self`: the Newton solves borrow
+        // the integrator).
+        let mut f_sum = match self.f_sum.take() {
+            Some(v) => v,
+            None => self.u.duplicate()?,
+        };
         if loads {
-            self.rhs.waxpy(1.0, &self.f_now, if varying { &self.f_next } else { &self.f_now })?;
+            f_sum.waxpy(1.0, &self.f_now, if varying { &self.f_next } else { &self.f_now })?;
         } else {
-            self.rhs.zero()?;
+            f_sum.zero()?;
         }
         let lo = self.first_dof;
         let dofs = self.dirichlet.dofs().to_vec();
@@ -134,9 +139,6 @@ impl Midpoint {
             self.du.scale(tau)?;
         }
         let before: Option<Vec<bool>> = contact.as_deref().map(|c| c.active().to_vec());
-        let f_sum = self.rhs.duplicate()?;
-        let mut f_sum = f_sum;
-        f_sum.copy_from(&self.rhs)?;
         let fs = loads.then_some(&f_sum);
         let mut step = self.newton_pass(n, t_next, &dofs, &du_d, fs, contact.as_deref_mut())?;
         let mut iterations = step.iterations;
@@ -200,6 +202,7 @@ impl Midpoint {
         if project {
             self.release(loads, &hold)?;
         }
+        self.f_sum = Some(f_sum);
         Ok(StepReport {
             time: t_next,
             ksp_iterations,
