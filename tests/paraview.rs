@@ -172,6 +172,38 @@ fn a_3d_run_reads_alike_in_every_reader() {
     run_and_check(&scene, "block.png", &expect);
 }
 
+/// The free-flying L-shaped block (finite strain, hexahedra) on 2 ranks: every reader draws
+/// each written step's mesh at the positions written then, which are `X + u`; the block has
+/// turned by then, so the reference coordinates would fail the check.
+#[test]
+fn a_finite_strain_run_shows_the_deformed_bodies_in_every_reader() {
+    let dir = scratch("paraview-finite-strain");
+    let scene = scene_variant(
+        "l_block.toml",
+        &dir,
+        &[
+            ("end = 30.0", "end = 8.0"),
+            ("every = 5", "every = 40\nfields = [\"displacement\", \"velocity\", \"von_mises\"]"),
+        ],
+    );
+    let mut expect = Vec::new();
+    for r in ["XDMFReader", "Xdmf3ReaderS", "Xdmf3ReaderT"] {
+        expect.push(format!("{r} t=8: points = position"));
+    }
+    expect.extend(every_reader("8", "point", "displacement", 2));
+    expect.extend(every_reader("8", "cell", "von_mises", 2));
+    expect.push("position row 2 = /mesh/coordinates + displacement".into());
+    expect.push("position: written with the displacement (3 rows)".into());
+    run_and_check(&scene, "l_block.png", &expect);
+    // The block has moved and turned: the drawn points are not the reference ones.
+    let f = hdf5::File::open(dir.join("l_block-2.h5")).unwrap();
+    let x: Vec<f64> = f.dataset("fields/position").unwrap().read_raw().unwrap();
+    let x0: Vec<f64> = f.dataset("mesh/coordinates").unwrap().read_raw().unwrap();
+    let n = x0.len();
+    let moved = (0..n).map(|i| (x[2 * n + i] - x0[i]).abs()).fold(0.0, f64::max);
+    assert!(moved > 1.0, "the block moved only {moved} by t = 8");
+}
+
 /// A run file written here: 4 triangles and 2 quadrilaterals (file order: triangles first)
 /// on a 2 x 4 strip, three written steps; `displacement` (nodal, 2 components) every step,
 /// `pressure` (cell, 1) at steps 0 and 2, `stress` (cell, 6 components; component k of cell i

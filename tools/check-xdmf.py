@@ -3,8 +3,9 @@
 
     tools/check-xdmf.py RUN.xdmf [--png OUT.png] [--tol 1e-12]
 
-Every reader must show the mesh (points = rows of /mesh/coordinates, cells = /mesh/cells kind
-by kind in file order) and every field of /fields at the first and the last time (of the run
+Every reader must show the mesh (points = rows of /mesh/coordinates, or of a finite-strain
+run's /fields/position where it was written, which must be coordinates + displacement;
+cells = /mesh/cells kind by kind in file order) and every field of /fields at the first and the last time (of the run
 and of each field's own axis) with the values of the HDF5 file, within `tol` relative to the
 field's largest value; meshio (meshio.xdmf.TimeSeriesReader) must read every step. Prints one
 line per check and a summary; exits 1 if any check fails. With --png, renders the last time
@@ -138,6 +139,12 @@ class Run:
             self.fields[name] = (f[f"fields/{name}"][()], axis)
         f.close()
 
+    def points(self, t):
+        """The points the index should show at time t: the positions written then (a
+        finite-strain run's /fields/position), else /mesh/coordinates."""
+        r = self.row("position", t) if "position" in self.fields else None
+        return self.coords if r is None else self.fields["position"][0][r]
+
     def row(self, name, t):
         """Row of field `name` written at time t (None if not written then)."""
         _, axis = self.fields[name]
@@ -219,8 +226,9 @@ def check_paraview(run, xdmf, checks, tol, png):
             checks(len(blocks) > 0, f"{at}: {len(blocks)} grid(s)")
             if not blocks:
                 continue
-            ok = all(rel(rec[f"{b}/points"], run.coords) <= tol for b in blocks)
-            checks(ok, f"{at}: points = /mesh/coordinates")
+            where = "position" if run.points(t) is not run.coords else "/mesh/coordinates"
+            ok = all(rel(rec[f"{b}/points"], run.points(t)) <= tol for b in blocks)
+            checks(ok, f"{at}: points = {where}")
             ok = (np.array_equal(np.concatenate([rec[f"{b}/types"] for b in blocks]), want_types)
                   and np.array_equal(np.concatenate([rec[f"{b}/conn"] for b in blocks]), want_conn))
             checks(ok, f"{at}: cells = /mesh/cells ({', '.join(run.kinds)})")
@@ -252,13 +260,30 @@ def check_paraview(run, xdmf, checks, tol, png):
                    f"{at}: partition = /mesh/cell_rank")
 
 
+def check_position(run, checks, tol):
+    """A finite-strain run's positions are X + u, at every row the displacement has."""
+    if "position" not in run.fields:
+        return
+    pos, axis = run.fields["position"]
+    disp, daxis = run.fields.get("displacement", (None, None))
+    checks(disp is not None and rel(axis, daxis) <= tol,
+           f"position: written with the displacement ({len(axis)} rows)")
+    if disp is None:
+        return
+    for r in range(min(len(pos), len(disp))):
+        x = run.coords.copy()
+        x[:, : disp.shape[2]] += disp[r]
+        checks(rel(pos[r], x) <= tol, f"position row {r} = /mesh/coordinates + displacement")
+
+
 def check_meshio(run, xdmf, checks, tol):
     import meshio
 
     try:
         with meshio.xdmf.TimeSeriesReader(xdmf) as r:
             points, cells = r.read_points_cells()
-            checks(rel(points, run.coords) <= tol, "meshio: points = /mesh/coordinates")
+            # meshio reads the first grid's geometry only.
+            checks(rel(points, run.points(run.time[0])) <= tol, "meshio: points = the first grid's")
             ok = [(c.type, c.data.tolist()) for c in cells] == \
                 [(MESHIO_TYPE[k], c.tolist()) for k, c in run.cells]
             checks(ok, "meshio: cells = /mesh/cells")
@@ -296,6 +321,7 @@ def main():
         return 0
     run = Run(xdmf)
     checks = Checks()
+    check_position(run, checks, a.tol)
     check_paraview(run, xdmf, checks, a.tol, a.png)
     check_meshio(run, xdmf, checks, a.tol)
     print(f"check-xdmf: {checks.passed} checks passed, {len(checks.failed)} failed")

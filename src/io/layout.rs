@@ -22,6 +22,9 @@ pub const FIELDS: &str = "fields";
 /// `row` of `fields/<field>`, and for meshes with several cell kinds `xdmf/topology`.
 pub const XDMF: &str = "xdmf";
 pub const XDMF_TOPOLOGY: &str = "xdmf/topology";
+/// Finite strain: the nodes' current positions `X + u` (3 components), written with
+/// `displacement`; the XDMF index draws each step's mesh at them.
+pub const POSITION: &str = "position";
 /// The per-step energy series, `energy/<name>`, in the order the writer appends them.
 pub const ENERGY_SERIES: [&str; 9] = [
     "step",

@@ -271,6 +271,9 @@ pub struct Output {
     field_times: Vec<(f64, Vec<Option<usize>>)>,
     /// This rank's block of natural cells (for cell fields).
     cell_range: (usize, usize),
+    /// The reference coordinates of this rank's natural nodes, kept when the plan writes
+    /// [`layout::POSITION`].
+    reference: Vec<[f64; 3]>,
 }
 
 const CHECKPOINT_SCALARS: usize = 12;
@@ -470,6 +473,7 @@ impl Output {
             })
         };
         let fields = plan.fields.iter().map(|f| field(&f.spec)).collect::<Result<Vec<_>>>()?;
+        let plan_has_position = plan.fields.iter().any(|f| f.spec.name == layout::POSITION);
         group(&file, "energy", path)?;
         let energy = layout::ENERGY_SERIES
             .map(|name| resizable_1d(&layout::energy(name)))
@@ -499,7 +503,19 @@ impl Output {
             cell_kinds: mesh.kinds.clone(),
             field_times: Vec::new(),
             cell_range,
+            reference: if plan_has_position { mesh.coords.clone() } else { Vec::new() },
         })
+    }
+
+    /// This rank's block of [`layout::POSITION`], `X + u`, from its block of the displacement
+    /// (`dim` components a node).
+    pub fn position_block(&self, u: &[f64]) -> Vec<f64> {
+        let dim = self.dim;
+        let mut x = Vec::with_capacity(self.reference.len() * 3);
+        for (p, ui) in self.reference.iter().zip(u.chunks(dim)) {
+            x.extend((0..3).map(|i| p[i] + ui.get(i).copied().unwrap_or(0.0)));
+        }
+        x
     }
 
     pub fn path(&self) -> &Path {

@@ -23,6 +23,10 @@
 //! the order of `/mesh/cells`, kinds in file order), so a step is one grid whatever the mesh:
 //! cell fields and the partition need no slicing per kind, and meshio's time-series reader
 //! (one uniform grid per step) reads mixed meshes too.
+//!
+//! A finite-strain run writes the nodes' current positions (`/fields/position`) with the
+//! displacement; a step's grid then has its geometry from that row's view, so ParaView draws
+//! the bodies where they are. Other steps, and small-strain runs, use `/mesh/coordinates`.
 
 use std::fmt::Write as _;
 use std::path::Path;
@@ -121,10 +125,16 @@ pub fn xdmf_text(l: &XdmfLayout) -> String {
         let _ = writeln!(x, "   <Grid Name=\"step {k}\" GridType=\"Uniform\">");
         let _ = writeln!(x, "    <Time Value=\"{time:e}\"/>");
         let _ = writeln!(x, "{topology}");
+        // The mesh where the bodies are: the positions written this step (finite strain),
+        // else the reference coordinates.
+        let position = (l.fields.iter().zip(field_rows))
+            .find(|((spec, _), _)| spec.name == layout::POSITION)
+            .and_then(|(_, row)| *row);
+        let geometry = position
+            .map_or_else(|| layout::COORDINATES.to_string(), |r| view_name(layout::POSITION, r));
         let _ = writeln!(
             x,
-            "    <Geometry GeometryType=\"XYZ\">\n     <DataItem Dimensions=\"{n} 3\" NumberType=\"Float\" Precision=\"8\" Format=\"HDF\">{h5}:/{}</DataItem>\n    </Geometry>",
-            layout::COORDINATES
+            "    <Geometry GeometryType=\"XYZ\">\n     <DataItem Dimensions=\"{n} 3\" NumberType=\"Float\" Precision=\"8\" Format=\"HDF\">{h5}:/{geometry}</DataItem>\n    </Geometry>",
         );
         for ((spec, _), row) in l.fields.iter().zip(field_rows) {
             let Some(r) = row else { continue };

@@ -104,10 +104,19 @@ impl RunOutput {
         let t0 = Instant::now();
         let (scene, mesh) = (&d.scene, &d.mesh);
         let dim = mesh.dim;
+        let mut fields: Vec<PlannedField> = (scene.output.fields.iter())
+            .map(|&f| PlannedField { spec: f.spec(dim), every: scene.every_of(f) })
+            .collect();
+        // Finite strain: the current positions with the displacement, for the XDMF index to
+        // draw the deformed bodies (a small-strain file stays as it was).
+        if d.bodies.finite_strain() && scene.output.fields.contains(&Field::Displacement) {
+            fields.push(PlannedField {
+                spec: crate::rows::FieldSpec::nodal(layout::POSITION, 3),
+                every: scene.every_of(Field::Displacement),
+            });
+        }
         let plan = OutputPlan {
-            fields: (scene.output.fields.iter())
-                .map(|&f| PlannedField { spec: f.spec(dim), every: scene.every_of(f) })
-                .collect(),
+            fields,
             time_steps: scene.output.time_steps.clone(),
             compression: scene.output.compression,
         };
@@ -199,12 +208,20 @@ impl RunOutput {
         }
         .into_iter();
         let mut blocks = Vec::with_capacity(due.len());
-        for (&field, due) in fields.iter().zip(due) {
+        let mut displacement = None;
+        let with_position = due.len() > fields.len();
+        for (&field, &due) in fields.iter().zip(&due) {
             blocks.push(match (due, field.derived()) {
                 (false, _) => None,
                 (true, Some(_)) => derived.next(),
                 (true, None) => Some(match field {
-                    Field::Displacement => views.to_natural(midpoint.u())?,
+                    Field::Displacement => {
+                        let u = views.to_natural(midpoint.u())?;
+                        if with_position {
+                            displacement = Some(u.clone());
+                        }
+                        u
+                    }
                     Field::Velocity => views.to_natural(midpoint.v())?,
                     Field::ContactTraction => traction_block(d, contact.as_ref()),
                     other => {
@@ -215,6 +232,11 @@ impl RunOutput {
                     }
                 }),
             });
+        }
+        // The planned fields after the scene's: the positions (finite strain), due with the
+        // displacement.
+        if with_position {
+            blocks.push(displacement.map(|u| out.position_block(&u)));
         }
         let RunOutput::Open(out) = self else { unreachable!("checked above") };
         out.write_energy(n, t, midpoint.energy())?;
