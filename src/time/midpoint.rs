@@ -146,6 +146,10 @@ pub struct Midpoint {
     /// loads `f_0 + f_1` (kept between steps).
     newton: Option<Box<super::newton::Newton>>,
     f_sum: Option<Vector>,
+    /// Finite strain: the increment before the last (for the first guess), and the number of
+    /// increments made since the start or a restart.
+    du_prev: Option<Vector>,
+    increments: usize,
     /// `M 1` without the Dirichlet rows (built on first use).
     m_ones: Option<Vector>,
     /// The body of each owned node (in DOF order): the correction keeps each body's momentum.
@@ -274,6 +278,8 @@ impl Midpoint {
             dim: 1,
             newton: None,
             f_sum: None,
+            du_prev: None,
+            increments: 0,
             m_ones: None,
             groups: Vec::new(),
             n_groups: 1,
@@ -861,6 +867,7 @@ impl Midpoint {
         pending_correction: f64,
     ) -> Result<()> {
         set(&mut self.u, &mut self.v, &mut self.du)?;
+        self.increments = 0;
         if let Some(cg) = self.op.cg.as_mut() {
             cg.forget();
         }

@@ -366,8 +366,17 @@ impl Newton {
         let mut history: Vec<f64> = Vec::new();
         let mut report: Option<StepContact> = None;
         let mut set_repeated = false;
+        // The tangent is evaluated with the force where it will be needed: at the first
+        // guess, unless the last step needed no correction or a kept tangent is used. `fresh`:
+        // the last evaluation has the tangent at the current iterate.
+        let reuse_across = !with_contact && opts.tangent_reuse > 0.0 && self.kept;
+        let mut want_tangent = !reuse_across && (self.stats.steps == 0 || self.stats.last > 0);
+        // This step's tangent is in the step operator (Dirichlet rows eliminated).
+        let mut step_tangent = false;
         loop {
-            let w1 = match self.evaluate(&s, false)? {
+            let fresh = want_tangent;
+            want_tangent = false;
+            let w1 = match self.evaluate(&s, fresh)? {
                 Evaluation::Energies { w1, .. } => w1,
                 Evaluation::Inverted(_) if halvings < Self::MAX_HALVINGS => {
                     // Back along the last correction: du -= delta/2.
@@ -387,10 +396,12 @@ impl Newton {
             let energy_scale = s.energy.abs().max(work_scale).max(f64::MIN_POSITIVE);
             // A kept tangent that does not shrink the residual enough is replaced; one that
             // makes it grow, before any halving.
-            let stale = used_kept && norm > opts.tangent_reuse * last_norm;
+            let rate = if opts.tangent_reuse > 0.0 { opts.tangent_reuse } else { 0.1 };
+            let stale = used_kept && norm > rate * last_norm;
             used_kept = false;
             if stale {
                 self.kept = false;
+                step_tangent = false;
             }
             // A contact solve is a full step of the constrained problem: not halved.
             if norm > last_norm
@@ -457,16 +468,21 @@ impl Newton {
                 )));
             }
             last_norm = norm;
-            // A chord iteration keeps the tangent and its preconditioner; otherwise
-            // K_T = 4/tau^2 M + 2 T.
-            let chord = !with_contact && opts.tangent_reuse > 0.0 && self.kept;
+            // A chord iteration keeps the tangent and its preconditioner: with
+            // `-newton_tangent_reuse`, or when only the energy error is left (the residual is
+            // in tolerance: the step's tangent shrinks it by orders of magnitude at the cost
+            // of a solve). Otherwise K_T = 4/tau^2 M + 2 T.
+            let energy_only = norm <= opts.rtol * scale && step_tangent;
+            let chord = !with_contact && ((opts.tangent_reuse > 0.0 && self.kept) || energy_only);
             if chord {
                 self.stats.kept_tangent += 1;
             } else {
-                match self.evaluate(&s, true)? {
-                    Evaluation::Energies { .. } => {}
-                    Evaluation::Inverted(m) => {
-                        return Err(Error::Solver(format!("{}: {m}", where_(&s))))
+                if !fresh {
+                    match self.evaluate(&s, true)? {
+                        Evaluation::Energies { .. } => {}
+                        Evaluation::Inverted(m) => {
+                            return Err(Error::Solver(format!("{}: {m}", where_(&s))))
+                        }
                     }
                 }
                 s.k.copy_values_from(&self.inertia)?;
@@ -484,10 +500,18 @@ impl Newton {
                 s.k.zero_rows_columns(s.dirichlet, s.dirichlet_diag, None, None)?;
                 s.ksp.set_operators(s.k, s.k)?;
                 self.kept = true;
+                step_tangent = true;
             }
             self.r.scale(-1.0)?;
             self.delta.zero()?;
+            // Inexact Newton: the solve need only bring the linear error to a tenth of
+            // Newton's tolerance (the iteration's quadratic term is below it near the
+            // solution); never tighter than the solver's own rtol, never looser than 1e-2.
+            let base_rtol = s.ksp.rtol()?;
+            let eta = (0.1 * opts.rtol * scale / norm.max(f64::MIN_POSITIVE)).clamp(base_rtol, 1e-2);
+            s.ksp.set_tolerances(Some(eta), None, None, None)?;
             let info = s.ksp.solve(&self.r, &mut self.delta);
+            s.ksp.set_tolerances(Some(base_rtol), None, None, None)?;
             ksp_iterations += info.map_err(|e| in_iteration(e, &s, iterations))?.iterations;
             s.du.axpy(1.0, &self.delta)?;
             iterations += 1;
