@@ -10,7 +10,7 @@ use massfree::bodies::Bodies;
 use massfree::mesh::gmsh::mesh_geo;
 use massfree::mesh::msh::read_msh;
 use massfree::partition::Partition;
-use massfree::petsc::{Petsc, Vector};
+use massfree::petsc::{Pattern, Petsc, Vector};
 
 /// A small deterministic generator: uniform in [-1, 1).
 struct Rng(u64);
@@ -71,10 +71,25 @@ fn the_assembled_tangent_is_the_derivative_of_the_assembled_force() {
             f.set_start(&u0).unwrap();
             let mut k = new_matrix(&mesh, &part).unwrap();
             let mut f1 = layout.duplicate().unwrap();
-            match f.evaluate(&u1, &mut f1, Some(&mut k)).unwrap() {
-                Evaluation::Energies { .. } => {}
-                Evaluation::Inverted(m) => panic!("{geo} {model}: {m}"),
+            // The tangent at another state first: the one checked is a refill of the kept
+            // storage (the recorded slots replayed, the values written into the matrix's
+            // arrays), which must equal a first assembly to the last bit.
+            let other = random_vector(&layout, 0.02, &mut rng);
+            for u in [&other, &u1] {
+                match f.evaluate(u, &mut f1, Some(&mut k)).unwrap() {
+                    Evaluation::Energies { .. } => {}
+                    Evaluation::Inverted(m) => panic!("{geo} {model}: {m}"),
+                }
             }
+            let mut first =
+                InternalForce::new(&world, mesh.clone(), part.clone(), &bodies, &layout).unwrap();
+            first.set_start(&u0).unwrap();
+            let mut k_first = new_matrix(&mesh, &part).unwrap();
+            let mut f_first = layout.duplicate().unwrap();
+            first.evaluate(&u1, &mut f_first, Some(&mut k_first)).unwrap();
+            k_first.axpy(-1.0, &k, Pattern::Same).unwrap();
+            let refill = k_first.norm_frobenius().unwrap();
+            assert_eq!(refill, 0.0, "{geo} {model}: the refilled tangent differs by {refill:e}");
             let mut kd = layout.duplicate().unwrap();
             k.mult(&dir, &mut kd).unwrap();
             // Central differences of the assembled force along the direction.

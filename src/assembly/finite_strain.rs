@@ -175,7 +175,7 @@ impl InternalForce {
         let graph = self.part.graph(&self.mesh);
         let mut sums = match (tangent.is_some(), self.rows.take()) {
             (true, Some(kept)) => Some(RowSums::from_storage(graph, kept)),
-            (true, None) => Some(RowSums::new(graph, &self.mesh, &self.part)),
+            (true, None) => Some(RowSums::new(graph, &self.mesh, &self.part).recording()),
             (false, kept) => {
                 self.rows = kept;
                 None

@@ -18,7 +18,7 @@ use crate::error::{Error, Result};
 use crate::mesh::Mesh;
 use crate::partition::graph::NodeGraph;
 use crate::partition::Partition;
-use crate::petsc::Matrix;
+use crate::petsc::{CsrBlocks, Matrix};
 
 /// The storage of a [`RowSums`] kept between assemblies of one pattern: its blocks and its
 /// seam rows.
@@ -26,6 +26,86 @@ pub struct RowStorage {
     blocks: Vec<f64>,
     seam: Vec<bool>,
     dim: usize,
+    /// Where each block goes in the matrix's own arrays (found after the first fill; `None`
+    /// while not found or when the matrix is not AIJ of this graph's node pattern).
+    csr: Option<CsrFill>,
+    /// The graph slots the first assembly found for its cells, in the order they came.
+    slots: SlotCache,
+}
+
+/// The graph slots of each added cell's node pairs in rows summed here (not the seam's or
+/// other ranks'), recorded by the first assembly of a kept storage and replayed by the
+/// next ones, which add the same cells in the same order: no search per pair.
+#[derive(Default)]
+struct SlotCache {
+    /// The cells in the order they were added, and where their slots start.
+    cells: Vec<u32>,
+    start: Vec<u32>,
+    slots: Vec<u32>,
+    /// Replaying: the next cell's index in `cells`.
+    replay: Option<usize>,
+    /// Recording (the first assembly of a storage that will be kept).
+    record: bool,
+}
+
+/// The matrix's CSR structure and, per graph slot, the offset of its `dim` columns in each
+/// of its node's `dim` rows (the same in all of them), [`OFF_BLOCK`] set for the
+/// off-diagonal block.
+struct CsrFill {
+    layout: CsrBlocks,
+    offset: Vec<u32>,
+}
+
+/// The flag of an offset into the off-diagonal block.
+const OFF_BLOCK: u32 = 1 << 31;
+
+impl CsrFill {
+    /// The map of `graph`'s blocks (`d` components per node) into `mat`'s arrays, `None` if
+    /// some block's columns are not `d` consecutive entries of every row of its node.
+    fn find(graph: &NodeGraph, d: usize, mat: &Matrix) -> Result<Option<CsrFill>> {
+        let Some(layout) = mat.csr_blocks()? else { return Ok(None) };
+        if mat.ownership_range().0 != graph.first * d {
+            return Ok(None);
+        }
+        let n_rows = graph.n_rows();
+        let (first, last) = (graph.first, graph.first + n_rows);
+        let mut offset = vec![0u32; graph.cols.len()];
+        for i in 0..n_rows {
+            for ci in 0..d {
+                let lr = i * d + ci;
+                for s in graph.start[i]..graph.start[i + 1] {
+                    let h = graph.cols[s] as usize;
+                    let (block, col, flag) = if (first..last).contains(&h) {
+                        (&layout.diag, ((h - first) * d) as i32, 0)
+                    } else {
+                        let Some(off) = layout.off.as_ref() else { return Ok(None) };
+                        let Ok(c) = layout.colmap.binary_search(&((h * d) as i32)) else {
+                            return Ok(None);
+                        };
+                        let consecutive =
+                            (0..d).all(|j| layout.colmap.get(c + j) == Some(&((h * d + j) as i32)));
+                        if !consecutive {
+                            return Ok(None);
+                        }
+                        (off, c as i32, OFF_BLOCK)
+                    };
+                    let (a, b) = (block.row_start[lr] as usize, block.row_start[lr + 1] as usize);
+                    let row = &block.cols[a..b];
+                    let Ok(p) = row.binary_search(&col) else { return Ok(None) };
+                    if p + d > row.len() || (0..d).any(|j| row[p + j] != col + j as i32) {
+                        return Ok(None);
+                    }
+                    let o = p as u32 | flag;
+                    if ci == 0 {
+                        offset[s] = o;
+                    } else if offset[s] != o {
+                        return Ok(None);
+                    }
+                }
+            }
+        }
+        Ok(Some(CsrFill { layout, offset }))
+    }
 }
 
 /// This rank's rows being summed (see the module doc).
@@ -42,6 +122,9 @@ pub struct RowSums<'g> {
     seam: Vec<bool>,
     /// Their contributions from own cells, summed at the end with the others' in cell order.
     deferred: Vec<u64>,
+    /// Kept from a [`RowStorage`].
+    csr: Option<CsrFill>,
+    slots: SlotCache,
 }
 
 impl<'g> RowSums<'g> {
@@ -74,6 +157,8 @@ impl<'g> RowSums<'g> {
             away_rank: Vec::new(),
             seam,
             deferred: Vec::new(),
+            csr: None,
+            slots: SlotCache::default(),
         }
     }
 
@@ -117,6 +202,20 @@ impl<'g> RowSums<'g> {
         for (g, &v) in global.iter_mut().zip(nodes) {
             *g = part.node_global[v];
         }
+        // A kept storage's slots: replayed when recorded, else recorded.
+        let mut replay = None;
+        if let Some(k) = self.slots.replay {
+            if self.slots.cells.get(k) != Some(&(cell as u32)) {
+                return Err(Error::Internal(format!(
+                    "assembly: cell {cell} came where the recorded order has another"
+                )));
+            }
+            replay = Some(self.slots.start[k] as usize);
+            self.slots.replay = Some(k + 1);
+        } else if self.slots.record {
+            self.slots.cells.push(cell as u32);
+            self.slots.start.push(self.slots.slots.len() as u32);
+        }
         for (a, &v) in nodes.iter().enumerate() {
             let g = global[a];
             let row = g.wrapping_sub(self.graph.first);
@@ -124,12 +223,23 @@ impl<'g> RowSums<'g> {
                 let (lo, hi) = (self.graph.start[row], self.graph.start[row + 1]);
                 let cols = &self.graph.cols[lo..hi];
                 for (b, &h) in global.iter().enumerate() {
-                    let k = cols.binary_search(&(h as u32)).map_err(|_| {
-                        Error::Internal(format!(
-                            "assembly: node pair ({g}, {h}) outside the pattern"
-                        ))
-                    })?;
-                    let slot = lo + k;
+                    let slot = match replay.as_mut() {
+                        Some(at) => {
+                            *at += 1;
+                            self.slots.slots[*at - 1] as usize
+                        }
+                        None => {
+                            let k = cols.binary_search(&(h as u32)).map_err(|_| {
+                                Error::Internal(format!(
+                                    "assembly: node pair ({g}, {h}) outside the pattern"
+                                ))
+                            })?;
+                            if self.slots.record {
+                                self.slots.slots.push((lo + k) as u32);
+                            }
+                            lo + k
+                        }
+                    };
                     let out = &mut self.blocks[slot * D * D..(slot + 1) * D * D];
                     for i in 0..D {
                         let src = &vals[(a * D + i) * nd + b * D..(a * D + i) * nd + b * D + D];
@@ -177,8 +287,29 @@ impl<'g> RowSums<'g> {
         world: &SimpleCommunicator,
         mat: &mut Matrix,
     ) -> Result<RowStorage> {
-        self.write(world, mat)?;
-        Ok(RowStorage { blocks: self.blocks, seam: self.seam, dim: self.dim })
+        // Refills after the first go straight into the matrix's arrays (the pattern is
+        // fixed: the same structure every time).
+        let csr = match self.csr.take() {
+            Some(csr) => {
+                self.gather(world)?;
+                self.write_csr(mat, &csr)?;
+                Some(csr)
+            }
+            None => {
+                self.write(world, mat)?;
+                CsrFill::find(self.graph, self.dim, mat)?
+            }
+        };
+        let mut slots = std::mem::take(&mut self.slots);
+        slots.replay = slots.record.then_some(0);
+        Ok(RowStorage { blocks: self.blocks, seam: self.seam, dim: self.dim, csr, slots })
+    }
+
+    /// Sums whose storage will be kept ([`RowSums::fill_keeping`]) and refilled by the same
+    /// cells in the same order: the graph slots found now are replayed then.
+    pub fn recording(mut self) -> RowSums<'g> {
+        self.slots.record = true;
+        self
     }
 
     /// Sums restarted on a kept storage (its blocks zeroed).
@@ -192,10 +323,41 @@ impl<'g> RowSums<'g> {
             away_rank: Vec::new(),
             seam: storage.seam,
             deferred: Vec::new(),
+            csr: storage.csr,
+            slots: storage.slots,
         }
     }
 
-    fn write(&mut self, world: &SimpleCommunicator, mat: &mut Matrix) -> Result<()> {
+    /// Every row's blocks into `mat`'s arrays through `csr` (see [`CsrFill`]). Collective
+    /// (the matrix is assembled).
+    fn write_csr(&self, mat: &mut Matrix, csr: &CsrFill) -> Result<()> {
+        let d = self.dim;
+        let g = self.graph;
+        let (diag, off) = (&csr.layout.diag, csr.layout.off.as_ref());
+        mat.with_csr_values_mut(&csr.layout, |dv, ov| {
+            for i in 0..g.n_rows() {
+                for ci in 0..d {
+                    let lr = i * d + ci;
+                    let a0 = diag.row_start[lr] as usize;
+                    let b0 = off.map_or(0, |o| o.row_start[lr] as usize);
+                    for s in g.start[i]..g.start[i + 1] {
+                        let o = csr.offset[s];
+                        let src = &self.blocks[(s * d + ci) * d..(s * d + ci + 1) * d];
+                        let dst = if o & OFF_BLOCK == 0 {
+                            &mut dv[a0 + o as usize..a0 + o as usize + d]
+                        } else {
+                            let p = b0 + (o & !OFF_BLOCK) as usize;
+                            &mut ov[p..p + d]
+                        };
+                        dst.copy_from_slice(src);
+                    }
+                }
+            }
+        })
+    }
+
+    /// Send the other ranks' blocks and add what came (seam rows in cell order). Collective.
+    fn gather(&mut self, world: &SimpleCommunicator) -> Result<()> {
         let d = self.dim;
         let width = 3 + d * d;
         let ranks = std::mem::take(&mut self.away_rank);
@@ -219,6 +381,12 @@ impl<'g> RowSums<'g> {
                 self.blocks[slot * d * d + k] += f64::from_bits(bits);
             }
         }
+        Ok(())
+    }
+
+    fn write(&mut self, world: &SimpleCommunicator, mat: &mut Matrix) -> Result<()> {
+        self.gather(world)?;
+        let d = self.dim;
         let mut rows = vec![0i32; d];
         let mut cols = Vec::new();
         let mut vals = Vec::new();

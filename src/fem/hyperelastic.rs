@@ -270,45 +270,69 @@ impl Law {
         }
     }
 
-    /// `dS_alg/dC_1 : delta` for a symmetric `delta`.
-    fn midpoint_stress_derivative(
+    /// `dS_alg/dC_1 : sym(e_r (x) e_s)` for each Voigt pair `(r, s)` of `voigt` into `out`.
+    fn midpoint_stress_derivatives<const V: usize>(
         &self,
         c0: &Tensor,
         c1: &Tensor,
         nh: Option<&NeoHookeStep>,
-        delta: &Tensor,
-    ) -> Tensor {
+        voigt: &[(usize, usize)],
+        out: &mut [Tensor; V],
+    ) {
         let (l, m) = (self.lambda, self.mu);
         match (self.model, nh) {
             (Model::NeoHookean, Some(nh)) => {
-                // dS = 2 D_3 (dg/dI_3,1) cof C_1 : delta + 2 g dD_3 : delta,
+                // dS = 2 (dg/dI_3,1) (cof C_1 : delta) D_3 + 2 g dD_3 : delta,
                 // dD_3 : delta = B(C_0 + 2 C_1, delta)/6, B the polar form of cof.
                 let a = lin(1.0, c0, 2.0, c1);
-                let b = cof_polar(&a, delta);
-                let s = 2.0 * nh.dg_di1 * ddot(&nh.cof1, delta);
-                lin(s, &nh.d3, nh.g / 3.0, &b)
+                for (v, &(r, s)) in voigt.iter().enumerate() {
+                    // cof C_1 : sym(e_r (x) e_s) = (cof C_1)_rs (cof C_1 is symmetric).
+                    let x = 2.0 * nh.dg_di1 * nh.cof1[r][s];
+                    let b = cof_polar_unit(&a, r, s);
+                    out[v] = lin(x, &nh.d3, nh.g / 3.0, &b);
+                }
             }
             _ => {
                 // S_alg = CC : (E_0 + E_1)/2, dE_1 = delta/2: dS = CC : delta / 4.
-                let tr = trace(delta);
-                lin(0.25 * l * tr, &identity(), 0.5 * m, delta)
+                for (v, &(r, s)) in voigt.iter().enumerate() {
+                    let mut d = [[0.0; 3]; 3];
+                    if r == s {
+                        d[r][r] = 0.5 * m;
+                        for i in 0..3 {
+                            d[i][i] += 0.25 * l;
+                        }
+                    } else {
+                        d[r][s] = 0.25 * m;
+                        d[s][r] = 0.25 * m;
+                    }
+                    out[v] = d;
+                }
             }
         }
     }
 }
 
-/// The polar form of the cofactor, `B(A, D) = cof(A + D) - cof(A) - cof(D)`, linear in each
-/// argument (cof is quadratic): `d cof(C)[D] = B(C, D)`.
-fn cof_polar(a: &Tensor, d: &Tensor) -> Tensor {
-    let s = lin(1.0, a, 1.0, d);
-    let (cs, ca, cd) = (cofactor(&s), cofactor(a), cofactor(d));
-    let mut b = [[0.0; 3]; 3];
-    for i in 0..3 {
-        for j in 0..3 {
-            b[i][j] = cs[i][j] - ca[i][j] - cd[i][j];
+/// `B(A, sym(e_r (x) e_s))`, the polar form of the cofactor with a unit symmetric tensor:
+/// `B(A, D)_ij = eps_ikl eps_jmn A_km D_ln`.
+fn cof_polar_unit(a: &Tensor, r: usize, s: usize) -> Tensor {
+    // For D = e_r (x) e_s: B_ij = eps_ikr eps_jms A_km (one term each: k and m are the
+    // indices other than i, r and j, s); symmetrized over (r, s).
+    let one = |r: usize, s: usize| -> Tensor {
+        let mut b = [[0.0; 3]; 3];
+        for i in (0..3).filter(|&i| i != r) {
+            let (k, ek) = (3 - i - r, if (r + 3 - i) % 3 == 2 { 1.0 } else { -1.0 });
+            for j in (0..3).filter(|&j| j != s) {
+                let (m, em) = (3 - j - s, if (s + 3 - j) % 3 == 2 { 1.0 } else { -1.0 });
+                b[i][j] = ek * em * a[k][m];
+            }
         }
+        b
+    };
+    if r == s {
+        one(r, r)
+    } else {
+        lin(0.5, &one(r, s), 0.5, &one(s, r))
     }
-    b
 }
 
 /// The neo-Hooke step quantities at one point: `g`, `dg/dI_3,1`, `D_3`, `cof C_1`.
@@ -503,77 +527,70 @@ fn midpoint_impl<const N: usize, const D: usize, const V: usize>(
             }
         }
         let Some(k) = tangent.as_deref_mut() else { continue };
-        // DD (stress-like <- engineering strain-like), column by column.
-        let mut dd = [[0.0f64; V]; V];
-        for (jv, &(p_, q_)) in voigt.iter().enumerate() {
-            let mut delta = [[0.0; 3]; 3];
-            if p_ == q_ {
-                delta[p_][p_] = 1.0;
-            } else {
-                delta[p_][q_] = 0.5;
-                delta[q_][p_] = 0.5;
-            }
-            let ds = law.midpoint_stress_derivative(&c0, &c1, nh.as_ref(), &delta);
-            for (iv, &(r, c)) in voigt.iter().enumerate() {
-                dd[iv][jv] = ds[r][c];
-            }
-        }
-        // B_a(F)[I][i]: normal (p, p): F_ip G_a,p; shear (p, q): F_ip G_a,q + F_iq G_a,p.
-        let b_of = |f: &Tensor, ga: &[f64; 3]| -> [[f64; D]; V] {
-            let mut b = [[0.0f64; D]; V];
-            for (iv, &(p_, q_)) in voigt.iter().enumerate() {
-                for i in 0..D {
-                    b[iv][i] = if p_ == q_ {
-                        f[i][p_] * ga[p_]
-                    } else {
-                        f[i][p_] * ga[q_] + f[i][q_] * ga[p_]
-                    };
-                }
-            }
-            b
-        };
-        // DB_b = DD 2 B_b(F_1), scaled by w.
-        let mut db = [[[0.0f64; D]; V]; N];
-        for b in 0..N {
-            let b1 = b_of(&f1, &g[b]);
-            for iv in 0..V {
-                for kk in 0..D {
-                    let mut v = 0.0;
-                    for jv in 0..V {
-                        v += dd[iv][jv] * b1[jv][kk];
+        // dS_alg/dC_1 : sym(e_r (x) e_s) for each Voigt pair (r, s): CC_pjrs = dds[v][p][j].
+        let mut dds = [[[0.0f64; 3]; 3]; V];
+        law.midpoint_stress_derivatives(&c0, &c1, nh.as_ref(), voigt, &mut dds);
+        // The point's tangent as one 4-index array, then contracted with the gradients:
+        //   K_ab,ik += sum_js G_a,j A[i][j][k][s] G_b,s,
+        //   A[i][j][k][s] = w (2 sum_pr Fm_ip CC_pjrs F1_kr + 1/2 delta_ik S_js)
+        // (dC_1 = F_1^T (e_k (x) G_b) + its transpose and CC symmetric in r, s give the 2).
+        let mut aa = [[[[0.0f64; D]; D]; D]; D];
+        for (v, &(r, s_)) in voigt.iter().enumerate() {
+            // Q = 2 w Fm CC_(rs) (D x D).
+            let mut q = [[0.0f64; D]; D];
+            for i in 0..D {
+                for j in 0..D {
+                    let mut x = 0.0;
+                    for p_ in 0..D {
+                        x += fm[i][p_] * dds[v][p_][j];
                     }
-                    db[b][iv][kk] = 2.0 * w * v;
+                    q[i][j] = 2.0 * w * x;
+                }
+            }
+            for i in 0..D {
+                for j in 0..D {
+                    for kk in 0..D {
+                        aa[i][j][kk][s_] += q[i][j] * f1[kk][r];
+                        if r != s_ {
+                            aa[i][j][kk][r] += q[i][j] * f1[kk][s_];
+                        }
+                    }
                 }
             }
         }
-        // S G_b, scaled by w/2, for the geometric term.
-        let mut sg = [[0.0f64; 3]; N];
+        for i in 0..D {
+            for j in 0..D {
+                for s_ in 0..D {
+                    aa[i][j][i][s_] += 0.5 * w * s[j][s_];
+                }
+            }
+        }
+        // H_b[i][j][k] = sum_s A[i][j][k][s] G_b,s.
+        let mut h = [[[[0.0f64; D]; D]; D]; N];
         for b in 0..N {
             for i in 0..D {
-                let mut v = 0.0;
-                for jj in 0..D {
-                    v += s[i][jj] * g[b][jj];
+                for j in 0..D {
+                    for kk in 0..D {
+                        let mut x = 0.0;
+                        for s_ in 0..D {
+                            x += aa[i][j][kk][s_] * g[b][s_];
+                        }
+                        h[b][i][j][kk] = x;
+                    }
                 }
-                sg[b][i] = 0.5 * w * v;
             }
         }
         for a in 0..N {
-            let ba = b_of(&fm, &g[a]);
-            for b in 0..N {
-                let mut geo = 0.0;
-                for i in 0..D {
-                    geo += g[a][i] * sg[b][i];
-                }
-                for i in 0..D {
-                    let row = &mut k[(a * D + i) * nd + b * D..(a * D + i) * nd + b * D + D];
+            for i in 0..D {
+                let row = &mut k[(a * D + i) * nd..(a * D + i + 1) * nd];
+                for b in 0..N {
                     for kk in 0..D {
-                        let mut v = 0.0;
-                        for iv in 0..V {
-                            v += ba[iv][i] * db[b][iv][kk];
+                        let mut x = 0.0;
+                        for j in 0..D {
+                            x += g[a][j] * h[b][i][j][kk];
                         }
-                        row[kk] += v;
+                        row[b * D + kk] += x;
                     }
-                    row[i] += geo;
                 }
             }
         }

@@ -25,6 +25,7 @@ macro_rules! chk {
 
 #[doc(hidden)]
 pub mod conv;
+mod csr;
 pub mod ffi;
 mod init;
 mod is;
@@ -35,6 +36,7 @@ mod scatter;
 mod shell;
 mod vec;
 
+pub use csr::{CsrBlock, CsrBlocks};
 pub use init::Petsc;
 pub use is::IndexSet;
 pub use ksp::{Ksp, SolveInfo};

@@ -74,6 +74,10 @@ pub struct NewtonStats {
     /// Iterations that solved with a kept tangent (`-newton_tangent_reuse`).
     #[serde(default)]
     pub kept_tangent: usize,
+    /// Iterations that solved with the step's tangent once only the energy error was left
+    /// (chord iterations).
+    #[serde(default)]
+    pub energy_chords: usize,
     /// The largest energy error a converged step left, relative to the energy.
     pub max_energy_error: f64,
     /// Newton iterations of the last step.
@@ -474,7 +478,9 @@ impl Newton {
             // of a solve). Otherwise K_T = 4/tau^2 M + 2 T.
             let energy_only = norm <= opts.rtol * scale && step_tangent;
             let chord = !with_contact && ((opts.tangent_reuse > 0.0 && self.kept) || energy_only);
-            if chord {
+            if chord && energy_only {
+                self.stats.energy_chords += 1;
+            } else if chord {
                 self.stats.kept_tangent += 1;
             } else {
                 if !fresh {
@@ -508,7 +514,8 @@ impl Newton {
             // Newton's tolerance (the iteration's quadratic term is below it near the
             // solution); never tighter than the solver's own rtol, never looser than 1e-2.
             let base_rtol = s.ksp.rtol()?;
-            let eta = (0.1 * opts.rtol * scale / norm.max(f64::MIN_POSITIVE)).clamp(base_rtol, 1e-2);
+            let eta =
+                (0.1 * opts.rtol * scale / norm.max(f64::MIN_POSITIVE)).clamp(base_rtol, 1e-2);
             s.ksp.set_tolerances(Some(eta), None, None, None)?;
             let info = s.ksp.solve(&self.r, &mut self.delta);
             s.ksp.set_tolerances(Some(base_rtol), None, None, None)?;
