@@ -60,6 +60,7 @@ struct CsrFill {
 const OFF_BLOCK: u32 = 1 << 31;
 
 impl CsrFill {
+    #[allow(clippy::needless_range_loop)] // slots index the graph and the offsets alike
     /// The map of `graph`'s blocks (`d` components per node) into `mat`'s arrays, `None` if
     /// some block's columns are not `d` consecutive entries of every row of its node.
     fn find(graph: &NodeGraph, d: usize, mat: &Matrix) -> Result<Option<CsrFill>> {

@@ -28,10 +28,13 @@ pub struct CsrBlocks {
     pub colmap: Vec<i32>,
 }
 
+/// An AIJ matrix's diagonal block, and on several ranks its off-diagonal block with the
+/// column map (lent by PETSc).
+type AijBlocks = (ffi::Mat, Option<(ffi::Mat, *const i32)>);
+
 impl Matrix {
-    /// `(diagonal block, off-diagonal block and its column map)` of an AIJ matrix, `None`
-    /// for any other storage.
-    fn aij_blocks(&self) -> Result<Option<(ffi::Mat, Option<(ffi::Mat, *const i32)>)>> {
+    /// The blocks of an AIJ matrix, `None` for any other storage.
+    fn aij_blocks(&self) -> Result<Option<AijBlocks>> {
         let mut t: ffi::MatType = ptr::null();
         // SAFETY: valid handle; PETSc returns a pointer to its static type name.
         chk!(ffi::MatGetType(self.raw(), &mut t))?;
