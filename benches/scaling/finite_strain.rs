@@ -47,7 +47,7 @@ pub fn section(repo: &Path, dir: &Path, quick: bool) -> String {
         s(&["--param", &format!("h={block_h}"), "--steps", if quick { "5" } else { "10" }]),
         vec![1, 2],
     ));
-    let (bh, bhc, bsteps) = if quick { ("0.2", "0.04", "60") } else { ("0.08", "0.03", "60") };
+    let (bh, bhc, bsteps) = if quick { ("0.2", "0.04", "60") } else { ("0.045", "0.03", "60") };
     cases.push((
         format!("ball on a plane, M_H^0, h = {bh}, hc = {bhc} (steps 1-60: the impact)"),
         scene(repo, "sphere.toml", None, dir),
