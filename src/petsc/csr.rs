@@ -35,12 +35,7 @@ type AijBlocks = (ffi::Mat, Option<(ffi::Mat, *const i32)>);
 impl Matrix {
     /// The blocks of an AIJ matrix, `None` for any other storage.
     fn aij_blocks(&self) -> Result<Option<AijBlocks>> {
-        let mut t: ffi::MatType = ptr::null();
-        // SAFETY: valid handle; PETSc returns a pointer to its static type name.
-        chk!(ffi::MatGetType(self.raw(), &mut t))?;
-        // SAFETY: `t` is a NUL-terminated C string owned by PETSc.
-        let name = unsafe { std::ffi::CStr::from_ptr(t) }.to_string_lossy().to_string();
-        match name.as_str() {
+        match self.type_name()?.as_str() {
             "seqaij" => Ok(Some((self.raw(), None))),
             "mpiaij" => {
                 let (mut d, mut o, mut colmap): (ffi::Mat, ffi::Mat, *const i32) =

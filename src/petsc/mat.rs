@@ -194,12 +194,17 @@ impl Matrix {
 
     /// Whether the storage is (non-symmetric) block AIJ: `seqbaij` or `mpibaij`.
     fn is_plain_baij(&self) -> Result<bool> {
+        let name = self.type_name()?;
+        Ok(name == "seqbaij" || name == "mpibaij")
+    }
+
+    /// PETSc's name of the storage (`seqaij`, `mpibaij`, ...).
+    pub(super) fn type_name(&self) -> Result<String> {
         let mut t: ffi::MatType = ptr::null();
         // SAFETY: valid handle; PETSc returns a pointer to its static type name.
         chk!(ffi::MatGetType(self.m, &mut t))?;
         // SAFETY: `t` is a NUL-terminated C string owned by PETSc.
-        let name = unsafe { std::ffi::CStr::from_ptr(t) }.to_string_lossy();
-        Ok(name == "seqbaij" || name == "mpibaij")
+        Ok(unsafe { std::ffi::CStr::from_ptr(t) }.to_string_lossy().to_string())
     }
 
     /// A BAIJ copy built as [`new_baij`](Matrix::new_baij) builds one, with exact
@@ -258,12 +263,7 @@ impl Matrix {
 
     /// Whether the storage is block AIJ.
     pub fn is_baij(&self) -> Result<bool> {
-        let mut t: ffi::MatType = ptr::null();
-        // SAFETY: valid handle; PETSc returns a pointer to its static type name.
-        chk!(ffi::MatGetType(self.m, &mut t))?;
-        // SAFETY: `t` is a NUL-terminated C string owned by PETSc.
-        let name = unsafe { std::ffi::CStr::from_ptr(t) }.to_string_lossy();
-        Ok(name.contains("baij"))
+        Ok(self.type_name()?.contains("baij"))
     }
 
     fn from_raw(m: ffi::Mat) -> Result<Matrix> {

@@ -512,10 +512,11 @@ impl Newton {
             self.delta.zero()?;
             // Inexact Newton: the solve need only bring the linear error to a tenth of
             // Newton's tolerance (the iteration's quadratic term is below it near the
-            // solution); never tighter than the solver's own rtol, never looser than 1e-2.
+            // solution); never tighter than the solver's own rtol, never looser than 1e-2
+            // (or that rtol, if it is looser).
             let base_rtol = s.ksp.rtol()?;
             let eta =
-                (0.1 * opts.rtol * scale / norm.max(f64::MIN_POSITIVE)).clamp(base_rtol, 1e-2);
+                (0.1 * opts.rtol * scale / norm.max(f64::MIN_POSITIVE)).min(1e-2).max(base_rtol);
             s.ksp.set_tolerances(Some(eta), None, None, None)?;
             let info = s.ksp.solve(&self.r, &mut self.delta);
             s.ksp.set_tolerances(Some(base_rtol), None, None, None)?;
