@@ -67,6 +67,21 @@ pub trait ContactSolver {
     fn n_nodes(&self) -> usize {
         self.boundary().nodes.len()
     }
+    /// The global DOFs whose rows carried a contact force in the last step (the active
+    /// nodes', all components; with pairs also the master nodes they press on), the same on
+    /// every rank: the mass-free layer's velocity holds them
+    /// ([`crate::time::Midpoint::settle_layer_velocity`]).
+    fn loaded_dofs(&self) -> Vec<i32> {
+        let nodes = self.nodes();
+        let dim = nodes.dim;
+        let mut dofs = Vec::new();
+        for (k, &a) in self.active().iter().enumerate() {
+            if a {
+                dofs.extend((0..dim).map(|c| nodes.dofs[k * dim + c].0));
+            }
+        }
+        dofs
+    }
     /// A slave/master pair of deformable bodies (not rigid obstacles).
     fn is_pair(&self) -> bool {
         false

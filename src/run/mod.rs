@@ -211,7 +211,8 @@ impl<'a> Simulation<'a> {
                 run.record.step(&report, run.midpoint.energy(), seconds, run.midpoint.tau());
                 run.rotations.step(&self.domain, self.console, run.midpoint.u(), report.time)?;
                 self.say_energies(n + 1, report.time, run.midpoint.energy());
-                let stop = self.output_step(n + 1, &run, report.contact.as_ref(), &mut clock)?;
+                let stop =
+                    self.output_step(n + 1, &mut run, report.contact.as_ref(), &mut clock)?;
                 phase::step_done(n + 1);
                 watchdog.step_time(t_step.elapsed().as_secs_f64());
                 // A signal after the last step is the final phase's business: the run still
@@ -363,6 +364,14 @@ impl<'a> Simulation<'a> {
         };
         let mut rotations = rotation::BodyRotations::new(d)?;
         rotations.step(d, console, midpoint.u(), midpoint.time_at(first))?;
+        if restart.is_none() {
+            // The layer's velocity at the start: the derivative of its static response to the
+            // initial velocity (held: the nodes in contact at t = 0).
+            if let Some(c) = contact.as_deref() {
+                midpoint.set_loaded_dofs(c.loaded_dofs());
+            }
+            midpoint.settle_layer_velocity()?;
+        }
         let run = Stepping { midpoint, contact, loads, record, facts, first, rotations };
         let at_start = run.contact.as_deref().map(|solver| ContactStep {
             solver,
@@ -406,13 +415,20 @@ impl<'a> Simulation<'a> {
     fn output_step(
         &mut self,
         n: usize,
-        run: &Stepping,
+        run: &mut Stepping,
         contact: Option<&StepContact>,
         clock: &mut LoopClock,
     ) -> Result<bool> {
         let d = &self.domain;
         let t0 = Instant::now();
         let stress0 = self.stress.seconds();
+        // Checkpoints: every 10 field outputs (they hold three fields), at the end, and
+        // when a signal stops the run. They and the velocity field hold the layer's settled
+        // velocity.
+        let due = n.is_multiple_of(10 * d.scene.output.every) || n == d.n_steps;
+        if due || self.output.velocity_due(d, n) {
+            run.midpoint.settle_layer_velocity()?;
+        }
         let now = run.contact.as_deref().zip(contact).map(|(solver, c)| ContactStep {
             solver,
             row: &c.row,
@@ -421,9 +437,8 @@ impl<'a> Simulation<'a> {
         self.output.write_step(d, &mut self.views, &mut self.stress, n, &run.midpoint, now)?;
         // A signal on any rank stops all ranks after this step, with a checkpoint.
         let stop = phase::stop_requested(d.world);
-        // Checkpoints: every 10 field outputs (they hold three fields), at the end, and
-        // when a signal stops the run.
-        if n.is_multiple_of(10 * d.scene.output.every) || stop || n == d.n_steps {
+        if due || stop {
+            run.midpoint.settle_layer_velocity()?;
             let cp = run.record.checkpoint(n, &run.midpoint, run.contact.as_deref());
             self.output.write_checkpoint(&mut self.views, &cp, &run.midpoint)?;
         }

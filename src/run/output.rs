@@ -181,6 +181,14 @@ impl RunOutput {
     }
 
     /// Write what is due at step n: energies always, fields when due, the contact row.
+    /// Whether step `n` writes the velocity field (the mass-free layer's velocity must then
+    /// be settled first).
+    pub fn velocity_due(&self, d: &Domain, n: usize) -> bool {
+        let Some(out) = self.open_file() else { return false };
+        let due = out.due_fields(n);
+        d.scene.output.fields.iter().zip(&due).any(|(f, &due)| due && *f == Field::Velocity)
+    }
+
     pub fn write_step(
         &mut self,
         d: &Domain,

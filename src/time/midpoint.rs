@@ -18,6 +18,7 @@ use mpi::traits::*;
 
 mod correction;
 mod finite_strain;
+mod layer_velocity;
 mod products;
 
 pub use products::ReuseReport;
@@ -156,6 +157,8 @@ pub struct Midpoint {
     groups: Vec<u32>,
     /// The number of bodies over all ranks.
     n_groups: usize,
+    /// The mass-free layer's velocity (the derivative of its static response).
+    layer_rate: layer_velocity::LayerRate,
 }
 
 /// The kick's layer block of the constrained operator (none without massless rows) and the
@@ -283,6 +286,7 @@ impl Midpoint {
             m_ones: None,
             groups: Vec::new(),
             n_groups: 1,
+            layer_rate: Default::default(),
         };
         mp.reuse.interval = mp.op.refresh;
         mp.refresh(forces, t0)?;
@@ -734,6 +738,8 @@ impl Midpoint {
         if project {
             self.release(forces.present(), &hold)?;
         }
+        let loaded = contact.as_deref().map_or_else(Vec::new, |c| c.loaded_dofs());
+        self.after_step_layer(loaded, loads && varying)?;
         Ok(StepReport { time: t_next, ksp_iterations: its, newton_iterations: 0, contact: report })
     }
 
@@ -868,6 +874,7 @@ impl Midpoint {
     ) -> Result<()> {
         set(&mut self.u, &mut self.v, &mut self.du)?;
         self.increments = 0;
+        self.layer_velocity_restored()?;
         if let Some(cg) = self.op.cg.as_mut() {
             cg.forget();
         }

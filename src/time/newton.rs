@@ -160,6 +160,8 @@ pub struct Newton {
     /// The step operator and its preconditioner hold the last tangent with the Dirichlet
     /// rows eliminated (no contact solver or static solve has rewritten it since).
     kept: bool,
+    /// `tangent` holds an evaluated tangent (of a step or of the static layer problem).
+    tangent_ready: bool,
 }
 
 impl Newton {
@@ -204,7 +206,15 @@ impl Newton {
             body_names,
             dim,
             kept: false,
+            tangent_ready: false,
         })
+    }
+
+    /// The last evaluated tangent of the internal force (`d f_int,alg / d u_1` of the last
+    /// step's first guess, or the static tangent of a layer projection), without Dirichlet
+    /// rows or contact conditions; `None` before the first evaluation.
+    pub fn last_tangent(&self) -> Option<&Matrix> {
+        self.tangent_ready.then_some(&self.tangent)
     }
 
     /// The strain energy at `u`. Collective.
@@ -302,6 +312,7 @@ impl Newton {
         let e = self.force.evaluate(&self.u1, &mut self.f_int, k);
         let seconds = t0.elapsed().as_secs_f64();
         if tangent {
+            self.tangent_ready = true;
             self.stats.tangent_evaluations += 1;
             self.stats.tangent_seconds += seconds;
         } else {
@@ -602,7 +613,9 @@ impl Newton {
         let mut first = None;
         for _ in 0..self.opts.max_it {
             self.force.set_start(u)?;
-            match self.force.evaluate(u, &mut self.f_int, Some(&mut self.tangent))? {
+            let evaluation = self.force.evaluate(u, &mut self.f_int, Some(&mut self.tangent))?;
+            self.tangent_ready = true;
+            match evaluation {
                 Evaluation::Energies { .. } => {}
                 Evaluation::Inverted(m) => {
                     return Err(Error::Solver(format!("the massless layer's equilibrium: {m}")))

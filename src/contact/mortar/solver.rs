@@ -666,6 +666,28 @@ impl ContactSolver for MortarActiveSet<'_> {
     fn master_nodes(&self) -> &[usize] {
         &self.master
     }
+    fn loaded_dofs(&self) -> Vec<i32> {
+        let nodes = self.inner.nodes();
+        let dim = nodes.dim;
+        let active = self.inner.active();
+        let mut dofs = Vec::new();
+        for (k, &a) in active.iter().enumerate() {
+            if a {
+                dofs.extend((0..dim).map(|c| nodes.dofs[k * dim + c].0));
+            }
+        }
+        // The master nodes an active slave node presses on carry its force too.
+        for &(p, l, w) in &self.couplings {
+            if active.get(p).copied().unwrap_or(false) && w != 0.0 {
+                if let Some(&slot) = self.pair.slot_of.get(&self.master[l]) {
+                    dofs.extend((0..dim).map(|c| self.pair.dofs[slot * dim + c].0));
+                }
+            }
+        }
+        dofs.sort_unstable();
+        dofs.dedup();
+        dofs
+    }
     fn mortar_cost(&self) -> Option<MortarCost> {
         Some(self.cost)
     }

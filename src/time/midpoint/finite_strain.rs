@@ -217,6 +217,8 @@ impl Midpoint {
         if project {
             self.release(loads, &hold)?;
         }
+        let loaded = contact.as_deref().map_or_else(Vec::new, |c| c.loaded_dofs());
+        self.after_step_layer(loaded, loads && varying)?;
         self.f_sum = Some(f_sum);
         self.increments += 1;
         Ok(StepReport {
