@@ -93,8 +93,7 @@ fn layout_is_documented_and_rank_independent() {
     }
     let _ = s1;
     // h5dump reads it.
-    let o =
-        std::process::Command::new("h5dump").arg("-H").arg(dir.join("beam-2.h5")).output().unwrap();
+    let o = output(std::process::Command::new("h5dump").arg("-H").arg(dir.join("beam-2.h5")));
     assert!(o.status.success());
 }
 
@@ -488,6 +487,6 @@ fn a_two_body_run_file_names_its_pair() {
         master.len()
     );
     assert!(out.contains(&line), "{out}");
-    let o = std::process::Command::new("h5dump").arg("-H").arg(&h5).output().unwrap();
+    let o = output(std::process::Command::new("h5dump").arg("-H").arg(&h5));
     assert!(o.status.success());
 }

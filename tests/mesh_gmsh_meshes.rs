@@ -1,5 +1,7 @@
 //! The shipped .geo files meshed by the real gmsh, read back in ASCII and binary.
 
+mod common;
+
 use massfree::error::Error;
 use massfree::mesh::check::{cell_measure, check_geometry};
 use massfree::mesh::gmsh::mesh_geo;
@@ -299,8 +301,8 @@ fn parametric_files() {
             if bin {
                 cmd.arg("-bin");
             }
-            let status = cmd.arg("-o").arg(&out).args(["-v", "1"]).status().unwrap();
-            assert!(status.success());
+            let o = common::output(cmd.arg("-o").arg(&out).args(["-v", "1"]));
+            assert!(o.status.success());
             let text = std::fs::read(&out).unwrap();
             let plain = load(name, &[], d);
             let m = parse_msh(&text, "p.msh").unwrap();

@@ -28,8 +28,8 @@ fn check_xdmf(xdmf: &Path, png: Option<&Path>) -> (String, bool) {
     for tool in ["pvbatch", "xvfb-run", "/usr/bin/python3"] {
         let found = Command::new("sh")
             .args(["-c", &format!("command -v {tool}")])
-            .output()
-            .is_ok_and(|o| o.status.success());
+            .status()
+            .is_ok_and(|s| s.success());
         assert!(
             found,
             "{tool} is missing: `./run test` installs paraview python3-paraview python3-meshio \
@@ -45,7 +45,7 @@ fn check_xdmf(xdmf: &Path, png: Option<&Path>) -> (String, bool) {
         if let Some(png) = png {
             cmd.arg("--png").arg(png);
         }
-        cmd.output().expect("cannot start xvfb-run")
+        output(&mut cmd)
     };
     // Another process's xvfb-run may take the same display number at the same moment (the
     // choice is racy across processes): pvbatch then finds no X server. Only that is retried.

@@ -21,7 +21,7 @@ fn launch(ranks: usize, args: &[String]) -> Command {
 
 /// The status attribute as h5dump (an independent reader) prints it.
 fn status_by_h5dump(h5: &Path) -> String {
-    let o = Command::new("h5dump").args(["-a", "status"]).arg(h5).output().unwrap();
+    let o = output(Command::new("h5dump").args(["-a", "status"]).arg(h5));
     assert!(
         o.status.success(),
         "h5dump cannot read {}: {}",
@@ -641,7 +641,7 @@ fn the_run_script_works_from_any_directory_and_prints_one_error_line() {
         let mut cmd = Command::new(&script);
         cmd.args(args).current_dir(&dir).env("MASSFREE_PREBUILT", "1");
         mpi_env(&mut cmd);
-        cmd.output().unwrap()
+        output(&mut cmd)
     };
     // Relative scene and output paths are the caller's.
     let name = scene.file_name().unwrap().to_str().unwrap();

@@ -156,12 +156,12 @@ fn nodal_field(
 /// written by this process can be inherited, still locked, by a child that another test
 /// thread started meanwhile (the descriptors are not closed on exec).
 fn snapshot_cmd(args: &[&str]) -> Output {
-    std::process::Command::new(bin())
-        .args(args)
-        .env("HDF5_USE_FILE_LOCKING", "FALSE")
-        .env("RUST_BACKTRACE", "0")
-        .output()
-        .expect("failed to start massfree")
+    output(
+        std::process::Command::new(bin())
+            .args(args)
+            .env("HDF5_USE_FILE_LOCKING", "FALSE")
+            .env("RUST_BACKTRACE", "0"),
+    )
 }
 
 fn run_ok(args: &[&str]) -> String {

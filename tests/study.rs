@@ -1,6 +1,8 @@
 //! `massfree study`: real sweeps through the binary (which launches `mpirun` itself):
 //! convergence rates read back from the CSV, the plots, failed points, bad study files.
 
+mod common;
+
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
@@ -36,8 +38,8 @@ fn study(dir: &Path, scene: &str, text: &str) -> (Output, PathBuf) {
 
 /// `massfree study FILE`.
 fn run_study(file: &Path) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_massfree"))
-        .arg("study")
+    let mut cmd = Command::new(env!("CARGO_BIN_EXE_massfree"));
+    cmd.arg("study")
         .arg(file)
         .env("OMPI_ALLOW_RUN_AS_ROOT", "1")
         .env("OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1")
@@ -48,9 +50,8 @@ fn run_study(file: &Path) -> Output {
         // The study's runs inherit it: HDF5's file locks off, as for every launch of the tests
         // (`tests/common/mod.rs`, `mpi_env`: a descriptor inherited by a launch of another
         // test thread keeps this process's read lock).
-        .env("HDF5_USE_FILE_LOCKING", "FALSE")
-        .output()
-        .expect("cannot start massfree")
+        .env("HDF5_USE_FILE_LOCKING", "FALSE");
+    common::output(&mut cmd)
 }
 
 /// A fresh Open MPI session directory base (short: Unix socket paths live under it).

@@ -73,7 +73,8 @@ pub fn small_scene(dir: &Path, name: &str, geo: &str, h: f64, rest: &str) -> Pat
     scene_text(dir, &format!("{name}.toml"), &text)
 }
 
-/// `mpirun -n ranks massfree args...` (ranks = 0: the binary alone, as a singleton).
+/// `mpirun -n ranks massfree args...` (ranks = 0: the binary alone, as a singleton), within
+/// [`LAUNCH_LIMIT_S`].
 pub fn massfree(ranks: usize, args: &[&str]) -> Output {
     let mut cmd = if ranks == 0 {
         Command::new(bin())
@@ -84,7 +85,37 @@ pub fn massfree(ranks: usize, args: &[&str]) -> Output {
     };
     cmd.args(args);
     mpi_env(&mut cmd);
-    cmd.output().expect("failed to start massfree")
+    output(&mut cmd)
+}
+
+/// The longest any one launch of a test may take (the longest, a 3-rank run of the suite's
+/// scenes, takes about a minute on 2 cores): a launch that passes it is a hang.
+pub const LAUNCH_LIMIT_S: f64 = 600.0;
+
+/// `cmd`'s output like [`Command::output`], but within [`LAUNCH_LIMIT_S`]: a launch that
+/// passes it is killed with everything it started, and the test fails saying HANG, with its
+/// own name and the command.
+pub fn output(cmd: &mut Command) -> Output {
+    output_within(cmd, LAUNCH_LIMIT_S)
+}
+
+/// [`output`] with a limit of `seconds`.
+pub fn output_within(cmd: &mut Command, seconds: f64) -> Output {
+    let test = std::thread::current().name().unwrap_or("a test").to_string();
+    let what = format!("{test}: {:?}", cmd);
+    cmd.stdout(std::process::Stdio::piped()).stderr(std::process::Stdio::piped());
+    let mut job = Job::start(cmd, &what);
+    let stdout = job.take_stdout();
+    let reader = std::thread::spawn(move || {
+        let mut s = Vec::new();
+        let mut stdout = stdout;
+        let _ = std::io::Read::read_to_end(&mut stdout, &mut s);
+        s
+    });
+    let status = job.wait(&Limit::fixed(seconds, "the limit of one launch of a test"));
+    let stdout = reader.join().unwrap_or_default();
+    let stderr = job.stderr_text().into_bytes();
+    Output { status, stdout, stderr }
 }
 
 /// The environment of every launch: mpirun as root, no shared-memory single copy (containers),
@@ -487,12 +518,13 @@ pub fn steps_in_growing_file(h5: &Path) -> Option<usize> {
     if !h5.exists() {
         return None;
     }
-    let o = Command::new("h5dump")
-        .args(["-H", "-d", "/energy/step"])
-        .arg(h5)
-        .env("HDF5_USE_FILE_LOCKING", "FALSE")
-        .output()
-        .ok()?;
+    let o = output_within(
+        Command::new("h5dump")
+            .args(["-H", "-d", "/energy/step"])
+            .arg(h5)
+            .env("HDF5_USE_FILE_LOCKING", "FALSE"),
+        60.0,
+    );
     let text = String::from_utf8_lossy(&o.stdout).to_string();
     let line = text.lines().find(|l| l.contains("DATASPACE"))?;
     line.split_once("( ")?.1.split_once(' ')?.0.parse().ok()
