@@ -1,8 +1,10 @@
 //! Coulomb friction against rigid obstacles (issue 25): a block on a slope slides with
 //! `a = g (sin theta - mu cos theta)` and dissipates `mu m g cos theta` per unit of sliding, or
 //! sticks when `mu > tan theta`; in 3D it slides straight downhill; a disc hitting a plane
-//! obliquely with little friction slips at every node (`t = mu lambda`); Tresca's bound gives
-//! a constant friction force; `friction = 0` is the frictionless solver to the last digit;
+//! obliquely with little friction slips at every node (`t = mu lambda`), with much friction
+//! sticks and spins off; Tresca's bound gives a constant friction force and dissipates `S L`
+//! per unit of sliding; `friction = 0` is frictionless, and a vanishing `mu` approaches the
+//! frictionless solution by the Coulomb impulse `mu J_n`; Cattaneo and Mindlin's partial slip;
 //! every result the same on 1, 2 and 3 ranks.
 
 mod common;
@@ -220,21 +222,99 @@ every = 50
         (f[0] / len - uphill[0]).abs() < 1e-3 && (f[1] / len - uphill[1]).abs() < 1e-3,
         "friction impulse {f:?}"
     );
+    // The dissipation from the block's motion, not from the solver's tractions and slips: a
+    // sliding block's friction is mu N, N = m g cos theta on average, so sliding a distance x
+    // (the mean displacement downhill, from the displacement field) costs mu m g cos theta x.
+    // The normal force oscillates about that (gravity switched on at t = 0; the midpoint rule
+    // does not damp it), with a relative amplitude A at an angular frequency omega; weighted
+    // by the speed a t, an oscillation's share of D over the run T is at most
+    // A (2 / (omega T) + 4 / (omega T)^2) of it. A and omega from the normal force's series
+    // (its largest excursion; pi times its crossings of the mean per unit time).
+    let m = s.mass.total_mass[0];
+    assert!((m - 1.0).abs() < 1e-12, "the unit cube's mass: {m}");
+    let h5 = dir.join("slide3d-2.h5");
+    let run = reader(&h5);
+    let nc = run.series(layout::CONTACT_NODES).unwrap().len();
+    let lambda = run.series(&layout::contact("force")).unwrap();
+    let n0 = m * G * THETA.cos();
+    let normal: Vec<f64> = lambda.chunks(nc).skip(1).map(|r| r.iter().sum::<f64>() / n0).collect();
+    let amplitude = normal.iter().fold(0.0f64, |a, &x| a.max((x - 1.0).abs()));
+    let crossings = normal.windows(2).filter(|w| (w[0] - 1.0) * (w[1] - 1.0) < 0.0).count();
+    let t = 1.0;
+    let omega = std::f64::consts::PI * crossings as f64 / t;
+    let tol = amplitude * (2.0 / (omega * t) + 4.0 / (omega * t).powi(2));
+    let (u, dim) = last_displacement(&h5);
+    let x = mean_component(&u, dim, 0) * phi.cos() + mean_component(&u, dim, 1) * phi.sin();
+    let d = c.friction_dissipation;
+    let expected = mu * m * G * THETA.cos() * x;
+    eprintln!(
+        "slid {x:.6} (a T^2 / 2 = {:.6}); dissipation {d:.6} against mu m g cos theta x = \
+         {expected:.6} ({:+.2e}); the normal force's oscillation: A = {amplitude:.3}, \
+         omega = {omega:.1}: bound {tol:.2e}",
+        a * t * t / 2.0,
+        d / expected - 1.0
+    );
+    assert!(rel_diff(d, expected) < tol, "dissipation {d} against {expected}");
+    // The series is the summary's total, step by step, and only grows.
+    let series = run.series(&layout::energy("friction_dissipation")).unwrap();
+    assert!((series.last().unwrap() - d).abs() <= 1e-12 * d, "the series ends at the total");
+    assert!(series.windows(2).all(|w| w[1] >= w[0] - 1e-14 * d), "D only grows");
 }
 
-/// The disc of `scenes/disc.toml` (R = 8, the mass-free layer) hitting the plane obliquely:
-/// velocity (400, -800).
+/// The oblique disc's tangential and normal speeds: disc.toml's 800, turned so that the disc
+/// slides twice as fast as it comes down.
+const V_T: f64 = 800.0;
+const V_N: f64 = 400.0;
+/// The disc's radius (disc.toml, disc_oblique.toml).
+const R_DISC: f64 = 8.0;
+
+/// The disc of `scenes/disc.toml` (R = 8, E = 100, the mass-free layer) hitting the plane
+/// obliquely at (V_T, -V_N), 400 steps (in contact from step 125 on, still pressed at the end).
 fn oblique_disc(dir: &Path, friction: &str) -> std::path::PathBuf {
     scene_variant(
         "disc.toml",
         dir,
         &[
-            ("velocity = [\"0\", \"-800\"]", "velocity = [\"400\", \"-800\"]"),
+            ("velocity = [\"0\", \"-800\"]", &format!("velocity = [\"{V_T}\", \"-{V_N}\"]")),
             ("[output]", &format!("{friction}\n[output]")),
             ("steps = 1000", "steps = 400"),
             ("every = 10", "every = 100"),
         ],
     )
+}
+
+/// A disc's mass and moment of inertia about its centre of mass, from the mass matrix's
+/// moments: `I = sum_c X_c^T M X_c - |X^T M 1|^2 / m`, the `I` of `L = I omega` for a rigid
+/// rotation of the discrete disc (the summary's `L` is taken about the centre of mass).
+fn disc_inertia(s: &RunSummary) -> (f64, f64) {
+    let m = s.mass.total_mass[0];
+    let (f, q) = (&s.mass.first_moment, &s.mass.second_moment);
+    (m, q[0] + q[1] - (f[0] * f[0] + f[1] * f[1]) / m)
+}
+
+/// The oblique disc slides at every node, in theory. A rigid disc's contact point (tangential
+/// velocity `v_c = v_x + omega R`) slows by `(1/m + R^2/I) J_t` under the friction impulse
+/// `J_t <= mu J_n` (`J_n` the normal impulse: the y momentum's change; `1 + m R^2 / I = 3` for
+/// a uniform disc), so it keeps sliding forward while `V_T - (1/m + R^2/I) mu J_n > 0`. The
+/// nodes' own tangential velocities differ from the rigid contact point's by the disc's
+/// elastic motion, which the impact at `V_N` drives and keeps below `V_N` (a wave from an
+/// impact at `V_N` moves the material at `V_N` at most; the nodes' slip rates scatter by
+/// about 0.3 `V_N` around the contact point's here). So where the contact point keeps more
+/// than `V_N`, no node can come to rest on the plane: none sticks, and every step's friction
+/// is `mu` times its normal force. Asserts that, and returns the contact point's least speed.
+fn assert_no_node_can_stick(s: &RunSummary, mu: f64) -> f64 {
+    let (m, inertia) = disc_inertia(s);
+    let p0 = &s.momentum_initial;
+    assert!(rel_diff(p0[0], m * V_T) < 1e-12 && rel_diff(p0[1], -m * V_N) < 1e-12, "{p0:?}");
+    let j_n = s.momentum_final[1] - p0[1];
+    let v_c = V_T - (1.0 / m + R_DISC * R_DISC / inertia) * mu * j_n;
+    eprintln!(
+        "mu = {mu}: J_n / m = {:.2}, 1 + m R^2 / I = {:.4}: the contact point keeps {v_c:.2} > V_N = {V_N}",
+        j_n / m,
+        1.0 + m * R_DISC * R_DISC / inertia
+    );
+    assert!(v_c > V_N, "precondition of gross slip: the contact point keeps {v_c}, not > {V_N}");
+    v_c
 }
 
 #[test]
@@ -265,8 +345,15 @@ fn an_oblique_impact_with_little_friction_slips_at_every_node_on_any_rank_count(
                 mu * lambda[k]
             );
         }
-        // Gross slip: tangential impulse = mu x normal impulse.
+        // Gross slip, from the precondition: no node sticks, tangential impulse = mu x normal
+        // impulse.
         let c = contact(&s);
+        assert_no_node_can_stick(&s, mu);
+        let slip = run.series(&layout::contact(layout::CONTACT_SLIP)).unwrap();
+        let state = run.series(&layout::contact(layout::CONTACT_STATE)).unwrap();
+        let rates = (0..lambda.len()).filter(|&k| state[k] != 0.0).map(|k| slip[2 * k] / 1e-6);
+        let (lo, hi) = rates.fold((f64::MAX, f64::MIN), |(a, b), v| (a.min(v), b.max(v)));
+        eprintln!("{ranks} rank(s): the nodes' slip rates lie in [{lo:.1}, {hi:.1}]");
         assert_eq!(c.stick_node_steps, 0, "the disc slides along: no node sticks");
         let (sum_t, sum_l): (f64, f64) = (t.iter().sum(), lambda.iter().sum());
         eprintln!("{ranks} rank(s): sum t = {sum_t:.12e}, mu sum lambda = {:.12e}", mu * sum_l);
@@ -299,85 +386,134 @@ fn an_oblique_impact_with_little_friction_slips_at_every_node_on_any_rank_count(
 
 #[test]
 fn an_oblique_impact_with_much_friction_sticks_and_leaves_the_disc_spinning() {
-    // disc_oblique.toml (mu = 0.3: more than the m v_t / 3 a rigid disc needs to roll) with
-    // E = 1e5: the contact zone sticks, and the disc leaves spinning. For a rigid disc the
-    // normal forces pass through the centre, so the angular momentum about the centre of mass
-    // changes by the friction impulse times the radius, L = R F_t; a deformable disc deviates
-    // by the pressure centroid's offset and the indentation, which vanish with its stiffness
-    // (measured: 10%, 1.6%, 0.05% at E = 1e2, 1e4, 1e5).
+    // disc_oblique.toml (the disc hitting the plane at (v_t, -v_n) = (400, -800), mu = 0.3)
+    // with E = 1e5: in contact for some 30 steps.
+    //
+    // A rigid disc: the friction impulse J_t slows the centre to v_x = v_t - J_t / m and spins
+    // the disc to omega = -R J_t / I, so the contact point v_c = v_x + omega R slows by
+    // (1/m + R^2/I) J_t = 3 J_t / m. Sliding stops at J_t = m v_t / 3, the rolling limit
+    // (v_x = 2 v_t / 3, omega R = -v_x); Coulomb allows up to mu J_n (J_n about 2 m v_n), far
+    // more: the contact must stick (asserted below from the run's J_n).
+    //
+    // An elastic disc does not leave rolling, however stiff: its stuck contact zone is a
+    // tangential spring whose compliance is of the order of the normal one (both scale as
+    // 1/E), and it gives its energy back as the load falls, so the contact point leaves with
+    // a tangential velocity of either sign (tangential restitution e_t = -v_c / v_t; Maw,
+    // Barber and Fawcett 1976; measured here 0.37, at E = 1e4 0.42, at E = 1e3 0.46, and
+    // -0.17 with mu = 1). What theory does give, each failing on a wrong friction:
+    // - it sticks: node-steps in stick (a friction too weak to stop the sliding would slip
+    //   throughout), and J_t < mu J_n (equality is gross slip);
+    // - the friction slows the disc and spins it along its travel: J_t > 0, L < 0;
+    // - the energy bounds the contact point's reversal: the rigid-body part of the final
+    //   motion, |p|^2 / 2m + L^2 / 2I, is at most the initial energy (the friction only
+    //   dissipates; the rest of the kinetic energy is at least L^2 / 2I by Cauchy-Schwarz). A
+    //   friction that kept pushing at mu J_n once the slip reversed would leave the contact
+    //   point at v_t - 3 mu J_n / m = -1000, far beyond what the bound allows.
     let dir = scratch("friction_spin");
     let scene = scene_variant(
         "disc_oblique.toml",
         &dir,
         &[("E = 100.0", "E = 1e5"), ("steps = 1000", "steps = 200"), ("every = 10", "every = 100")],
     );
+    let mu = 0.3;
     let s = run_scene(1, &scene, &[]);
     let c = contact(&s);
+    assert!(c.last_contact_step < 200, "the disc left the plane");
+    assert!(s.energy_balance < 1e-8, "balance {:e}", s.energy_balance);
+    let (m, inertia) = disc_inertia(&s);
+    let (p0, p1) = (&s.momentum_initial, &s.momentum_final);
+    let v_t = p0[0] / m;
+    assert!(rel_diff(v_t, 400.0) < 1e-12 && s.angular_momentum_initial[2].abs() < 1e-12 * m);
+    let (j_t, j_n) = (p0[0] - p1[0], p1[1] - p0[1]);
+    let k = 1.0 / m + R_DISC * R_DISC / inertia;
+    // Precondition: Coulomb's friction can stop the contact point.
+    assert!(k * mu * j_n > v_t, "mu J_n = {} cannot stop v_t = {v_t}", mu * j_n);
     assert!(
         c.stick_node_steps > 0 && c.slip_node_steps > 0,
         "{} stick, {} slip",
         c.stick_node_steps,
         c.slip_node_steps
     );
-    assert!(c.last_contact_step < 200, "the disc left the plane");
-    let radius = 8.0;
-    let f_t = c.friction_impulse[0];
-    let dl = s.angular_momentum_final[2] - s.angular_momentum_initial[2];
-    eprintln!("Delta L = {dl:.6e}, R F_t = {:.6e}", radius * f_t);
-    assert!(s.angular_momentum_initial[2].abs() < 1e-12 * dl.abs(), "it starts without spin");
-    assert!(rel_diff(dl, radius * f_t) < 0.01, "Delta L = {dl} against R F_t = {}", radius * f_t);
-    // Spinning with its travel (clockwise for +x): L < 0.
-    assert!(dl < 0.0 && f_t < 0.0);
-    assert!(s.energy_balance < 1e-8, "balance {:e}", s.energy_balance);
+    assert!(j_t < mu * j_n, "J_t = {j_t} against mu J_n = {}", mu * j_n);
+    // Slowed down and spinning clockwise with its travel (+x).
+    let l = s.angular_momentum_final[2];
+    assert!(j_t > 0.0 && l < 0.0, "J_t = {j_t}, L = {l}");
+    let (v_x, omega_r) = (p1[0] / m, l / inertia * R_DISC);
+    let v_c = v_x + omega_r;
+    eprintln!(
+        "v_x = {v_x:.2}, omega R = {omega_r:.2} (rolling: {:.2}, {:.2}); the contact point \
+         leaves at {v_c:.2}: e_t = {:.3}; J_t / (mu J_n) = {:.3}",
+        2.0 * v_t / 3.0,
+        -2.0 * v_t / 3.0,
+        -v_c / v_t,
+        j_t / (mu * j_n)
+    );
+    let rigid = (p1[0] * p1[0] + p1[1] * p1[1]) / (2.0 * m) + l * l / (2.0 * inertia);
+    eprintln!("rigid-body energy at the end {rigid:.6} of {:.6}", s.energy_initial);
+    assert!(rigid <= s.energy_initial, "{rigid} > E0 = {}", s.energy_initial);
 }
 
 #[test]
-fn friction_zero_is_the_frictionless_solver_to_the_last_digit() {
+fn friction_zero_is_frictionless_and_a_vanishing_mu_approaches_it() {
+    // `friction = 0` is frictionless by definition (README, the scene format): the parser
+    // makes it no law at all, so a run with it is the frictionless run itself.
     let dir = scratch("friction_zero");
-    let plain = oblique_disc(&dir, "");
-    let h_plain = dir.join("plain.h5");
-    let h_zero = dir.join("zero.h5");
-    let o = massfree(
-        2,
-        &[
-            "run",
-            plain.to_str().unwrap(),
-            "--quiet",
-            "--overwrite",
-            "--output",
-            h_plain.to_str().unwrap(),
-        ],
-    );
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let zero = scene_variant(
-        "disc.toml",
-        &dir,
-        &[
-            ("velocity = [\"0\", \"-800\"]", "velocity = [\"400\", \"-800\"]"),
-            ("[output]", "friction = 0\n[output]"),
-            ("steps = 1000", "steps = 400"),
-            ("every = 10", "every = 100"),
-        ],
-    );
-    let o = massfree(
-        2,
-        &[
-            "run",
-            zero.to_str().unwrap(),
-            "--quiet",
-            "--overwrite",
-            "--output",
-            h_zero.to_str().unwrap(),
-        ],
-    );
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    for name in [layout::contact("force"), layout::field("displacement"), layout::energy("total")] {
-        let a = reader(&h_plain).series(&name).unwrap();
-        let b = reader(&h_zero).series(&name).unwrap();
-        assert!(a == b, "{name} differs");
-    }
+    let zero = oblique_disc(&dir, "friction = 0");
+    let spec = massfree::scene::load(&zero).unwrap_or_else(|e| panic!("{e}"));
+    let spec = spec.contact.expect("a [contact]");
+    assert!(!spec.has_friction() && spec.obstacles[0].friction.is_none(), "friction = 0");
+    // Coulomb's friction with mu -> 0 against the frictionless solver, 2 ranks each.
+    let mu = 1e-3;
+    let run = |name: &str, law: &str| {
+        let sub = dir.join(name);
+        std::fs::create_dir_all(&sub).unwrap();
+        (run_scene(2, &oblique_disc(&sub, law), &[]), sub.join("disc-2.h5"))
+    };
+    let (plain, h_plain) = run("plain", "");
+    let (small, _) = run("small", &format!("friction = {mu}"));
     // No friction data without friction.
-    assert!(reader(&h_zero).file.dataset(&layout::contact(layout::CONTACT_STATE)).is_err());
+    assert!(reader(&h_plain).file.dataset(&layout::contact(layout::CONTACT_STATE)).is_err());
+    assert_eq!(contact(&plain).friction_dissipation, 0.0);
+    // Momenta to the step solver's tolerance (1e-8 of the momentum, as on 1, 2 and 3 ranks).
+    let p0 = &plain.momentum_initial;
+    let tol = 1e-8 * (p0[0] * p0[0] + p0[1] * p0[1]).sqrt();
+    // The frictionless plane exerts no tangential force: the x momentum stays.
+    let drift = plain.momentum_final[0] - p0[0];
+    assert!(drift.abs() <= tol, "frictionless x momentum drifts by {drift:e}");
+    // With mu = 1e-3 the disc slides at every node (precondition), so the friction impulse is
+    // exactly mu J_n against the travel, and it is all that changes the x momentum.
+    assert_no_node_can_stick(&small, mu);
+    assert_eq!(contact(&small).stick_node_steps, 0);
+    let j_n = small.momentum_final[1] - small.momentum_initial[1];
+    let j_n0 = plain.momentum_final[1] - p0[1];
+    let dp_x = plain.momentum_final[0] - small.momentum_final[0];
+    eprintln!(
+        "x momentum lost {dp_x:.9e} against mu J_n = {:.9e}; J_n {j_n:.9e} against {j_n0:.9e} \
+         without friction",
+        mu * j_n
+    );
+    assert!((dp_x - mu * j_n).abs() <= tol, "{dp_x:e} against mu J_n = {:e}", mu * j_n);
+    // The normal impulse changes only through the elastic coupling of the tangential and
+    // normal responses, which Dundurs' beta = (1 - 2 nu) / (2 (1 - nu)) bounds for an elastic
+    // body on a rigid one: at most beta mu J_n.
+    let beta = (1.0 - 2.0 * 0.3) / (2.0 * (1.0 - 0.3));
+    let dj = (j_n - j_n0).abs();
+    eprintln!("|J_n - J_n0| = {:.3e} mu J_n (beta = {beta:.3})", dj / (mu * j_n));
+    assert!(dj <= beta * mu * j_n, "the normal impulse moved by {dj:e}");
+    // The dissipation: every node slides at V_T plus its elastic lateral velocity, which is odd
+    // in x in the frictionless impact (the vertical impact carried along at V_T), so D ->
+    // mu J_n V_T. Off by the slowing down, (1/m + R^2/I) mu J_n / V_T (below 1e-3), and what
+    // the mesh's asymmetry (unstructured quads) leaves of the lateral velocities' lambda-
+    // weighted mean: 1% for both.
+    let d = contact(&small).friction_dissipation;
+    let (m, inertia) = disc_inertia(&small);
+    eprintln!(
+        "D = {d:.9e} against mu J_n V_T = {:.9e} ({:+.2e}); slowing down {:.1e} of V_T",
+        mu * j_n * V_T,
+        d / (mu * j_n * V_T) - 1.0,
+        (1.0 / m + R_DISC * R_DISC / inertia) * mu * j_n / V_T
+    );
+    assert!(rel_diff(d, mu * j_n * V_T) < 0.01, "D = {d} against mu J_n V_T");
 }
 
 #[test]
@@ -465,6 +601,31 @@ every = 50
         G * THETA.sin() * t - f
     );
     assert!(s.energy_balance < 1e-8, "balance {:e}", s.energy_balance);
+    // The dissipation, from the block's motion rather than the solver's tractions and slips:
+    // Tresca's friction is S per unit length against the slip, so sliding the base (length
+    // L = 1: the weights D_qq sum to it) costs S L x. A sticking node does not move (the
+    // obstacle rests) and a slipping one only slides forward, so the run's D is exactly
+    // S sum_q D_qq u_x,q(T), the base nodes' displacement from the field (to the 1e-8 of the
+    // tractions above).
+    let nodes = run.series(layout::CONTACT_NODES).unwrap();
+    let w = run.series(layout::CONTACT_WEIGHTS).unwrap();
+    assert!((w.iter().sum::<f64>() - 1.0).abs() < 1e-12, "the base's length");
+    let (u, dim) = last_displacement(&h5);
+    let x: f64 = (0..nc).map(|q| w[q] * u[nodes[q] as usize * dim]).sum();
+    let d = c.friction_dissipation;
+    eprintln!("dissipation {d:.12} against S L x = {:.12}", bound * x);
+    assert!(rel_diff(d, bound * x) < 1e-8, "dissipation {d} against S L x = {}", bound * x);
+    // And x from kinematics: from the steps in full slip on, the block accelerates at
+    // a = g sin theta - S L / m; in the steps before, the friction was between 0 and S L, which
+    // adds between 0 and S L tau T / m each to the distance a T^2 / 2. The base moves with
+    // the block up to its shear: the shear stress is at most S, the strain S / G_s over the
+    // height L, twice that with the start-up's shear oscillation.
+    let a = G * THETA.sin() - bound;
+    let before = (t / tau).round() - slipping_steps as f64;
+    let shear = 2.0 * bound / (1e4 / 2.0);
+    let (lo, hi) = (a * t * t / 2.0 - shear, a * t * t / 2.0 + before * bound * tau * t + shear);
+    eprintln!("the base slid {x:.6}, kinematics [{lo:.6}, {hi:.6}]");
+    assert!(lo <= x && x <= hi, "the base slid {x}, not within [{lo}, {hi}]");
 }
 
 #[test]
@@ -732,6 +893,19 @@ fn cattaneo_mindlin_partial_slip_shrinks_the_stick_zone_as_theory_says() {
     // q = mu p0 (sqrt(1 - x^2/a^2) - (c/a) sqrt(1 - x^2/c^2)) in the stick zone and mu p in the
     // slip zones (p0 = 2 P / (pi a)). The zone edges are measured halfway between the last
     // node inside and the first outside, and must lie within one contact cell of theory.
+    //
+    // The traction profile: the theory's is even in x. The bodies here are no half-planes:
+    // "same material, no coupling" holds for two half-planes only, and pressing the
+    // half-cylinder on the block already leaves an odd tangential traction (the two surfaces
+    // would slide apart differently; the stick zone holds them), before any tangential load.
+    // The mesh is mirror-symmetric about x = 0 (asserted), so the traction splits into its
+    // even part, which the theory predicts, and its odd part, outside the theory (printed).
+    // The even part's error comes from the discretization: at the four zone edges (+-a, +-c)
+    // both terms of the profile are square roots, at most mu p0 sqrt(2 d / a) at a distance d
+    // from their edge (c <= a), so an edge within one cell h of theory (asserted) changes the
+    // traction at the node beside it by up to mu p0 sqrt(2 h / a), and by less further in.
+    // Four such nodes among the 2 a / h contact nodes make an RMS error of
+    // sqrt(4 (2 h / a) h / (2 a)) = 2 h / a, in units of mu p0.
     let dir = scratch("friction_cattaneo");
     let scene = scene_variant(
         "cattaneo.toml",
@@ -754,6 +928,16 @@ fn cattaneo_mindlin_partial_slip_shrinks_the_stick_zone_as_theory_says() {
     let x: Vec<f64> = nodes.iter().map(|&v| coords[v as usize][0]).collect();
     let mut order: Vec<usize> = (0..nc).collect();
     order.sort_by(|&i, &j| x[i].total_cmp(&x[j]));
+    // Each contact node's mirror image about x = 0 is a contact node (to gmsh's placement of
+    // the nodes, some 1e-9: far below a cell).
+    let mirror: Vec<usize> = (0..nc)
+        .map(|i| {
+            let j = (0..nc).min_by(|&j, &k| (x[j] + x[i]).abs().total_cmp(&(x[k] + x[i]).abs()));
+            let j = j.unwrap();
+            assert!((x[j] + x[i]).abs() < 1e-6, "no contact node at -{}", x[i]);
+            j
+        })
+        .collect();
     let lambda = run.series(&layout::contact("force")).unwrap();
     let tt = run.series(&layout::contact(layout::CONTACT_TANGENTIAL)).unwrap();
     let state = run.series(&layout::contact(layout::CONTACT_STATE)).unwrap();
@@ -777,8 +961,22 @@ fn cattaneo_mindlin_partial_slip_shrinks_the_stick_zone_as_theory_says() {
         // The normal force does not feel the tangential one.
         assert!(rel_diff(p, p_start) < 1e-2, "step {n}: P = {p} against {p_start}");
         let a = (4.0 * p * radius / (std::f64::consts::PI * e_star)).sqrt();
-        let (a_m, cell) = half_width(n, &|s| s != 0.0);
-        assert!((a_m - a).abs() <= cell, "step {n}: contact half-width {a_m} against Hertz's {a}");
+        let (a_m, h) = half_width(n, &|s| s != 0.0);
+        assert!((a_m - a).abs() <= h, "step {n}: contact half-width {a_m} against Hertz's {a}");
+        if n == 51 {
+            // Before the tangential load: the odd traction the pressing left.
+            let p0 = 2.0 * p / (std::f64::consts::PI * a);
+            let odd: Vec<f64> = (0..nc)
+                .filter(|&k| state[n * nc + k] != 0.0)
+                .map(|k| 0.5 * (tt[2 * (n * nc + mirror[k])] - tt[2 * (n * nc + k)]))
+                .collect();
+            let rms = (odd.iter().map(|e| e * e).sum::<f64>() / odd.len() as f64).sqrt();
+            eprintln!(
+                "step 51: Q/(mu P) = {:.4}, the traction's odd part {:.4} mu p0 (RMS)",
+                q / (mu * p),
+                rms / (mu * p0)
+            );
+        }
         if q / (mu * p) < 0.1 {
             continue;
         }
@@ -789,22 +987,34 @@ fn cattaneo_mindlin_partial_slip_shrinks_the_stick_zone_as_theory_says() {
             "step {n}: Q/(mu P) = {:.3}, stick half-width {c_m} against {c}",
             q / (mu * p)
         );
-        // The traction profile, RMS over the contact nodes, within 10% of mu p0.
+        // The traction profile's even part, RMS over the contact nodes, within 2 h / a of
+        // mu p0 (the header); the odd part printed.
         let p0 = 2.0 * p / (std::f64::consts::PI * a);
         let theory = |xx: f64| {
             let outer = (1.0 - xx * xx / (a * a)).max(0.0).sqrt();
             let inner = if xx.abs() < c { (c / a) * (1.0 - xx * xx / (c * c)).sqrt() } else { 0.0 };
             mu * p0 * (outer - inner)
         };
-        let active: Vec<usize> = (0..nc).filter(|&k| state[n * nc + k] != 0.0).collect();
-        let rms =
-            (active.iter().map(|&k| (-tt[2 * (n * nc + k)] - theory(x[k])).powi(2)).sum::<f64>()
-                / active.len() as f64)
-                .sqrt();
+        let q_at = |k: usize| -tt[2 * (n * nc + k)];
+        let touching = |k: usize| state[n * nc + k] != 0.0 || state[n * nc + mirror[k]] != 0.0;
+        let rms = |f: &dyn Fn(usize) -> f64| {
+            let v: Vec<f64> = (0..nc).filter(|&k| touching(k)).map(f).collect();
+            (v.iter().map(|e| e * e).sum::<f64>() / v.len() as f64).sqrt() / (mu * p0)
+        };
+        let even = rms(&|k| 0.5 * (q_at(k) + q_at(mirror[k])) - theory(x[k]));
+        let odd = rms(&|k| 0.5 * (q_at(k) - q_at(mirror[k])));
+        let whole = rms(&|k| q_at(k) - theory(x[k]));
+        let bound = 2.0 * h / a;
+        if n % 5 == 1 {
+            eprintln!(
+                "step {n}: Q/(mu P) = {:.3}, traction RMS errors / (mu p0): even {even:.4} \
+                 (bound 2 h / a = {bound:.4}), odd {odd:.4}, together {whole:.4}",
+                q / (mu * p)
+            );
+        }
         assert!(
-            rms < 0.1 * mu * p0,
-            "step {n}: traction off by {rms} (RMS) against mu p0 = {}",
-            mu * p0
+            even < bound,
+            "step {n}: the traction's even part off by {even} (RMS, / mu p0), beyond 2 h / a = {bound}"
         );
         checked += 1;
     }

@@ -536,3 +536,240 @@ impl NormalConstraints {
         self.rows.iter().map(|r| r.vals.len()).sum()
     }
 }
+
+#[cfg(test)]
+mod tests {
+    //! The slip rows against the nonlinear slip condition they linearize (METHOD.md 5c).
+    //!
+    //! A slipping node's rows, `L r + D (y - du) + h` in its residual `r = (rhs - K du)_q =
+    //! factor (lambda n + t)` and its increment `du`, are the semi-smooth Newton step at the
+    //! last iterate `x0 = (r0, du0)` of
+    //!
+    //! ```text
+    //! G(r, du) = d (g - n . du) n + factor (t - b z / |z|),
+    //!     lambda = n . r / factor, t = (I - n n^T) r / factor, s = (I - n n^T) du - w_t,
+    //!     z = t + c_t s, b = slip_bound(law, lambda, 0, c_t) (mu lambda, or Tresca's bound),
+    //! ```
+    //!
+    //! with the direction `z^ = z0 / |z0|` and `ratio = b0 / |z0|` of that iterate (as `pdas`
+    //! builds them): the rows must be `G`'s affine model there, `G(x0) + G'(x0) (x - x0)`.
+    //! Their Jacobian `[L, -D]` is compared with central differences of `G`, their value at
+    //! `x0` with `G(x0)`.
+
+    use super::*;
+    use crate::contact::friction::{slip_bound, FrictionLaw};
+
+    /// xorshift64*: the same states on every run.
+    struct Rng(u64);
+
+    impl Rng {
+        /// Uniform in [-1, 1).
+        fn next(&mut self) -> f64 {
+            self.0 ^= self.0 >> 12;
+            self.0 ^= self.0 << 25;
+            self.0 ^= self.0 >> 27;
+            let x = (self.0.wrapping_mul(0x2545_f491_4f6c_dd1d) >> 11) as f64;
+            2.0 * x / (1u64 << 53) as f64 - 1.0
+        }
+
+        fn vector(&mut self, dim: usize) -> [f64; 3] {
+            [0, 1, 2].map(|i| if i < dim { self.next() } else { 0.0 })
+        }
+    }
+
+    fn dot(a: &[f64; 3], b: &[f64; 3]) -> f64 {
+        a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+    }
+
+    fn tangential(x: &[f64; 3], n: &[f64; 3]) -> [f64; 3] {
+        let s = dot(x, n);
+        [0, 1, 2].map(|i| x[i] - s * n[i])
+    }
+
+    /// One slipping node: its frame, the law's numbers and the last iterate `x0 = (r0, du0)`.
+    struct Node {
+        dim: usize,
+        n: [f64; 3],
+        g: f64,
+        w_t: [f64; 3],
+        d: f64,
+        factor: f64,
+        c_t: f64,
+        law: FrictionLaw,
+        x0: [f64; 6],
+    }
+
+    /// The scales of the variables: a residual component, a displacement component.
+    const R_SCALE: f64 = 1e-2;
+    const DU_SCALE: f64 = 1e-4;
+
+    impl Node {
+        fn split(x: &[f64; 6]) -> ([f64; 3], [f64; 3]) {
+            ([x[0], x[1], x[2]], [x[3], x[4], x[5]])
+        }
+
+        /// `(t, z, b)` at `x`.
+        fn law_at(&self, x: &[f64; 6]) -> ([f64; 3], [f64; 3], f64) {
+            let (r, du) = Node::split(x);
+            let lambda = dot(&r, &self.n) / self.factor;
+            let t = tangential(&r, &self.n).map(|v| v / self.factor);
+            let du_t = tangential(&du, &self.n);
+            let z = [0, 1, 2].map(|i| t[i] + self.c_t * (du_t[i] - self.w_t[i]));
+            // The bound as the active set takes it for a node in contact (gap 0).
+            (t, z, slip_bound(self.law, lambda, 0.0, self.c_t))
+        }
+
+        /// The nonlinear condition `G(x)` (see the module's doc).
+        fn condition(&self, x: &[f64; 6]) -> [f64; 3] {
+            let (_, du) = Node::split(x);
+            let (t, z, b) = self.law_at(x);
+            let len = dot(&z, &z).sqrt();
+            let gap = self.g - dot(&self.n, &du);
+            [0, 1, 2].map(|i| self.d * gap * self.n[i] + self.factor * (t[i] - b * z[i] / len))
+        }
+
+        /// The slip condition the active set builds from the iterate `x0`.
+        fn slip(&self) -> Condition {
+            let (_, z, b) = self.law_at(&self.x0);
+            let len = dot(&z, &z).sqrt();
+            let (mu, h) = match self.law {
+                FrictionLaw::Coulomb { mu } => (mu, [0.0; 3]),
+                FrictionLaw::Tresca { bound } => (0.0, z.map(|v| -self.factor * bound * v / len)),
+            };
+            Condition::Slip {
+                n: self.n,
+                g: self.g,
+                w_t: self.w_t,
+                dir: z.map(|v| v / len),
+                mu,
+                h,
+                ratio: (b / len).min(1.0),
+                c_f: self.c_t * self.factor,
+            }
+        }
+
+        /// The node's rows `L r + D (y - du) + h` at `x`, and their Jacobian `[L, -D]`
+        /// (`dim x 2 dim`: the columns of `r`, then those of `du`).
+        fn rows_at(&self, cond: &Condition, x: &[f64; 6]) -> ([f64; 3], Vec<Vec<f64>>) {
+            let dim = self.dim;
+            let (l, dm, h) = cond.rows(dim, self.d);
+            let (y, _) = cond.target(dim);
+            let (r, du) = Node::split(x);
+            let value = [0, 1, 2].map(|a| {
+                (0..dim).map(|c| l[a][c] * r[c] + dm[a][c] * (y[c] - du[c])).sum::<f64>() + h[a]
+            });
+            let jac = (0..dim)
+                .map(|a| (0..dim).map(|c| l[a][c]).chain((0..dim).map(|c| -dm[a][c])).collect())
+                .collect();
+            (value, jac)
+        }
+    }
+
+    /// Random slipping nodes: a unit normal, a tangential obstacle motion, an iterate with
+    /// `lambda0 > 0` whose `|z0|` is beyond the bound `b0` (the slip set; `z = 0`, where `G`
+    /// has no derivative, kept away), `c_t` as `pdas` scales it (0.01 d / factor).
+    fn nodes(dim: usize, law: fn(&mut Rng) -> FrictionLaw, count: usize) -> Vec<Node> {
+        let mut rng = Rng(0x9e37_79b9_7f4a_7c15 ^ (dim as u64));
+        let mut out = Vec::new();
+        while out.len() < count {
+            let n = rng.vector(dim);
+            let len = dot(&n, &n).sqrt();
+            if len < 0.1 {
+                continue;
+            }
+            let n = n.map(|v| v / len);
+            let factor = 2.0 * (1.0 + rng.next().abs());
+            let d = 1e3 * (1.0 + rng.next().abs());
+            let c_t = 0.01 * d / factor * (0.5 + rng.next().abs());
+            let lambda0 = R_SCALE * (0.2 + rng.next().abs());
+            let t0 = tangential(&rng.vector(dim), &n).map(|v| R_SCALE * v);
+            let r0 = [0, 1, 2].map(|i| factor * (lambda0 * n[i] + t0[i]));
+            let du0 = rng.vector(dim).map(|v| DU_SCALE * v);
+            let w_t = tangential(&rng.vector(dim), &n).map(|v| DU_SCALE * v);
+            let g = DU_SCALE * rng.next();
+            let law = law(&mut rng);
+            let x0 = [r0[0], r0[1], r0[2], du0[0], du0[1], du0[2]];
+            let node = Node { dim, n, g, w_t, d, factor, c_t, law, x0 };
+            let (_, z, b) = node.law_at(&node.x0);
+            if b > 0.0 && dot(&z, &z).sqrt() > 1.05 * b {
+                out.push(node);
+            }
+        }
+        out
+    }
+
+    fn coulomb(rng: &mut Rng) -> FrictionLaw {
+        FrictionLaw::Coulomb { mu: 0.1 + 0.9 * rng.next().abs() }
+    }
+
+    fn tresca(rng: &mut Rng) -> FrictionLaw {
+        FrictionLaw::Tresca { bound: R_SCALE * (0.1 + rng.next().abs()) }
+    }
+
+    /// The largest difference between the rows' Jacobian and central differences of the
+    /// condition at `x0`, relative to the largest entry of its block (`L`, the columns of `r`;
+    /// `D`, those of `du`: three orders of magnitude apart); and the rows' value at `x0`
+    /// against `G(x0)`, relative to the condition's terms.
+    fn mismatch(node: &Node) -> (f64, f64) {
+        let dim = node.dim;
+        let cond = node.slip();
+        let (value, jac) = node.rows_at(&cond, &node.x0);
+        let g0 = node.condition(&node.x0);
+        let terms = node.d * DU_SCALE + node.factor * R_SCALE;
+        let value_error = (0..dim).map(|a| (value[a] - g0[a]).abs()).fold(0.0, f64::max);
+        let mut error = 0.0f64;
+        for block in 0..2 {
+            let cols = block * dim..(block + 1) * dim;
+            let scale = (0..dim)
+                .flat_map(|a| cols.clone().map(move |j| (a, j)))
+                .fold(0.0f64, |m, (a, j)| m.max(jac[a][j].abs()));
+            for j in cols {
+                // The variable (r's component j, or du's j - dim) moved by 1e-5 of its scale:
+                // the truncation error step^2 / 6 G''' is then about 1e-10 of the derivative,
+                // the round-off eps |G| / step about as small.
+                let (col, step) = match block {
+                    0 => (j, 1e-5 * node.factor * R_SCALE),
+                    _ => (3 + j - dim, 1e-5 * DU_SCALE),
+                };
+                let (mut xp, mut xm) = (node.x0, node.x0);
+                xp[col] += step;
+                xm[col] -= step;
+                let (gp, gm) = (node.condition(&xp), node.condition(&xm));
+                for a in 0..dim {
+                    let fd = (gp[a] - gm[a]) / (2.0 * step);
+                    error = error.max((fd - jac[a][j]).abs() / scale);
+                }
+            }
+        }
+        (error, value_error / terms)
+    }
+
+    #[test]
+    fn the_slip_rows_are_the_derivative_of_the_slip_condition() {
+        let laws: [(&str, fn(&mut Rng) -> FrictionLaw); 2] =
+            [("Coulomb", coulomb), ("Tresca", tresca)];
+        for dim in [2, 3] {
+            for (name, law) in laws {
+                let mut worst = (0.0f64, 0.0f64);
+                for (k, node) in nodes(dim, law, 50).iter().enumerate() {
+                    let (jac, value) = mismatch(node);
+                    // Central differences with the steps above: 1e-6 leaves four orders of
+                    // magnitude for their error; the value is a few roundings.
+                    assert!(
+                        jac < 1e-6,
+                        "{dim}D {name}, state {k}: the slip rows' Jacobian is off by {jac:e} (relative)"
+                    );
+                    assert!(
+                        value < 1e-12,
+                        "{dim}D {name}, state {k}: the slip rows at their own iterate are off the condition by {value:e}"
+                    );
+                    worst = (worst.0.max(jac), worst.1.max(value));
+                }
+                eprintln!(
+                    "{dim}D {name}: Jacobian against central differences {:.1e}, value at the iterate {:.1e}",
+                    worst.0, worst.1
+                );
+            }
+        }
+    }
+}
