@@ -81,6 +81,9 @@ pub struct RunSummary {
     /// The largest peak resident memory of one rank, in MiB.
     #[serde(default)]
     pub peak_memory_rank_mib: f64,
+    /// What each rank holds of the mesh, in rank order (what its memory scales with).
+    #[serde(default)]
+    pub held: Vec<RankHeld>,
     pub ranks: usize,
     /// The step solver as PETSc finally configured it (defaults < scene < command line).
     pub ksp_type: String,
@@ -141,6 +144,20 @@ pub struct RunSummary {
     /// Each body's largest rotation (of its mean deformation gradient).
     #[serde(default)]
     pub rotations: Vec<BodyRotation>,
+}
+
+/// The part of the mesh one rank holds: its own cells and the ghost layer (the cells sharing a
+/// node with its own), and their nodes.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+pub struct RankHeld {
+    /// Cells held: own and ghost.
+    pub cells: usize,
+    /// Cells the rank assembles (its part of the partition).
+    pub cells_owned: usize,
+    /// Nodes held: the nodes of the cells held.
+    pub nodes: usize,
+    /// Nodes the rank owns (its rows).
+    pub nodes_owned: usize,
 }
 
 /// One body's largest rotation over a run (`run::rotation`).
@@ -243,6 +260,7 @@ impl RunSummary {
             matmult_seconds: 1e-4,
             peak_memory_mib: 85.5,
             peak_memory_rank_mib: 85.5,
+            held: vec![RankHeld { cells: 640, cells_owned: 640, nodes: 729, nodes_owned: 729 }],
             ranks: 2,
             ksp_type: "cg".into(),
             pc_type: "jacobi".into(),

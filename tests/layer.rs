@@ -25,6 +25,8 @@ struct Run {
     displacement: Vec<f64>,
     /// Active contact nodes per step (empty without contact).
     active: Vec<f64>,
+    /// The contact force per step and contact node (empty without contact).
+    force: Vec<f64>,
 }
 
 fn run(scene: &str, mass: &str, ranks: usize, layer: bool, extra: &[&str]) -> Run {
@@ -63,8 +65,10 @@ fn run_with(
     let summary = run_scene(ranks, &path, &args);
     let stem = path.file_stem().unwrap().to_string_lossy().to_string();
     let h5 = dir.join(format!("{stem}-{ranks}.h5"));
-    let active = reader(&h5).series("contact/active_set_size").unwrap_or_default();
-    Run { summary, displacement: values(&h5, "fields/displacement"), active }
+    let file = reader(&h5);
+    let active = file.series("contact/active_set_size").unwrap_or_default();
+    let force = file.series("contact/force").unwrap_or_default();
+    Run { summary, displacement: values(&h5, "fields/displacement"), active, force }
 }
 
 /// The option for the layer block's scope that is not the default of `scene` (each rank's
@@ -186,17 +190,22 @@ fn the_layer_sweep_around_petscs_preconditioner_gives_the_plain_solvers_contact_
             let d = field_diff(&swept.displacement, &plain.displacement);
             eprintln!("{scene} {mass} {ranks} rank(s): displacements differ by {d:.2e} (bound {bound:.1e}); iterations {} against {}", s.ksp_iterations, p.ksp_iterations);
             assert!(d < bound, "{scene} {mass} on {ranks} rank(s): displacement differs by {d:e}");
-            // The sweep makes the layer's rows exact: it must save iterations.
-            assert!(
-                s.ksp_iterations < p.ksp_iterations,
-                "{scene} {mass} on {ranks} rank(s): {} iterations with the sweep, {} without",
-                s.ksp_iterations,
-                p.ksp_iterations
+            // The same contact forces, to the same bound relative to the peak: the contact
+            // nodes are the layer's, massless, so their force is the layer's static response
+            // to the state (the step's residual on those rows, the stiffness alone), and its
+            // error is the state's in proportion. The iterations are printed above, not
+            // compared: the sweep's savings belong in benchmarks.
+            let f = field_diff(&swept.force, &plain.force);
+            eprintln!(
+                "{scene} {mass} {ranks} rank(s): contact forces differ by {f:.2e} of the peak"
             );
+            assert!(f < bound, "{scene} {mass} on {ranks} rank(s): contact forces differ by {f:e}");
             if ranks == 2 {
                 let d = field_diff(&swept.displacement, &one.displacement);
                 assert!(d < bound, "{scene} {mass}: 1 rank against 2 differ by {d:e}");
                 assert_eq!(swept.active, one.active, "{scene} {mass}: 1 rank against 2");
+                let f = field_diff(&swept.force, &one.force);
+                assert!(f < bound, "{scene} {mass}: 1 rank against 2: forces differ by {f:e}");
                 let local = other_scope(scene);
                 let l = run_with(scene, &replace, mass, 2, true, &[], &local);
                 assert_eq!(l.active, plain.active, "{scene} {mass} other scope: active sets");
@@ -206,6 +215,8 @@ fn the_layer_sweep_around_petscs_preconditioner_gives_the_plain_solvers_contact_
                     l.summary.ksp_iterations
                 );
                 assert!(d < bound, "{scene} {mass} other scope: displacement differs by {d:e}");
+                let f = field_diff(&l.force, &plain.force);
+                assert!(f < bound, "{scene} {mass} other scope: forces differ by {f:e}");
             }
         }
     }

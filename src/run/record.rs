@@ -14,7 +14,7 @@ use crate::contact::ContactSolver;
 use crate::error::Result;
 use crate::io::Checkpoint;
 use crate::post::RunCurves;
-use crate::report::{BodySummary, ErrorSample, MassCheck, RunSummary, Timings};
+use crate::report::{BodySummary, ErrorSample, MassCheck, RankHeld, RunSummary, Timings};
 use crate::rows::Energy;
 use crate::scene::effects::short_number;
 use crate::stability::{ContactColumns, RunSeries, Stability};
@@ -240,6 +240,17 @@ pub fn summarize(
     )?;
     let peak_memory_mib = sum_over_ranks(d.world, diagnostics::peak_rss_mib());
     let peak_memory_rank_mib = max_over_ranks(d.world, diagnostics::peak_rss_mib());
+    let mine =
+        [d.mesh.cells.len(), d.part.local_cells.len(), d.mesh.n_nodes(), d.part.n_owned_nodes()];
+    let held = crate::comm::gather_all(d.world, &mine.map(|x| x as u64))
+        .chunks(4)
+        .map(|c| RankHeld {
+            cells: c[0] as usize,
+            cells_owned: c[1] as usize,
+            nodes: c[2] as usize,
+            nodes_owned: c[3] as usize,
+        })
+        .collect();
     let p1 = diagnostics::momentum(d, midpoint.mv())?;
     let body_p1 = diagnostics::body_momenta(d, midpoint.mv())?;
     let e = midpoint.energy();
@@ -300,6 +311,7 @@ pub fn summarize(
         matmult_seconds,
         peak_memory_mib,
         peak_memory_rank_mib,
+        held,
         ranks: d.size,
         ksp_type: ksp.ksp_type()?,
         pc_type: ksp.pc_type()?,
