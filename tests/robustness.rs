@@ -224,8 +224,6 @@ enum Moment {
     /// This long after step `FREE_FLIGHT` is in the file (the run is stepping, its contact
     /// over).
     Stepping(f64),
-    /// As soon as the last step's line is printed (the run is in its final phase).
-    Final,
 }
 
 struct Stopped {
@@ -258,16 +256,7 @@ fn stop_run(ranks: usize, args: &[String], out: &Path, moment: Moment, limit: &L
     let _ = std::fs::remove_file(out);
     let what = format!("a run to be signalled ({moment:?}, {ranks} rank(s))");
     let mut job =
-        Job::start(launch(ranks, args).stdout(Stdio::piped()).stderr(Stdio::null()), &what);
-    let stdout = job.take_stdout();
-    let (tx, rx) = std::sync::mpsc::channel::<String>();
-    std::thread::spawn(move || {
-        for line in BufReader::new(stdout).lines().map_while(|l| l.ok()) {
-            let _ = tx.send(line);
-        }
-    });
-    let steps: usize =
-        args.iter().position(|a| a == "--steps").map(|i| args[i + 1].parse().unwrap()).unwrap();
+        Job::start(launch(ranks, args).stdout(Stdio::null()).stderr(Stdio::null()), &what);
     match moment {
         Moment::Setup(d) => {
             job.wait_for(limit, "its output file", |_| out.exists());
@@ -280,12 +269,6 @@ fn stop_run(ranks: usize, args: &[String], out: &Path, moment: Moment, limit: &L
             });
             std::thread::sleep(Duration::from_secs_f64(d));
         }
-        Moment::Final => {
-            let last = format!("step {steps} ");
-            job.wait_for(limit, "the last step's line", |_| {
-                rx.try_iter().any(|line| line.starts_with(&last))
-            });
-        }
     }
     match moment {
         // Under mpirun a set-up signal goes to the ranks themselves, as a batch system sends
@@ -294,7 +277,7 @@ fn stop_run(ranks: usize, args: &[String], out: &Path, moment: Moment, limit: &L
         // ends about 2 s later, whether its ranks finished or not), and a set-up phase of the
         // tet block (meshing, assembly: a second or more each) then ends by the SIGKILL, its
         // file still "running" (which `post` reports as killed). Steps take milliseconds: the
-        // stepping and final-phase signals go to mpirun, which forwards them.
+        // stepping signals go to mpirun, which forwards them.
         Moment::Setup(_) if ranks > 1 => {
             for pid in job.children() {
                 let _ =
@@ -316,8 +299,9 @@ fn stop_run(ranks: usize, args: &[String], out: &Path, moment: Moment, limit: &L
 /// (printed, with the seed; `MASSFREE_TEST_SEED` repeats them). Where a signal lands still
 /// depends on the machine: a set-up trial whose signal arrived after the set-up is repeated with
 /// a quarter of the delay, down to none (the signal as soon as the file exists, before meshing
-/// ends), and the final-phase trial is repeated until a signal lands in that phase; every trial,
-/// wherever it landed, must leave a truthful file and end within the pace's limit.
+/// ends); every trial, wherever it landed, must leave a truthful file and end within the pace's
+/// limit. The final-phase trial does not depend on timing: the run is held inside its final
+/// phase until the signal has reached it ([`signal_in_the_final_phase`]).
 #[test]
 fn a_signal_at_any_moment_ends_the_run_with_a_truthful_file() {
     let dir = scratch("kill-anywhere");
@@ -420,51 +404,117 @@ fn a_signal_at_any_moment_ends_the_run_with_a_truthful_file() {
             assert!(rel_diff(*ea.last().unwrap(), *eb.last().unwrap()) < 1e-10);
         }
 
-        // The final phase: summary, pictures, final metadata. A signal that comes after the
-        // file was marked finished finds a finished run (truthful too). On 1 rank the trial is
-        // repeated until one lands in the final phase; under mpirun the step lines and the
-        // signal both pass through mpirun, which takes about as long as the final phase, so
-        // there one truthful trial is all (the final phase polls the same allreduced flag on
-        // any number of ranks).
-        let mut attempts = Vec::new();
-        loop {
-            let out = dir.join(format!("final-{ranks}-{}.h5", attempts.len()));
-            let args = strings(&[
-                "run",
-                disc.to_str().unwrap(),
-                "-v",
-                "--overwrite",
-                "-o",
-                out.to_str().unwrap(),
-                "--steps",
-                "3000",
-            ]);
-            let s = stop_run(ranks, &args, &out, Moment::Final, &pace.limit(3.0));
-            let line = s.line(&format!("final phase, {ranks} rank(s)"));
-            attempts.push(line.clone());
-            report.push(line.clone());
-            if s.status.starts_with("interrupted") {
-                assert!(s.status.contains("after the last step (3000 of 3000)"), "{line}");
-                check_exit(&s, ranks);
-                break;
-            }
-            assert_eq!(s.status, "finished", "{line}");
-            if ranks > 1 {
-                break;
-            }
-            assert!(
-                attempts.len() < FINAL_ATTEMPTS,
-                "no signal reached a run in its final phase in {FINAL_ATTEMPTS} attempts:\n{}",
-                attempts.join("\n")
-            );
-        }
+        // The final phase: summary, pictures, final metadata.
+        let (s, picture) = signal_in_the_final_phase(ranks, &disc, &dir, &pace.limit(3.0));
+        let line = s.line(&format!("final phase, {ranks} rank(s)"));
+        report.push(line.clone());
+        assert_eq!(
+            s.status,
+            "interrupted: a signal arrived after the last step (3000 of 3000); all steps and the summary are written",
+            "{line}"
+        );
+        check_exit(&s, ranks);
+        // What the status says: every step and the summary are in the file, the pictures
+        // beside it (the energy picture came through the pipe while the run waited).
+        let out = dir.join(format!("final-{ranks}.h5"));
+        let steps = raw(&out, "energy/step");
+        assert_eq!((steps.len(), steps.last().copied()), (3001, Some(3000.0)), "{line}");
+        let summary = RunSummary::read(&reader(&out));
+        assert_eq!(summary.map(|s| s.steps), Some(3000), "{line}: the summary");
+        assert!(picture.starts_with(b"\x89PNG\r\n\x1a\n"), "{line}: the energy picture");
+        let pressure = std::fs::read(dir.join(format!("final-{ranks}-pressure.png"))).unwrap();
+        assert!(pressure.starts_with(b"\x89PNG\r\n\x1a\n"), "{line}: the pressure picture");
     }
     eprintln!("{}", report.join("\n"));
 }
 
-/// Attempts at a signal in the final phase of a 1-rank run (sent as soon as the last step's
-/// line is read; the final phase writes the summary and two pictures).
-const FINAL_ATTEMPTS: usize = 5;
+/// SIGTERM's bit in the masks of `/proc/PID/status`.
+const SIGTERM_BIT: u64 = 1 << (15 - 1);
+
+/// Whether a SIGTERM is still pending for process `pid` (to the process or one of its
+/// threads: `ShdPnd`, `SigPnd`); `false` once the run's signal thread took it (`sigwait`) or
+/// the process is gone.
+fn sigterm_pending(pid: u32) -> bool {
+    let Ok(status) = std::fs::read_to_string(format!("/proc/{pid}/status")) else { return false };
+    status.lines().any(|l| {
+        let mask = l.strip_prefix("ShdPnd:").or_else(|| l.strip_prefix("SigPnd:"));
+        mask.and_then(|m| u64::from_str_radix(m.trim(), 16).ok())
+            .is_some_and(|m| m & SIGTERM_BIT != 0)
+    })
+}
+
+/// A 3000-step run of the coarse disc signalled in its final phase, whatever the machine's
+/// timing: the energy picture's path is a named pipe (FIFO), so rank 0, which draws the
+/// pictures after the last step and before the final check of the signal flag
+/// (`run::output::finish`), waits in the picture's `open` until this test opens the other end.
+/// The signal (SIGTERM to the ranks themselves, as a batch system sends it; mpirun would follow
+/// a forwarded signal with SIGKILL a second later) is sent once the last step's line is out,
+/// i.e. after the last step's own check (a signal before it would stop the run after step
+/// 2999), and the pipe is opened only once every rank's signal thread took it. Returns how the
+/// run ended and the picture's bytes.
+fn signal_in_the_final_phase(
+    ranks: usize,
+    disc: &Path,
+    dir: &Path,
+    limit: &Limit,
+) -> (Stopped, Vec<u8>) {
+    let out = dir.join(format!("final-{ranks}.h5"));
+    let fifo = dir.join(format!("final-{ranks}-energy.png"));
+    let _ = std::fs::remove_file(&out);
+    let _ = std::fs::remove_file(&fifo);
+    let made = output(Command::new("mkfifo").arg(&fifo));
+    assert!(made.status.success(), "mkfifo: {}", String::from_utf8_lossy(&made.stderr));
+    let args = strings(&[
+        "run",
+        disc.to_str().unwrap(),
+        "-v",
+        "--overwrite",
+        "-o",
+        out.to_str().unwrap(),
+        "--steps",
+        "3000",
+    ]);
+    let what = format!("a run to be signalled in its final phase ({ranks} rank(s))");
+    let mut job =
+        Job::start(launch(ranks, &args).stdout(Stdio::piped()).stderr(Stdio::piped()), &what);
+    let stdout = job.take_stdout();
+    let (tx, rx) = std::sync::mpsc::channel::<String>();
+    std::thread::spawn(move || {
+        for line in BufReader::new(stdout).lines().map_while(|l| l.ok()) {
+            let _ = tx.send(line);
+        }
+    });
+    job.wait_for(limit, "the last step's line", |_| {
+        rx.try_iter().any(|line| line.starts_with("step 3000 "))
+    });
+    let targets = if ranks == 1 { vec![job.pid()] } else { job.children() };
+    assert_eq!(targets.len(), ranks, "rank processes: {targets:?}");
+    for &pid in &targets {
+        let _ = nix::sys::signal::kill(nix::unistd::Pid::from_raw(pid as i32), Signal::SIGTERM);
+    }
+    let t_signal = Instant::now();
+    job.wait_for(limit, "the ranks to take the signal", |_| {
+        !targets.iter().any(|&pid| sigterm_pending(pid))
+    });
+    // Let rank 0 draw the picture: the pipe's other end, read to its end.
+    let path = fifo.clone();
+    let reader = std::thread::spawn(move || {
+        let mut bytes = Vec::new();
+        std::io::Read::read_to_end(&mut std::fs::File::open(path).unwrap(), &mut bytes).unwrap();
+        bytes
+    });
+    let exit = job.wait(limit);
+    let after_signal = t_signal.elapsed();
+    // A run that ended without opening the picture leaves the reader waiting in `open`:
+    // writers of our own let it go (opened to read and write, they do not wait themselves).
+    while !reader.is_finished() {
+        drop(std::fs::OpenOptions::new().read(true).write(true).open(&fifo));
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    let picture = reader.join().unwrap();
+    let stopped = Stopped { status: status_by_h5dump(&out), exit, after_signal };
+    (stopped, picture)
+}
 
 /// A stopped run exits with code 130 when the binary runs alone and non-zero under mpirun.
 /// (How soon: within the pace's limit, or `stop_run` reports a HANG.)

@@ -119,6 +119,10 @@ pub struct AppOptions {
     pub step_layer_around: bool,
     /// `-step_predictor`, for contact steps too (their first solve's guess).
     pub step_predictor: crate::time::Predictor,
+    /// `-ksp_type`, `-pc_type`, `-step_ksp_type` or `-step_pc_type` given (PETSc's own
+    /// options, on the command line or in the scene's `[solver] options`): the step solver is
+    /// named, so it is not chosen knowing the run (`time::choice`).
+    pub step_solver_named: bool,
     /// `-step_choice run|regime` (default run): the step solver chosen knowing the run
     /// (`time::choice`: a factorization for long runs, block ILU for 3D contact) or by the
     /// regime alone, as before issue 27 (runs that must repeat to the bit on 2 ranks:
@@ -201,6 +205,12 @@ impl AppOptions {
             step_predictor: step_predictor(
                 Petsc::options_get_string("-step_predictor")?.as_deref(),
             )?,
+            step_solver_named: any_given(&[
+                "-ksp_type",
+                "-pc_type",
+                "-step_ksp_type",
+                "-step_pc_type",
+            ])?,
             choice_by_run: match Petsc::options_get_string("-step_choice")?.as_deref() {
                 None | Some("run") => true,
                 Some("regime") => false,
@@ -217,6 +227,16 @@ impl AppOptions {
             )?,
         })
     }
+}
+
+/// Whether any of the options `names` is given.
+fn any_given(names: &[&str]) -> Result<bool> {
+    for name in names {
+        if Petsc::options_has(name)? {
+            return Ok(true);
+        }
+    }
+    Ok(false)
 }
 
 /// The Newton loop's tolerances over their defaults.

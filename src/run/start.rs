@@ -73,13 +73,7 @@ pub fn step_operator(
     defaults.user_reuse_preconditioner = app.user_reuse_preconditioner;
     // Knowing the run's length, a factorization may pay back (`time::choice`), unless the
     // scene or the command line names the solver (friction's GMRES stays).
-    let named = solver.ksp_type.is_some()
-        || solver.pc_type.is_some()
-        || ["-ksp_type", "-pc_type", "-step_ksp_type", "-step_pc_type"]
-            .iter()
-            .map(|o| crate::petsc::Petsc::options_has(o))
-            .collect::<Result<Vec<bool>>>()?
-            .contains(&true);
+    let named = solver.ksp_type.is_some() || solver.pc_type.is_some() || app.step_solver_named;
     if !named && defaults.symmetric && app.choice_by_run && !finite_strain {
         defaults.run = Some(RunFacts {
             dofs: d.part.n_global_dofs(),

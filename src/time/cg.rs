@@ -168,7 +168,7 @@ impl StepCg {
             };
             // The same on every rank, also one without layer rows of its own.
             if use_layer {
-                let r = LayerBlock::report(own, local)?;
+                let r = LayerBlock::report(layer.as_ref(), own, local)?;
                 report = (r.0 > 0).then_some(r);
             }
             Precond::Jacobi(d, layer.map(Box::new))
@@ -509,5 +509,195 @@ impl StepCg {
             }
             Precond::Petsc(z) => self.p.aypx(beta, z),
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    //! The own CG on a small SPD matrix through PETSc (one rank). MPI and PETSc start once
+    //! per process, so everything is one `#[test]`.
+
+    use super::*;
+    use crate::petsc::Petsc;
+    use crate::time::operator::Reuse;
+
+    /// Grid side: `K` has `N = SIDE^2` rows.
+    const SIDE: usize = 12;
+    const N: usize = SIDE * SIDE;
+    /// Most entries in a row of `K` (the 5-point stencil).
+    const W: usize = 5;
+    /// Solves between fresh products, as the run's `-step_reuse_refresh` default.
+    const REFRESH: usize = 16;
+    const RTOL: f64 = 1e-8;
+
+    /// `K = diag(m) + L` like the step operator `4/tau^2 M + A`: `m_i` in [0.5, 1.5] (a
+    /// varying "mass"), `L` the 5-point stencil with coefficients in [1, 2] (Dirichlet outside
+    /// the grid). Symmetric, strictly diagonally dominant with a positive diagonal: SPD.
+    fn operator() -> Result<Matrix> {
+        let at = |i: usize, j: usize| i * SIDE + j;
+        let coef = |a: usize, b: usize| 1.0 + ((a * 7 + b * 3) % 11) as f64 / 10.0;
+        let mut rows: Vec<Vec<(i32, f64)>> = vec![Vec::new(); N];
+        for i in 0..SIDE {
+            for j in 0..SIDE {
+                let p = at(i, j);
+                let mass = 0.5 + ((i * 5 + j * 3) % 7) as f64 / 6.0;
+                let mut diag = mass;
+                for (di, dj) in [(-1i64, 0i64), (1, 0), (0, -1), (0, 1)] {
+                    let (a, b) = (i as i64 + di, j as i64 + dj);
+                    let q = (a >= 0 && a < SIDE as i64 && b >= 0 && b < SIDE as i64)
+                        .then(|| at(a as usize, b as usize));
+                    // The edge's coefficient, the same from both of its ends.
+                    let c = coef(p.min(q.unwrap_or(usize::MAX)), p.max(q.unwrap_or(N)));
+                    diag += c;
+                    if let Some(q) = q {
+                        rows[p].push((q as i32, -c));
+                    }
+                }
+                rows[p].push((p as i32, diag));
+            }
+        }
+        let nnz: Vec<i32> = rows.iter().map(|r| r.len() as i32).collect();
+        let mut k = Matrix::new_aij(N, N, 1, &nnz, &vec![0; N])?;
+        for (p, row) in rows.iter().enumerate() {
+            let (cols, vals): (Vec<i32>, Vec<f64>) = row.iter().copied().unzip();
+            k.set_values(&[p as i32], &cols, &vals, false)?;
+        }
+        k.assemble()?;
+        Ok(k)
+    }
+
+    /// The right-hand side of step `n`: smooth in time, as a step's load and inertia terms.
+    fn rhs(n: usize, b: &mut Vector) -> Result<()> {
+        b.with_local_slice_mut(|b| {
+            for (i, v) in b.iter_mut().enumerate() {
+                let t = 0.05 * n as f64;
+                *v = (t + 0.1 * i as f64).sin() + 0.5 * (0.3 * t - 0.02 * i as f64).cos();
+            }
+        })
+    }
+
+    fn norm_inf(v: &[f64]) -> f64 {
+        v.iter().fold(0.0, |m, x| m.max(x.abs()))
+    }
+
+    /// `REFRESH + 4` solves with the kept products (a fresh product every `REFRESH`, as the
+    /// integrator does), under the preconditioner `pc`, optionally scaled
+    /// ([`StepCg::set_scale`]); checks every solution against products computed afresh.
+    fn check(pc: &str, scale: bool) -> Result<String> {
+        let k = operator()?;
+        // The matrix's infinity norm and 1 / diagonal (Jacobi's B; `none`: B = I).
+        let mut norm_k: f64 = 0.0;
+        let mut dinv = vec![0.0; N];
+        for i in 0..N {
+            k.with_row(i, |c, v| {
+                norm_k = norm_k.max(v.iter().map(|x| x.abs()).sum());
+                let d = v[c.iter().position(|&c| c as usize == i).expect("diagonal")];
+                dinv[i] = if pc == "jacobi" { 1.0 / d } else { 1.0 };
+            })?;
+        }
+        let mut ksp = Ksp::new("cgtest_")?;
+        ksp.set_operators(&k, &k)?;
+        ksp.set_type("cg")?;
+        ksp.set_pc_type(pc)?;
+        ksp.set_tolerances(Some(RTOL), Some(1e-50), None, Some(10_000))?;
+        ksp.set_up()?;
+        let reuse = Reuse::default();
+        let mut cg = StepCg::new(&k, &ksp, RTOL, &reuse, Vec::new())?;
+        cg.set_scale(scale);
+        let (mut x, mut b) = k.create_vecs()?;
+        let mut y = x.duplicate()?;
+        // Round-off of the kept product: each update summed into it (an iteration's
+        // `r -= alpha K p` with `K p` from a product of at most W terms, `x += alpha p`; the
+        // guess's `2 Kx - Kx_prev`; the first product; `b - r` at the end) errs by at most
+        // C eps (|K| X + |b|) in the infinity norm, C = 2 W + 5 (first order in eps), where X
+        // bounds the iterates: three times the largest solution (the extrapolated guess
+        // `2 x^n - x^{n-1}`; CG's iterates between guess and solution stay within it). The
+        // two-point guess carries the difference of the previous solves on: after solve m of
+        // a chain started by a product, the differences of solve k weigh 1 (k the first) or
+        // m - k + 1. Comparing with a fresh product adds W eps |K| X.
+        let c = (2 * W + 5) as f64;
+        let eps = f64::EPSILON;
+        let mut chain: Vec<f64> = Vec::new();
+        let (mut worst_ratio, mut worst_residual) = (0.0f64, 0.0f64);
+        let (mut largest_x, mut margin, mut iterations) = (0.0f64, f64::INFINITY, 0);
+        for n in 0..REFRESH + 4 {
+            rhs(n, &mut b)?;
+            let fresh = n > 0 && n % REFRESH == 0;
+            let info = cg.solve(&k, &ksp, &b, &mut x, 1.0, fresh)?;
+            if n == 0 || fresh {
+                chain.clear();
+            }
+            chain.push((info.iterations + 2) as f64);
+            iterations += info.iterations;
+            k.mult(&x, &mut y)?;
+            let (xs, ys, ks, bs) = (
+                x.with_local_slice(|s| s.to_vec())?,
+                y.with_local_slice(|s| s.to_vec())?,
+                cg.kx().with_local_slice(|s| s.to_vec())?,
+                b.with_local_slice(|s| s.to_vec())?,
+            );
+            largest_x = largest_x.max(norm_inf(&xs));
+            let big_x = 3.0 * largest_x;
+            let scale_of = norm_k * big_x + norm_inf(&bs);
+            let m = chain.len();
+            let weights: f64 = chain
+                .iter()
+                .enumerate()
+                .map(|(j, u)| if j == 0 { *u } else { (m - j) as f64 * u })
+                .sum();
+            let bound = c * eps * scale_of * weights + W as f64 * eps * norm_k * big_x;
+            let gap: Vec<f64> = ks.iter().zip(&ys).map(|(a, b)| a - b).collect();
+            let gap_inf = norm_inf(&gap);
+            assert!(
+                gap_inf <= bound,
+                "{pc}, scale {scale}, solve {n}: kept K x differs from K x by {gap_inf:e}, more than the round-off bound {bound:e}"
+            );
+            worst_ratio = worst_ratio.max(gap_inf / (eps * norm_k * big_x));
+            margin = margin.min(bound / gap_inf);
+            // The solve's own test holds for the true residual b - K x up to the difference
+            // of the kept product: |r|_B <= rtol |x|_K + |gap|_B.
+            let r: Vec<f64> = bs.iter().zip(&ys).map(|(b, y)| b - y).collect();
+            let r_b = r.iter().zip(&dinv).map(|(r, d)| r * r * d).sum::<f64>().sqrt();
+            let x_k = xs.iter().zip(&ys).map(|(x, y)| x * y).sum::<f64>().sqrt();
+            let gap_b = gap.iter().zip(&dinv).map(|(g, d)| g * g * d).sum::<f64>().sqrt();
+            if scale {
+                // Scaled onto its own direction: x.r = 0 up to the kept product's difference
+                // and the round-off of forming s (x.b's terms).
+                let xr: f64 = xs.iter().zip(&r).map(|(x, r)| x * r).sum();
+                let x1: f64 = xs.iter().map(|x| x.abs()).sum();
+                let xb: f64 = xs.iter().zip(&bs).map(|(x, b)| (x * b).abs()).sum();
+                let allowed = x1 * (bound + 4.0 * eps * norm_inf(&bs)) + 4.0 * N as f64 * eps * xb;
+                assert!(
+                    xr.abs() <= allowed,
+                    "{pc}, solve {n}: scaled x.r = {xr:e}, more than {allowed:e}"
+                );
+            } else {
+                assert!(
+                    r_b <= RTOL * x_k + gap_b,
+                    "{pc}, solve {n}: |b - Kx|_B = {r_b:e} > rtol |x|_K + |gap|_B = {:e}",
+                    RTOL * x_k + gap_b
+                );
+            }
+            worst_residual = worst_residual.max(r_b / x_k);
+        }
+        Ok(format!(
+            "{pc}, scale {scale}: {:.1} iterations a solve; kept K x - K x at most {worst_ratio:.1} eps |K| X, the bound at least {margin:.0} times the difference; |b - Kx|_B / |x|_K at most {worst_residual:.2e} (rtol {RTOL:e})",
+            iterations as f64 / (REFRESH + 4) as f64
+        ))
+    }
+
+    #[test]
+    fn kept_products_equal_recomputed_ones_and_the_solutions_meet_the_tolerance() {
+        let universe = mpi::initialize().expect("MPI initialized once");
+        let petsc = Petsc::init(&["cg-test".to_string()], "").expect("PetscInitialize");
+        assert_eq!(petsc.size(), 1, "one rank");
+        for (pc, scale) in [("jacobi", false), ("jacobi", true), ("none", false)] {
+            match check(pc, scale) {
+                Ok(line) => println!("{line}"),
+                Err(e) => panic!("{pc}: {e}"),
+            }
+        }
+        drop(petsc);
+        drop(universe);
     }
 }

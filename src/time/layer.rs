@@ -142,8 +142,9 @@ impl LayerBlock {
         };
         let displs: Vec<i32> =
             counts.iter().scan(0, |s, &c| Some(std::mem::replace(s, *s + c))).collect();
-        // On every rank, also one without rows of its own (`local`): the solver's name is
-        // read from the options for the reports.
+        // Defaults under the command line's and the scene's options (`set_from_options` in
+        // [`LayerBlock::factor_holding`]), entered on every rank alike, also on one without
+        // rows of its own (`local`), so that the database is the same everywhere.
         let defaults: [(String, &str); 2] = [
             (format!("-{prefix}pc_type"), pc),
             (format!("-{prefix}pc_factor_mat_ordering_type"), ordering),
@@ -191,13 +192,28 @@ impl LayerBlock {
         Ok(Some(block))
     }
 
-    /// The layer's rows over all ranks and the step sweep's solver of `K_CC` (from the
-    /// options, which [`LayerBlock::new`] sets on every rank): the
-    /// same report on every rank, also on one without layer rows. Collective.
-    pub fn report(own_rows: usize, local: bool) -> Result<(usize, String)> {
+    /// The layer's rows over all ranks and the solver of `K_CC` as the block's KSP has it
+    /// (after the defaults and the options: `cholesky`, `icc`, ...), from the first rank that
+    /// has a block (`block`: this rank's, `None` with `local` on a rank without layer rows):
+    /// the same report on every rank. No option is read here (`run::options`). Collective.
+    pub fn report(
+        block: Option<&LayerBlock>,
+        own_rows: usize,
+        local: bool,
+    ) -> Result<(usize, String)> {
+        let world = SimpleCommunicator::world();
         let mut total = 0usize;
-        SimpleCommunicator::world().all_reduce_into(&own_rows, &mut total, SystemOperation::sum());
-        let mut solver = Petsc::options_get_string("-step_layer_pc_type")?.unwrap_or_default();
+        world.all_reduce_into(&own_rows, &mut total, SystemOperation::sum());
+        let mine = match block {
+            Some(b) => b.ksp.pc_type()?,
+            None => String::new(),
+        };
+        let mut lengths = vec![0i32; world.size() as usize];
+        world.all_gather_into(&(mine.len() as i32), &mut lengths[..]);
+        // In rank order: the first rank with a block starts the gathered bytes.
+        let bytes = gather_all(&world, mine.as_bytes());
+        let first = lengths.iter().copied().find(|&l| l > 0).unwrap_or(0) as usize;
+        let mut solver = String::from_utf8_lossy(&bytes[..first]).into_owned();
         if local {
             solver += " on each rank's own part (-step_layer_local)";
         }
@@ -633,7 +649,7 @@ impl crate::petsc::PcShell for LayerShell {
             let rows = std::mem::take(&mut self.rows);
             let own = rows.len();
             self.block = LayerBlock::new(op, rows, None, self.dim, self.local)?;
-            let report = LayerBlock::report(own, self.local)?;
+            let report = LayerBlock::report(self.block.as_ref(), own, self.local)?;
             self.s = Some(op.create_vecs()?.0);
             if report.0 > 0 {
                 *self.info.borrow_mut() = Some(report);
