@@ -141,6 +141,31 @@ fn main() {
     // --only scaling|solvers|mass|disc|contact3d|two_body|friction|output|stress|suite|setup|step|layer|long|finite_strain runs one
     // section (step:N,M some parts of it).
     let only = args.iter().position(|a| a == "--only").and_then(|i| args.get(i + 1)).cloned();
+    const SECTIONS: [&str; 15] = [
+        "scaling",
+        "solvers",
+        "mass",
+        "disc",
+        "contact3d",
+        "two_body",
+        "friction",
+        "output",
+        "stress",
+        "suite",
+        "setup",
+        "step",
+        "layer",
+        "long",
+        "finite_strain",
+    ];
+    if let Some(o) = only.as_deref() {
+        let section = o.split_once(':').map_or(o, |(s, _)| s);
+        let parts_allowed = section == "step" || section == "layer" || !o.contains(':');
+        if !SECTIONS.contains(&section) || !parts_allowed {
+            eprintln!("bench: --only {o}: unknown section (the sections: {})", SECTIONS.join(", "));
+            std::process::exit(2);
+        }
+    }
     let want = |section: &str| only.as_deref().is_none_or(|o| o == section);
     let cg_jacobi: &[&str] = &[];
     let cases_2d: &[&str] = if quick {

@@ -48,6 +48,9 @@ pub struct ErrorSample {
     pub time: f64,
     pub l2: f64,
     pub h1_semi: f64,
+    /// The velocity's L2 error, where the scene gives `exact.velocity`.
+    #[serde(default)]
+    pub velocity_l2: Option<f64>,
 }
 
 /// What a finished run reports (written by `--summary FILE` as TOML).
@@ -255,7 +258,13 @@ impl RunSummary {
             external_work: 0.0,
             energy_balance: 1e-12,
             energy_drift: 1e-4,
-            errors: vec![ErrorSample { step: 30, time: 3e-4, l2: 6.1e-6, h1_semi: 1.5e-4 }],
+            errors: vec![ErrorSample {
+                step: 30,
+                time: 3e-4,
+                l2: 6.1e-6,
+                h1_semi: 1.5e-4,
+                velocity_l2: Some(2.4e-5),
+            }],
             output: None,
             matmult_seconds: 1e-4,
             peak_memory_mib: 85.5,

@@ -55,6 +55,17 @@ fn unknown_output_field_names_the_key_and_the_valid_names() {
     expect_error(&["run", &scene], "output.fields: contact_traction needs a [contact] table");
 }
 
+/// gmsh ignores a `-setnumber` its `.geo` does not declare: a misspelt `--param` would mesh the
+/// default size without a word. It is a one-line error naming the parameter and the declared
+/// ones.
+#[test]
+fn a_param_the_geo_does_not_declare_is_an_error() {
+    let dir = scratch("bad-param");
+    let scene = scene_variant("beam.toml", &dir, &[]);
+    let scene = scene.to_str().unwrap();
+    expect_error(&["run", scene, "--no-output", "--param", "hh=0.1"], "\"hh\" (it has: h)");
+}
+
 #[test]
 fn missing_scene_file_is_an_error() {
     expect_error(&["run", "/nonexistent/scene.toml"], "/nonexistent/scene.toml");

@@ -91,7 +91,7 @@ fn beam_errors(
         dir,
         &[("steps = 250", "steps = 30"), ("error_steps = [30, 250]", "error_steps = [30]")],
     );
-    let (mut l2, mut h1) = (vec![], vec![]);
+    let (mut l2, mut h1, mut v2) = (vec![], vec![], vec![]);
     for h in hs {
         let s = run_scene(
             2,
@@ -110,6 +110,14 @@ fn beam_errors(
         let e = s.errors[0];
         l2.push(e.l2);
         h1.push(e.h1_semi);
+        v2.push(e.velocity_l2.expect("the beam gives exact.velocity"));
+    }
+    // The velocity converges as the displacement in L2 (u_t solves the same problem with
+    // smooth data), with the layer's massless DOFs at their static response's derivative.
+    let rv: Vec<f64> = v2.windows(2).map(|w| (w[0] / w[1]).log2()).collect();
+    eprintln!("{mass}: velocity L2 {v2:?} rates {rv:?}");
+    for r in &rv {
+        assert!((r - 2.0).abs() < 0.15, "{mass}: velocity L2 rate {r} is not 2 ({rv:?})");
     }
     (l2, h1)
 }

@@ -19,6 +19,21 @@ fn launch(ranks: usize, args: &[String]) -> Command {
     massfree_command(ranks, args)
 }
 
+/// `./run help` and `./run --help` print the script's usage once (not the program's help once
+/// per rank, nor a missing scene called "help"), and succeed.
+#[test]
+fn the_run_script_prints_its_usage_once() {
+    for arg in ["help", "--help", "-h"] {
+        let mut cmd = Command::new(repo().join("run"));
+        cmd.arg(arg).env("MASSFREE_PREBUILT", "1");
+        let o = output(&mut cmd);
+        let text = String::from_utf8_lossy(&o.stdout);
+        assert!(o.status.success(), "./run {arg}: {}", String::from_utf8_lossy(&o.stderr));
+        assert_eq!(text.matches("./run test").count(), 1, "./run {arg}:\n{text}");
+        assert!(text.contains("./run bench"), "./run {arg}:\n{text}");
+    }
+}
+
 /// The status attribute as h5dump (an independent reader) prints it.
 fn status_by_h5dump(h5: &Path) -> String {
     let o = output(Command::new("h5dump").args(["-a", "status"]).arg(h5));

@@ -6,6 +6,67 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Output, Stdio};
 use std::sync::atomic::{AtomicUsize, Ordering};
 
+/// The parameters a `.geo` text declares with `DefineConstant[ NAME = {...}, ... ];` (or
+/// `NAME = value`): the only ones `-setnumber` can set.
+pub fn declared_parameters(geo: &str) -> Vec<String> {
+    // Without comments: `//` to the end of a line, `/* ... */`.
+    let mut text = String::with_capacity(geo.len());
+    let mut rest = geo;
+    while !rest.is_empty() {
+        if let Some(r) = rest.strip_prefix("//") {
+            rest = r.find('\n').map_or("", |i| &r[i..]);
+        } else if let Some(r) = rest.strip_prefix("/*") {
+            rest = r.find("*/").map_or("", |i| &r[i + 2..]);
+        } else {
+            let c = rest.chars().next().expect("not empty");
+            text.push(c);
+            rest = &rest[c.len_utf8()..];
+        }
+    }
+    let mut names = Vec::new();
+    let mut at = 0;
+    while let Some(i) = text[at..].find("DefineConstant") {
+        let start = at + i + "DefineConstant".len();
+        let Some(open) = text[start..].find('[').map(|j| start + j + 1) else { break };
+        // The block's entries: split at the commas outside braces, up to the closing `]`.
+        let (mut depth, mut entry, mut end) = (0usize, String::new(), text.len());
+        for (k, c) in text[open..].char_indices() {
+            match c {
+                '{' | '(' => depth += 1,
+                '}' | ')' => depth = depth.saturating_sub(1),
+                ']' if depth == 0 => {
+                    end = open + k;
+                    break;
+                }
+                _ => {}
+            }
+            if c == ',' && depth == 0 {
+                names.extend(entry_name(&entry));
+                entry.clear();
+            } else {
+                entry.push(c);
+            }
+        }
+        names.extend(entry_name(&entry));
+        at = end.min(text.len());
+        if at <= start {
+            break;
+        }
+    }
+    names.sort();
+    names.dedup();
+    names
+}
+
+/// `NAME` of a `NAME = ...` entry.
+fn entry_name(entry: &str) -> Option<String> {
+    let (name, _) = entry.split_once('=')?;
+    let name = name.trim();
+    let ok = name.chars().next().is_some_and(|c| c.is_ascii_alphabetic() || c == '_')
+        && name.chars().all(|c| c.is_ascii_alphanumeric() || c == '_');
+    ok.then(|| name.to_string())
+}
+
 /// Meshes `geo` with gmsh in dimension `dim` and returns the path of the MSH 4.1 file.
 ///
 /// Runs `gmsh <geo> -<dim> -format msh41 [-bin] -setnumber NAME VALUE ... -o <out> -v 2`.
@@ -204,6 +265,42 @@ impl Fnv {
     fn u64(&mut self, v: u64) {
         for x in v.to_le_bytes() {
             self.byte(x);
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::declared_parameters;
+
+    #[test]
+    fn the_declared_parameters_are_read_from_define_constant_blocks() {
+        let geo = r#"
+// h = 1 in a comment is no parameter
+DefineConstant[ h = {0.25, Name "h"} ];
+/* DefineConstant[ ghost = {1} ]; */
+DefineConstant[
+  W = {1, Name "W"},
+  ny = {0, Name "ny", Min 0, Max 10},   // 0: automatic
+  ar = 2
+];
+x = 3;
+"#;
+        assert_eq!(declared_parameters(geo), ["W", "ar", "h", "ny"]);
+        assert!(declared_parameters("x = 1;").is_empty());
+    }
+
+    #[test]
+    fn every_shipped_mesh_declares_its_parameters() {
+        let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("meshes");
+        for e in std::fs::read_dir(dir).unwrap().flatten() {
+            let path = e.path();
+            if path.extension().is_some_and(|x| x == "geo") {
+                let text = std::fs::read_to_string(&path).unwrap();
+                if text.contains("DefineConstant") {
+                    assert!(!declared_parameters(&text).is_empty(), "{}", path.display());
+                }
+            }
         }
     }
 }

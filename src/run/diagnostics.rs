@@ -348,6 +348,36 @@ pub fn exact_errors(
     Ok(Some((l2, h1)))
 }
 
+/// `|v - v_exact(t)|_L2` over the mesh (the velocity interpolated by the shape functions, the
+/// exact one at the quadrature points). Collective.
+pub fn velocity_error(
+    d: &Domain,
+    views: &mut Views,
+    v: &Vector,
+    exact: &crate::scene::expr::VecExpr,
+    t: f64,
+) -> Result<f64> {
+    let (vals, view) = views.local_values(v)?;
+    let slot = &view.slot;
+    let dim = d.part.dim;
+    // Only the L2 part of `error_sq` is used: the gradient it is given is zero.
+    let f = |x: [f64; 3]| -> ([f64; 3], [[f64; 3]; 3]) { (exact.eval(x, t), [[0.0; 3]; 3]) };
+    let mut l2 = 0.0;
+    let mut xy = [[0.0; 3]; 8];
+    let mut ve = [0.0; assembly::MAX_EDOFS];
+    for &c in &d.part.local_cells {
+        let cell = &d.mesh.cells[c];
+        let n = assembly::cell_coords(&d.mesh, cell, &mut xy);
+        for (i, &p) in cell.nodes().iter().enumerate() {
+            for k in 0..dim {
+                ve[i * dim + k] = vals[slot[p] * dim + k];
+            }
+        }
+        l2 += kernels::error_sq(cell.kind, &xy[..n], &ve[..n * dim], &f, 6).0;
+    }
+    Ok(sum_over_ranks(d.world, l2).sqrt())
+}
+
 /// Peak resident set size of this process (VmHWM), in MiB; 0 where /proc is unavailable.
 pub fn peak_rss_mib() -> f64 {
     crate::phase::status_mib("VmHWM:")

@@ -226,7 +226,7 @@ impl<'a> Simulation<'a> {
                     )));
                 }
                 let t_errors = Instant::now();
-                run.record.errors_at(&self.domain, &mut self.views, n + 1, &run.midpoint)?;
+                run.record.errors_at(&self.domain, &mut self.views, n + 1, &mut run.midpoint)?;
                 clock.errors += t_errors.elapsed().as_secs_f64();
                 let newton = run
                     .midpoint
@@ -391,7 +391,7 @@ impl<'a> Simulation<'a> {
             ));
         }
         let mut run = run;
-        run.record.errors_at(d, &mut self.views, first, &run.midpoint)?;
+        run.record.errors_at(d, &mut self.views, first, &mut run.midpoint)?;
         Ok(run)
     }
 

@@ -137,12 +137,20 @@ impl Record {
         d: &Domain,
         views: &mut Views,
         n: usize,
-        midpoint: &Midpoint,
+        midpoint: &mut Midpoint,
     ) -> Result<()> {
         if self.error_steps.contains(&n) {
             let t = midpoint.time_at(n);
             if let Some((l2, h1)) = diagnostics::exact_errors(d, views, midpoint.u(), t)? {
-                self.errors.push(ErrorSample { step: n, time: t, l2, h1_semi: h1 });
+                let velocity_l2 = match d.scene.exact.as_ref().and_then(|e| e.velocity.as_ref()) {
+                    Some(exact) => {
+                        // The massless DOFs' velocity as written (their static response's).
+                        midpoint.settle_layer_velocity()?;
+                        Some(diagnostics::velocity_error(d, views, midpoint.v(), exact, t)?)
+                    }
+                    None => None,
+                };
+                self.errors.push(ErrorSample { step: n, time: t, l2, h1_semi: h1, velocity_l2 });
             }
         }
         Ok(())
@@ -468,8 +476,12 @@ pub fn summary_lines(d: &Domain, layer: Option<(usize, usize)>, s: &RunSummary) 
     }
     for e in &s.errors {
         lines.push(format!(
-            "error at step {} (t = {:.6e}): L2 {:.6e}, H1-seminorm {:.6e}",
-            e.step, e.time, e.l2, e.h1_semi
+            "error at step {} (t = {:.6e}): L2 {:.6e}, H1-seminorm {:.6e}{}",
+            e.step,
+            e.time,
+            e.l2,
+            e.h1_semi,
+            e.velocity_l2.map_or(String::new(), |v| format!(", velocity L2 {v:.6e}"))
         ));
     }
     if let Some(c) = &s.contact {

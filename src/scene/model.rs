@@ -456,8 +456,24 @@ impl Scene {
             return bad("the value is not a number");
         };
         match &mut self.mesh {
-            MeshSource::Geo { params, .. } => {
+            MeshSource::Geo { params, path, .. } => {
                 let name = name.trim().to_string();
+                // gmsh ignores a -setnumber the .geo does not declare: a misspelt name would
+                // silently mesh the default.
+                if let Ok(text) = std::fs::read_to_string(&*path) {
+                    let declared = crate::mesh::gmsh::declared_parameters(&text);
+                    if !declared.contains(&name) {
+                        return bad(&format!(
+                            "{} declares no parameter \"{name}\" (it has: {})",
+                            path.display(),
+                            if declared.is_empty() {
+                                "none".to_string()
+                            } else {
+                                declared.join(", ")
+                            }
+                        ));
+                    }
+                }
                 params.retain(|(n, _)| *n != name);
                 params.push((name, value));
                 params.sort_by(|a, b| a.0.cmp(&b.0));

@@ -11,7 +11,11 @@ fn workspace() -> PathBuf {
     ));
     std::fs::create_dir_all(dir.join("meshes")).unwrap();
     std::fs::create_dir_all(dir.join("scenes")).unwrap();
-    std::fs::write(dir.join("meshes/beam.geo"), "// geo\n").unwrap();
+    std::fs::write(
+        dir.join("meshes/beam.geo"),
+        "// geo\nDefineConstant[ h = {0.25, Name \"h\"}, n = {4, Name \"n\"} ];\n",
+    )
+    .unwrap();
     std::fs::write(dir.join("meshes/beam.msh"), "$MeshFormat\n4.1 0 8\n$EndMeshFormat\n").unwrap();
     dir
 }
