@@ -4,7 +4,8 @@
 //! Layout (all names documented in README.md):
 //! - `/mesh/coordinates` [n_nodes, 3], `/mesh/node_tags` [n_nodes],
 //!   `/mesh/cells/<kind>` [n, nodes per cell] (0-based indices into coordinates),
-//!   `/mesh/cell_rank` [n_cells] (METIS partition, in the order of the cells of `/mesh/cells`),
+//!   `/mesh/cell_rank` [n_cells] (the partition, RCB by default, in the order of the cells of
+//!   `/mesh/cells`),
 //! - `/time` [n_out], `/step` [n_out] of the written field steps,
 //! - `/fields/displacement`, `/fields/velocity` [n_out, n_nodes, dim], the stress-type cell
 //!   fields `/fields/{stress,strain}` [n_out, n_cells, 6] and `/fields/{von_mises,
