@@ -20,17 +20,21 @@ fn tokens(cmd: &str, args: &[&str]) -> Option<Vec<String>> {
     Some(s.split_whitespace().map(str::to_owned).collect())
 }
 
-/// PETSc include and library dirs: pkg-config first, the Debian path otherwise.
-fn petsc_dirs() -> (Vec<PathBuf>, Vec<PathBuf>) {
+/// PETSc include dirs, library dirs and library names: pkg-config first (`PETSc` or `petsc`,
+/// as PETSc installs it; Debian's names the library `petsc_real`), the Debian path otherwise.
+fn petsc_dirs() -> (Vec<PathBuf>, Vec<PathBuf>, Vec<String>) {
     let mut inc = Vec::new();
     let mut lib = Vec::new();
-    if let Some(toks) = tokens("pkg-config", &["--cflags", "--libs", "PETSc"]) {
-        for t in toks {
-            if let Some(p) = t.strip_prefix("-I") {
-                inc.push(PathBuf::from(p));
-            } else if let Some(p) = t.strip_prefix("-L") {
-                lib.push(PathBuf::from(p));
-            }
+    let mut names = Vec::new();
+    let toks = tokens("pkg-config", &["--cflags", "--libs", "PETSc"])
+        .or_else(|| tokens("pkg-config", &["--cflags", "--libs", "petsc"]));
+    for t in toks.unwrap_or_default() {
+        if let Some(p) = t.strip_prefix("-I") {
+            inc.push(PathBuf::from(p));
+        } else if let Some(p) = t.strip_prefix("-L") {
+            lib.push(PathBuf::from(p));
+        } else if let Some(n) = t.strip_prefix("-l") {
+            names.push(n.to_string());
         }
     }
     if inc.is_empty() {
@@ -39,23 +43,28 @@ fn petsc_dirs() -> (Vec<PathBuf>, Vec<PathBuf>) {
     if lib.is_empty() {
         lib.push(Path::new(FALLBACK_DIR).join("lib"));
     }
-    (inc, lib)
+    if names.is_empty() {
+        names.push("petsc_real".to_string());
+    }
+    (inc, lib, names)
 }
 
-/// MPI include dirs: pkg-config `ompi-c` first, then `mpicc --showme:incdirs`.
+/// MPI include dirs: pkg-config (`ompi-c` for Open MPI, `mpich`) first, then the compiler
+/// wrapper (`mpicc --showme:incdirs` for Open MPI, `mpicc -show` for MPICH and its kin).
 fn mpi_include_dirs() -> Vec<PathBuf> {
-    if let Some(toks) = tokens("pkg-config", &["--cflags", "ompi-c"]) {
-        let dirs: Vec<PathBuf> =
-            toks.iter().filter_map(|t| t.strip_prefix("-I")).map(PathBuf::from).collect();
+    let includes = |toks: Vec<String>| -> Vec<PathBuf> {
+        toks.iter().filter_map(|t| t.strip_prefix("-I")).map(PathBuf::from).collect()
+    };
+    for pc in ["ompi-c", "mpich"] {
+        let dirs = includes(tokens("pkg-config", &["--cflags", pc]).unwrap_or_default());
         if !dirs.is_empty() {
             return dirs;
         }
     }
-    tokens("mpicc", &["--showme:incdirs"])
-        .unwrap_or_default()
-        .into_iter()
-        .map(PathBuf::from)
-        .collect()
+    if let Some(dirs) = tokens("mpicc", &["--showme:incdirs"]) {
+        return dirs.into_iter().map(PathBuf::from).collect();
+    }
+    includes(tokens("mpicc", &["-show"]).unwrap_or_default())
 }
 
 /// Refuses PETSc builds whose scalar/index types the solver was not written for.
@@ -98,7 +107,7 @@ fn main() {
     println!("cargo:rerun-if-changed={WRAPPER}");
     println!("cargo:rerun-if-env-changed=PKG_CONFIG_PATH");
 
-    let (petsc_inc, petsc_lib) = petsc_dirs();
+    let (petsc_inc, petsc_lib, petsc_names) = petsc_dirs();
     check_petscconf(&petsc_inc);
     let mpi_inc = mpi_include_dirs();
 
@@ -107,7 +116,9 @@ fn main() {
         // Debian's libpetsc_real is not in the default runtime search path on every setup.
         println!("cargo:rustc-link-arg=-Wl,-rpath,{}", d.display());
     }
-    println!("cargo:rustc-link-lib=petsc_real");
+    for name in &petsc_names {
+        println!("cargo:rustc-link-lib={name}");
+    }
     println!("cargo:rustc-link-lib=mpi");
 
     let mut builder = bindgen::Builder::default()

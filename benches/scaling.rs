@@ -782,7 +782,7 @@ fn main() {
         // suite). Its own tables go to target/bench/suite/; here its per-case table and time.
         let out = bench_dir().join("suite");
         let mut cmd = Command::new(repo().join("target/release/massfree"));
-        cmd.arg("suite").arg(repo().join("studies/suite.toml")).arg("-o").arg(&out);
+        cmd.arg("suite").arg(repo().join("studies/suite.toml")).arg("--dir").arg(&out);
         if quick {
             cmd.arg("--reduced");
         }

@@ -1,4 +1,4 @@
-// Cattaneo-Mindlin partial slip (issue 25), 2D: a half-cylinder (the lower half of a disc of
+// Cattaneo-Mindlin partial slip, 2D: a half-cylinder (the lower half of a disc of
 // radius R, flat side up at y = gap + R) resting on a block [-W, W] x [-H, 0]. Separate
 // surfaces with separate nodes; the cells are of size hc within rc of the contact point
 // (0, 0) on both bodies, growing to h away from it (quadrilaterals).

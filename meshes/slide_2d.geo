@@ -1,4 +1,4 @@
-// Sliding off an edge (issue 24), 2D: a long lower block [0, L] x [-H, 0] and a short upper
+// Sliding off an edge (finite sliding), 2D: a long lower block [0, L] x [-H, 0] and a short upper
 // block [x0, x0 + a] x [gap, gap + b], separate surfaces with separate nodes (non-matching
 // interface: lower cells of size h, upper cells of size hu).
 // kind: 0 = quadrilaterals, 1 = triangles.

@@ -1,4 +1,4 @@
-// Sliding off an edge (issue 24), 3D: a plate [0, L] x [0, W] x [-H, 0] and a cube of edge a at
+// Sliding off an edge (finite sliding), 3D: a plate [0, L] x [0, W] x [-H, 0] and a cube of edge a at
 // [x0, x0 + a] x [y0, y0 + a] x [gap, gap + a], separate volumes with separate nodes
 // (non-matching interface: plate cells of size h, cube cells of size hu).
 // kind: 0 = hexahedra, 1 = tetrahedra (each structured cell cut into 6 tetrahedra).

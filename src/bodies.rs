@@ -7,7 +7,7 @@
 //! holds, in a fixed order: every rank gets the same regions and layer groups whatever the
 //! partition, and nothing here runs per time step.
 //!
-//! The layer rule (METHOD.md section 3 per body): a contact group gets the mass-free layer when
+//! The layer rule (docs/method.md, the mass-free layer per body): a contact group gets the mass-free layer when
 //! the cells it touches (the cells with a node on it: its layer cells) have a modified mass. So
 //! those cells must all have the same mass kind, one run builds one variant, and a body whose
 //! own `mass` is modified must carry a contact group. A body that only inherits a modified

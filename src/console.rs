@@ -94,3 +94,29 @@ impl Progress {
         }
     }
 }
+
+/// A simulated time as the user reads it: 12 significant digits, trailing zeros dropped, so
+/// that a sum of steps prints `3e-5`, not `3.0000000000000004e-5`.
+pub fn time(t: f64) -> String {
+    let s = format!("{t:.11e}");
+    match s.split_once('e') {
+        Some((mantissa, exp)) if mantissa.contains('.') => {
+            let m = mantissa.trim_end_matches('0').trim_end_matches('.');
+            format!("{m}e{exp}")
+        }
+        _ => s,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn times_print_without_rounding_noise() {
+        assert_eq!(super::time(3.0000000000000004e-5), "3e-5");
+        assert_eq!(super::time(9.999999999999999e-5), "1e-4");
+        assert_eq!(super::time(1.8400000000000002e1), "1.84e1");
+        assert_eq!(super::time(0.0), "0e0");
+        assert_eq!(super::time(-2.5e-3), "-2.5e-3");
+        assert_eq!(super::time(1.23456789012345e-7), "1.23456789012e-7");
+    }
+}

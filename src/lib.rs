@@ -1,10 +1,9 @@
 //! massfree: parallel finite elements for dynamic elasticity with contact, with the
 //! mass-free surface layer of Hager & Wohlmuth (SIAM J. Numer. Anal. 2009).
 //!
-//! One module per concept; README.md ("How it works") lists them and maps each equation of
-//! the paper to the function that implements it. Module docs cite `METHOD.md`, the method
-//! restated for implementation: it is not in this repository but beside it, in
-//! `../shared/reference/METHOD.md` (with the paper, `hager-wohlmuth-2009.txt`).
+//! One module per concept; docs/CONTRIBUTING.md lists them. Module docs cite
+//! docs/method.md, the method restated for implementation, whose last section maps each part
+//! of the paper to the module that implements it.
 
 pub mod assembly;
 pub mod bodies;

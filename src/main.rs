@@ -13,11 +13,73 @@ use massfree::phase::{self, HangTimeout};
 use massfree::post::snapshot::{self, SnapshotArgs};
 use massfree::run::{RunOptions, Simulation};
 
+/// Examples of the top-level help.
+const EXAMPLES: &str = "\
+Examples:
+  mpirun -n 2 massfree run scenes/disc.toml --overwrite
+      a scene on 2 ranks, written to its output file (out/disc.h5)
+  massfree post out/disc.h5
+      the run's summary, energy plots and CSV files (out/disc-post-*)
+  massfree compare out/disc.h5 out/disc-lumped.h5 --prefix out/disc-masses
+      two runs overlaid (out/disc-masses-energy.png, out/disc-masses-pressure.png)
+  massfree suite --reduced
+      the reduced stability suite (out/suite-reduced/suite.md, .csv, .png)
+
+Every subcommand has its own help (massfree run --help, ...); the solver options of a run,
+PETSc's and the program's own, with their defaults: massfree run SCENE --steps 1 --no-output -- -help";
+
+const RUN_EXAMPLES: &str = "\
+Examples:
+  mpirun -n 2 massfree run scenes/disc.toml --overwrite
+      the disc impact on 2 ranks, written to the scene's output file (out/disc.h5)
+  mpirun -n 2 massfree run scenes/beam.toml --steps 50 --mass lumped -o out/beam-lumped.h5
+      50 steps with the lumped mass matrix, written to another file
+  massfree run scenes/two_discs.toml --no-output -q -- -mortar_interface frozen -step_ksp_rtol 1e-12
+      one rank, no file, only the summary; options after --: the program's own and PETSc's
+  massfree run scenes/disc.toml --steps 1 --no-output -- -help
+      every option after -- (PETSc's and the program's) with its default and description";
+
+const POST_EXAMPLES: &str = "\
+Examples:
+  massfree post out/disc.h5
+      summary, energy and contact pictures and CSV files: out/disc-post-energy.png, ...
+  massfree post out/disc.h5 --node 0,8 --contact-node 0,0 --prefix out/disc-top
+      also the histories of the node nearest (0, 8) and of the contact node nearest (0, 0):
+      out/disc-top-node-N.png, out/disc-top-contact-N.csv, ... (N: the node's number)
+  massfree post out/disc.h5 --snapshot velocity --time 6e-5 --edges
+      the velocity on the deformed mesh at t = 6e-5: out/disc-post-snapshot-velocity.png";
+
+const COMPARE_EXAMPLES: &str = "\
+Examples:
+  massfree compare out/disc.h5 out/disc-lumped.h5 --prefix out/disc-masses
+      energies and pressures of both runs: out/disc-masses-energy.png, -pressure.png
+  massfree compare out/disc.h5 out/disc-lumped.h5 --label M_H --label lumped
+      the same with these curve labels, in out/compare-energy.png, out/compare-pressure.png
+  massfree compare out/disc.h5 out/disc-lumped.h5 --snapshot displacement --component y
+      the runs' vertical displacement side by side: out/compare-snapshot-displacement.png";
+
+const STUDY_EXAMPLES: &str = "\
+Examples:
+  massfree study studies/beam_time.toml
+      time convergence on the beam for each mass treatment: out/study-beam-time/
+  massfree study studies/disc_contact.toml
+      the disc impact over a refinement of the contact zone: out/study-disc-contact/";
+
+const SUITE_EXAMPLES: &str = "\
+Examples:
+  massfree suite --reduced
+      the reduced suite of studies/suite.toml: out/suite-reduced/suite.md, .csv, .png
+  massfree suite studies/suite.toml --ranks 3 --dir out/suite-3
+      the whole suite with its runs on 3 ranks (and the rank sweep's), in out/suite-3
+  massfree suite --reduced --scenes-only --dir out/suite-scenes
+      only the scene of every run (out/suite-scenes/runs/*.scene.toml), to run them by hand";
+
 #[derive(Parser, Debug)]
 #[command(
     name = "massfree",
     version,
-    about = "Dynamic elasticity with contact and mass-free surface layers, on PETSc and MPI"
+    about = "Dynamic elasticity with contact and mass-free surface layers, on PETSc and MPI",
+    after_help = EXAMPLES
 )]
 struct Cli {
     #[command(subcommand)]
@@ -40,6 +102,7 @@ fn parse_point(s: &str) -> std::result::Result<[f64; 3], String> {
 enum Command {
     /// Summarize a run's HDF5 file; write PNG plots and CSV of its energies and of chosen
     /// node and contact-node histories; or, with --snapshot, draw a field on the deformed mesh.
+    #[command(after_help = POST_EXAMPLES)]
     Post {
         /// The run's .h5 file.
         run: PathBuf,
@@ -52,20 +115,23 @@ enum Command {
         /// Fields of the node histories: displacement, velocity (default: all written).
         #[arg(long = "field")]
         fields: Vec<String>,
-        /// Prefix of the written files (default: RUN-post).
-        #[arg(long, short)]
-        out: Option<PathBuf>,
+        /// Prefix of the written files, PREFIX-*.png and PREFIX-*.csv (default: the run's file
+        /// without .h5, followed by -post).
+        #[arg(long, value_name = "PREFIX")]
+        prefix: Option<PathBuf>,
         #[command(flatten)]
         snapshot: SnapshotArgs,
     },
     /// Sweep a grid of settings over a scene (each point a real run on 2 ranks) and map error
     /// against wall time: CSV, Markdown table and PNG plots in the study's output folder.
+    #[command(after_help = STUDY_EXAMPLES)]
     Study {
         /// The study file (TOML).
         study: PathBuf,
     },
     /// Run the hard-case stability suite (each case a real run on 2 ranks; selected cases also
     /// on other rank counts) and write DIR/suite.md, suite.csv and suite.png.
+    #[command(after_help = SUITE_EXAMPLES)]
     Suite {
         /// The suite file (default: studies/suite.toml, here or in the repository).
         spec: Option<PathBuf>,
@@ -76,8 +142,8 @@ enum Command {
         #[arg(long)]
         ranks: Option<usize>,
         /// Output folder (default: the suite file's output, out/suite or out/suite-reduced).
-        #[arg(long, short)]
-        output: Option<PathBuf>,
+        #[arg(long, value_name = "DIR")]
+        dir: Option<PathBuf>,
         /// Only write every run's scene (DIR/runs/*.scene.toml), to run them by hand.
         #[arg(long)]
         scenes_only: bool,
@@ -85,13 +151,14 @@ enum Command {
     /// Overlay the energies and the lowest contact node's pressure of several runs (HDF5
     /// files) in PNG pictures PREFIX-energy.png and PREFIX-pressure.png; with --snapshot, draw
     /// a field of the runs side by side (one colour range) in PREFIX-snapshot-FIELD.png.
+    #[command(after_help = COMPARE_EXAMPLES)]
     Compare {
         /// The runs' .h5 files.
         #[arg(required = true)]
         runs: Vec<PathBuf>,
-        /// Prefix of the pictures.
-        #[arg(long, short, default_value = "out/compare")]
-        out: PathBuf,
+        /// Prefix of the pictures, PREFIX-*.png.
+        #[arg(long, value_name = "PREFIX", default_value = "out/compare")]
+        prefix: PathBuf,
         /// Curve labels, one per run (default: the mass kind and mesh; for --snapshot panels
         /// the file name).
         #[arg(long = "label")]
@@ -115,7 +182,9 @@ enum Command {
         #[arg(long, value_parser = ["distributed", "replicated"])]
         only: Option<String>,
     },
-    /// Run a scene (launch with mpirun for several ranks). PETSc options go after `--`.
+    /// Run a scene (launch with mpirun for several ranks). PETSc options and the program's
+    /// own solver options go after `--`.
+    #[command(after_help = RUN_EXAMPLES)]
     Run {
         /// The scene file (TOML).
         scene: PathBuf,
@@ -155,14 +224,14 @@ enum Command {
         /// frictionless).
         #[arg(long, value_name = "MU")]
         friction: Option<f64>,
-        /// How cells are split over ranks: rcb (default: recursive coordinate bisection of the
-        /// cell centroids, computed without any rank holding the mesh), metis (METIS on rank 0
-        /// over the gathered connectivity: the partition of runs before rcb), x-slabs or
-        /// y-slabs (equal-count slabs along x or y, a predictable cut through the median).
+        /// How cells are split over ranks: rcb (recursive coordinate bisection of the cell
+        /// centroids, computed without any rank holding the mesh), metis (METIS on rank 0 over
+        /// the gathered connectivity), x-slabs or y-slabs (equal-count slabs along x or y, a
+        /// predictable cut through the median).
         #[arg(long, default_value = "rcb", value_parser = ["rcb", "metis", "x-slabs", "y-slabs"])]
         partition: String,
-        /// Every rank reads the whole mesh file and cuts its part out of it (as before the
-        /// mesh was read by blocks; for repeating old runs and checking the distributed input).
+        /// Every rank reads the whole mesh file and cuts its part out of it (by default each rank
+        /// reads only blocks of it); a check of the default, at the cost of memory.
         #[arg(long)]
         replicated_mesh: bool,
         /// Continue a finished or interrupted run from the checkpoint in its HDF5 file.
@@ -175,7 +244,9 @@ enum Command {
         /// (max(60 s, 1000 x the median step)), off, or seconds.
         #[arg(long, value_name = "auto|off|SECONDS", default_value = "auto", value_parser = HangTimeout::parse)]
         hang_timeout: HangTimeout,
-        /// PETSc options, e.g. -ksp_type cg -pc_type gamg -log_view (prefix step_ for the step solver).
+        /// PETSc options, e.g. -ksp_type cg -pc_type gamg -log_view (prefix step_ for the step
+        /// solver), and the program's own options, e.g. -contact_solver pdas; -help lists them
+        /// all with their defaults, and an option that nothing used is a warning at the end.
         #[arg(last = true, allow_hyphen_values = true)]
         petsc: Vec<String>,
     },
@@ -194,7 +265,7 @@ fn run(
     universe: &mpi::environment::Universe,
     agree: &mpi::topology::SimpleCommunicator,
 ) -> Result<()> {
-    if let Command::Post { run, nodes, contact_nodes, fields, out, snapshot } = &cli.command {
+    if let Command::Post { run, nodes, contact_nodes, fields, prefix, snapshot } = &cli.command {
         if universe.world().rank() == 0 {
             if snapshot.snapshot.is_some() {
                 if !nodes.is_empty() || !contact_nodes.is_empty() || !fields.is_empty() {
@@ -202,7 +273,7 @@ fn run(
                         "--snapshot draws only the picture: leave out --node, --contact-node and --field (run post twice)".into(),
                     ));
                 }
-                let prefix = out.clone().unwrap_or_else(|| massfree::post::default_prefix(run));
+                let prefix = prefix.clone().unwrap_or_else(|| massfree::post::default_prefix(run));
                 for line in snapshot::draw(std::slice::from_ref(run), &[], snapshot, &prefix)? {
                     println!("{line}");
                 }
@@ -213,7 +284,7 @@ fn run(
                 nodes: nodes.clone(),
                 contact_nodes: contact_nodes.clone(),
                 fields: fields.clone(),
-                prefix: out.clone(),
+                prefix: prefix.clone(),
             };
             for line in massfree::post::post(run, &opts)? {
                 println!("{line}");
@@ -228,7 +299,7 @@ fn run(
         }
         return Ok(());
     }
-    if let Command::Suite { spec, reduced, ranks, output, scenes_only } = &cli.command {
+    if let Command::Suite { spec, reduced, ranks, dir, scenes_only } = &cli.command {
         // Like a study: separate mpirun runs, driven by rank 0.
         if universe.world().rank() == 0 {
             let spec = spec.clone().unwrap_or_else(default_suite);
@@ -236,18 +307,18 @@ fn run(
                 spec,
                 reduced: *reduced,
                 ranks: *ranks,
-                output: output.clone(),
+                output: dir.clone(),
                 scenes_only: *scenes_only,
             };
             massfree::suite::run(&opts)?;
         }
         return Ok(());
     }
-    if let Command::Compare { runs, out, labels, snapshot } = &cli.command {
+    if let Command::Compare { runs, prefix, labels, snapshot } = &cli.command {
         // Post-processing: serial, rank 0 only.
         if universe.world().rank() == 0 {
             if snapshot.snapshot.is_some() {
-                for line in snapshot::draw(runs, labels, snapshot, out)? {
+                for line in snapshot::draw(runs, labels, snapshot, prefix)? {
                     println!("{line}");
                 }
                 return Ok(());
@@ -261,7 +332,7 @@ fn run(
                 }
                 curves.push(c);
             }
-            for p in massfree::post::write_pictures(out, &curves)? {
+            for p in massfree::post::write_pictures(prefix, &curves)? {
                 println!("{}", p.display());
             }
         }
@@ -307,7 +378,7 @@ fn run(
             args.extend(petsc.iter().cloned());
             // The guard is declared first so it is dropped last, after every PETSc object.
             let _petsc =
-                Petsc::init(&args, "massfree: dynamic elasticity with mass-free surface layers")?;
+                Petsc::init(&args, "massfree: dynamic elasticity with mass-free surface layers\n")?;
             let console = Console::new(rank, quiet);
             let mut scene = massfree::scene::load(&scene)?;
             for p in &params {
@@ -348,6 +419,7 @@ fn run(
             for line in sim.summary_lines(&summary) {
                 console.result(line);
             }
+            massfree::run::options::warn_unused(&world, &console)?;
             if let (Some(path), 0) = (summary_file, rank) {
                 let text =
                     toml::to_string(&summary).map_err(|e| Error::Io(format!("summary: {e}")))?;

@@ -1,4 +1,4 @@
-//! Stability metrics of a run (issue 14, the hard-case suite): energy rise and loss against
+//! Stability metrics of a run (the hard-case suite): energy rise and loss against
 //! the work done, penetration, chatter of the pressure and of the total contact force,
 //! contact episodes per node and impact, active-set and KSP iterations, non-finite values.
 //!
@@ -7,7 +7,7 @@
 //! file's `summary` attribute); `massfree suite` calls it on the series read back from the
 //! HDF5 file (`report::stability_from_file`), both through [`RunSeries`], so the two agree by construction and the file alone suffices.
 //!
-//! Definitions (METHOD.md sections 4, 5, 7), with `E^n` the discrete energy, `W^n` the work of
+//! Definitions (docs/method.md: the midpoint rule, contact, chatter), with `E^n` the discrete energy, `W^n` the work of
 //! the loads and of the Dirichlet reactions up to step n (not the contact work):
 //! - `E_ref = max_n max(|E^n|, |E^0 + W^n|)` (never a zero initial energy alone);
 //! - energy rise `max_n (E^n - E^0 - W^n) / E_ref`: the contact work with fixed obstacles is

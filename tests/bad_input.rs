@@ -66,6 +66,19 @@ fn a_param_the_geo_does_not_declare_is_an_error() {
     expect_error(&["run", scene, "--no-output", "--param", "hh=0.1"], "\"hh\" (it has: h)");
 }
 
+/// The same in the scene: `mesh.params` names are the `.geo`'s, or the scene is refused.
+#[test]
+fn a_scene_param_the_geo_does_not_declare_is_an_error() {
+    let dir = scratch("bad-scene-param");
+    let scene =
+        scene_variant("beam.toml", &dir, &[("params = { h = 0.125 }", "params = { hh = 0.125 }")]);
+    let scene = scene.to_str().unwrap();
+    expect_error(
+        &["run", scene, "--no-output"],
+        "beam_quad.geo declares no parameter \"hh\" (it has: h)",
+    );
+}
+
 #[test]
 fn missing_scene_file_is_an_error() {
     expect_error(&["run", "/nonexistent/scene.toml"], "/nonexistent/scene.toml");

@@ -121,7 +121,7 @@ fn block_dropped_on_a_plane_3d() {
 }
 
 /// The two-disc benchmark at an impact phase where M's chatter shows (gap 0.0504: the lowest
-/// node arrives near a step boundary, METHOD.md 7), coarse mesh (contact zone h = 0.1).
+/// node arrives near a step boundary, docs/method.md, chatter and impacts), coarse mesh (contact zone h = 0.1).
 #[test]
 fn two_discs_mass_free_layer_removes_chatter() {
     let dir = scratch("discs");

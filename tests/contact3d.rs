@@ -60,8 +60,8 @@ fn ball_dropped_on_a_plane_follows_hertz() {
     assert!(c.last_contact_step < s.steps, "the ball must have left the plane");
     // The midpoint rule with contact loses no energy beyond the contact work, which vanishes
     // for persistent contact (g lambda = 0 at every midpoint) and is `lambda g^n >= 0` at
-    // activation (METHOD.md 7): energy can only be lost, never gained beyond the balance's
-    // tolerance (1e-8 of the energy), and the loss stays below 1e-3 (METHOD.md 7, for every
+    // activation (docs/method.md, chatter and impacts): energy can only be lost, never gained beyond the balance's
+    // tolerance (1e-8 of the energy), and the loss stays below 1e-3 (docs/method.md, chatter and impacts, for every
     // mass kind; the massless DOFs' correction puts it back here).
     let loss = (s.energy_initial - s.energy_final) / s.energy_initial;
     assert!((-1e-8..1e-3).contains(&loss), "relative energy loss {loss} (a gain if negative)");

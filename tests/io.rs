@@ -478,7 +478,8 @@ fn a_two_body_run_file_names_its_pair() {
     let conn = nodes_of(&f, "mesh/cells/quadrilateral");
     assert!(upper.iter().chain(&lower).all(|v| conn.contains(v)), "a body is missing");
     // post names the pair and the slave node whose pressure compare draws.
-    let o = massfree(0, &["post", h5.to_str().unwrap(), "-o", dir.join("p").to_str().unwrap()]);
+    let o =
+        massfree(0, &["post", h5.to_str().unwrap(), "--prefix", dir.join("p").to_str().unwrap()]);
     let out = String::from_utf8_lossy(&o.stdout);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let tag = nodes_of(&f, "mesh/node_tags")[low as usize];

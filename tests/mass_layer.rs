@@ -1,5 +1,5 @@
 //! Properties of the mass-free layer mass matrix M_H = sum_K E_K^T M_K E_K on gmsh meshes,
-//! checked against the standard consistent mass M (METHOD.md section 3). Dense assembly, so
+//! checked against the standard consistent mass M (docs/method.md, the mass-free layer). Dense assembly, so
 //! the meshes are kept below ~1500 dofs. Run with `--nocapture` to see the deviations.
 
 #![allow(clippy::needless_range_loop, clippy::type_complexity)]

@@ -568,8 +568,10 @@ fn a_killed_run_leaves_a_readable_file_that_post_reports_as_unfinished() {
         let st = job.wait(&pace.limit(1.0));
         assert!(!st.success());
         assert_eq!(status_by_h5dump(&out), "running");
-        let o =
-            massfree(0, &["post", out.to_str().unwrap(), "-o", dir.join("p").to_str().unwrap()]);
+        let o = massfree(
+            0,
+            &["post", out.to_str().unwrap(), "--prefix", dir.join("p").to_str().unwrap()],
+        );
         let text = String::from_utf8_lossy(&o.stdout);
         assert!(o.status.success(), "post failed: {}", String::from_utf8_lossy(&o.stderr));
         let steps = raw(&out, "energy/step");

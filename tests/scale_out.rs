@@ -442,7 +442,7 @@ fn the_reduced_suites_scenes_give_the_replicated_paths_files() {
             spec.to_str().unwrap(),
             "--reduced",
             "--scenes-only",
-            "-o",
+            "--dir",
             dir.to_str().unwrap(),
         ],
     );

@@ -36,7 +36,7 @@ fn half_width(h5: &std::path::Path) -> f64 {
 /// percent); from then on no node is active and no contact force acts (the block falls
 /// freely to the end at step 500). The gaps in the file (the end-of-step weighted gaps the
 /// planes reach) stay above -1e-8 of the block's size (1), and the energy balance holds to
-/// 1e-8. Frictionless contact only takes energy, at activation (METHOD.md 7), and the
+/// 1e-8. Frictionless contact only takes energy, at activation (docs/method.md, chatter and impacts), and the
 /// energy correction puts that back; with the geometry following the bodies a step that keeps
 /// its active set does work too (the midpoint rule's O(tau^2) error where a slave node crosses
 /// a master node's kink: 6e-6 of the energy lost by step 280 on quads, 1.1e-5 on triangles,
@@ -196,7 +196,7 @@ fn sliding_does_not_depend_on_the_number_of_ranks() {
 /// The paper's two discs with the mass-free layer on both sides and the interface following
 /// the bodies (the explicit update diverged there, README "Two bodies"): the run stays stable
 /// and the energy balance holds to 1e-8; the contact only takes energy, at activation, and
-/// less than 1e-3 (METHOD.md 7; the relative loss in [-1e-8, 1e-3]: without the consistent
+/// less than 1e-3 (docs/method.md, chatter and impacts; the relative loss in [-1e-8, 1e-3]: without the consistent
 /// force the discs gained 1.4e-6); and, a small-sliding impact, the
 /// total force averaged over the mesh-scale waves stays within `(a/R)^2` of the frozen
 /// interface's (the normals differ by up to a/R at the contact edge, the gaps along them by

@@ -312,7 +312,7 @@ fn a_nodal_field_is_interpolated_over_each_cell() {
     let f = nodal_field("x", &mesh, 1, &[(0.0, 0)], |x, _| vec![x[0]]);
     let h5 = dir.join("lin.h5");
     write_run(&h5, &mesh, &[f]);
-    run_ok(&["post", path_str(&h5), "--snapshot", "x", "-o", path_str(&dir.join("p"))]);
+    run_ok(&["post", path_str(&h5), "--snapshot", "x", "--prefix", path_str(&dir.join("p"))]);
     let pic = Picture::read(&dir.join("p-snapshot-x.png"));
     // Along the middle row, t grows with x from 0 to 1 (a linear field is drawn exactly).
     let (x0, x1, y0, y1) = pic.bbox(0.0..=1.0);
@@ -331,7 +331,8 @@ fn the_drawing_moves_with_the_displacement() {
     let h5 = marked_rectangle(&dir, "rect", 1.0);
     let bbox = |extra: &[&str]| {
         let prefix = dir.join("p");
-        let mut args = vec!["post", path_str(&h5), "--snapshot", "mark", "-o", path_str(&prefix)];
+        let mut args =
+            vec!["post", path_str(&h5), "--snapshot", "mark", "--prefix", path_str(&prefix)];
         args.extend_from_slice(&["--window", "-1,4,-1,3"]);
         args.extend_from_slice(extra);
         let out = run_ok(&args);
@@ -416,7 +417,7 @@ fn a_tensor_is_drawn_by_a_chosen_component() {
             "stress",
             "--component",
             c,
-            "-o",
+            "--prefix",
             path_str(&prefix),
         ]);
         assert!(out.contains(&format!("stress {c} in [0, 1]")), "{out}");
@@ -425,7 +426,8 @@ fn a_tensor_is_drawn_by_a_chosen_component() {
         assert_eq!(h.0 < l.0, left_high, "--component {c}: high at x {h:?}, low at {l:?}");
     }
     // The default is the Frobenius norm: equal on both halves (sqrt(1 + 2 * 0.25)).
-    let out = run_ok(&["post", path_str(&h5), "--snapshot", "stress", "-o", path_str(&prefix)]);
+    let out =
+        run_ok(&["post", path_str(&h5), "--snapshot", "stress", "--prefix", path_str(&prefix)]);
     assert!(out.contains("stress Frobenius norm in [1.22474, 1.22474]; colours over"), "{out}");
     let pic = Picture::read(&png);
     assert!(pic.count(MID) > pic.mesh.len() * 95 / 100, "a constant field takes the middle colour");
@@ -447,7 +449,7 @@ fn two_runs_side_by_side_share_one_colour_range() {
         "A",
         "--label",
         "B",
-        "-o",
+        "--prefix",
         path_str(&prefix),
     ]);
     assert!(out.contains("mark in [0, 2]"), "{out}");
@@ -485,7 +487,7 @@ fn a_3d_run_is_drawn_by_its_boundary_faces_along_the_view() {
                 field,
                 "--view",
                 view,
-                "-o",
+                "--prefix",
                 path_str(&prefix),
             ]);
             Picture::read(&png)
@@ -605,7 +607,7 @@ fn a_real_run_draws_its_velocity() {
         "--snapshot",
         "velocity",
         "--edges",
-        "-o",
+        "--prefix",
         path_str(&prefix),
     ]);
     assert!(out.contains("t = 6e-5 (step 60), mesh deformed by the displacement"), "{out}");
@@ -637,7 +639,7 @@ fn a_real_run_draws_its_velocity() {
         "velocity",
         "--range",
         "0,1000",
-        "-o",
+        "--prefix",
         path_str(&prefix),
     ]);
     let pic = Picture::read(&dir.join("v-snapshot-velocity.png"));

@@ -24,7 +24,7 @@ fn field(h5: &Path, name: &str) -> (usize, usize, Vec<Vec<f64>>) {
     (shape[1], shape[2], all.chunks(per).map(<[f64]>::to_vec).collect())
 }
 
-/// Lame parameters (METHOD.md 1): lambda = E nu / ((1 + nu)(1 - 2 nu)), mu = E / (2 (1 + nu)).
+/// Lame parameters (docs/method.md, the problem): lambda = E nu / ((1 + nu)(1 - 2 nu)), mu = E / (2 (1 + nu)).
 fn lame(e: f64, nu: f64) -> (f64, f64) {
     (e * nu / ((1.0 + nu) * (1.0 - 2.0 * nu)), e / (2.0 * (1.0 + nu)))
 }

@@ -368,7 +368,7 @@ fn contact_study_with_two_scenes_against_one_consistent_reference() {
             }
             assert_eq!(num(r, "episodes_max") as usize, c.episodes_max, "{name} {id}");
         }
-        // The mass-free layer removes the period-2 chatter of the contact nodes (METHOD.md 7):
+        // The mass-free layer removes the period-2 chatter of the contact nodes (docs/method.md, chatter and impacts):
         // at each contact mesh size its lowest node's osc2 is below the consistent mass's.
         for hc in ["0.2", "0.1"] {
             let osc2 = |layer: bool| {

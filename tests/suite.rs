@@ -294,8 +294,10 @@ fn reduced_suite_is_stable_by_theory() {
     let dir = scratch("suite");
     let out = dir.join("out");
     let spec = repo().join("studies/suite.toml");
-    let o =
-        massfree(0, &["suite", spec.to_str().unwrap(), "--reduced", "-o", out.to_str().unwrap()]);
+    let o = massfree(
+        0,
+        &["suite", spec.to_str().unwrap(), "--reduced", "--dir", out.to_str().unwrap()],
+    );
     let log = format!(
         "stdout:\n{}\nstderr:\n{}",
         String::from_utf8_lossy(&o.stdout),
@@ -467,7 +469,7 @@ fn bad_suite_files_are_one_line_errors() {
     for (i, (text, want)) in cases.iter().enumerate() {
         let file = dir.join(format!("bad{i}.toml"));
         std::fs::write(&file, text.replace("SCENE", scene.to_str().unwrap())).unwrap();
-        let o = massfree(0, &["suite", file.to_str().unwrap(), "-o", dir.to_str().unwrap()]);
+        let o = massfree(0, &["suite", file.to_str().unwrap(), "--dir", dir.to_str().unwrap()]);
         let err = String::from_utf8_lossy(&o.stderr);
         assert_eq!(o.status.code(), Some(1), "{err}");
         let lines: Vec<&str> = err.lines().filter(|l| !l.trim().is_empty()).collect();

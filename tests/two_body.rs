@@ -48,7 +48,7 @@ fn averaged_difference(force: &[f64], reference: &[f64], a: f64) -> (f64, usize)
 }
 
 /// Each of the two declared bodies: its momentum change equals the impulse the contact gave it
-/// (no other load; `M` and `A` block diagonal by body, METHOD.md 7), to `tol` of its initial
+/// (no other load; `M` and `A` block diagonal by body, docs/method.md, chatter and impacts), to `tol` of its initial
 /// momentum, and the impulse is not negligible (at least `min` of the initial momentum).
 fn assert_impulse_is_momentum_change(s: &RunSummary, tol: f64, min: f64) {
     assert_eq!(s.bodies.len(), 2, "bodies {:?}", s.bodies);
@@ -65,7 +65,7 @@ fn assert_impulse_is_momentum_change(s: &RunSummary, tol: f64, min: f64) {
 }
 
 /// Two discs at distance 0.1 moving towards each other at 800 are, by symmetry, one disc at
-/// 0.05 from a rigid plane moving at 800 (METHOD.md 5), and the two-disc mesh is the disc's
+/// 0.05 from a rigid plane moving at 800 (docs/method.md, contact), and the two-disc mesh is the disc's
 /// mirrored. The two discretizations differ only in the gap: the mortar gap is the dual-weighted
 /// average over a slave node's support along its slave normal (with the interface kept from
 /// the touch-down through the contact), the plane's is nodal and vertical; both converge to
@@ -106,8 +106,8 @@ fn two_discs_as_two_bodies_match_the_disc_on_a_plane() {
         let one_disc = p.momentum_initial[1].abs();
         assert!(d < 1e-8 * one_disc.max(scale), "momentum {c} changed by {d}");
     }
-    // Per body: the momentum change equals the impulse of the contact forces on it (METHOD.md
-    // 7; `-M^T lambda` on the master, `D lambda` on the slave, summed independently of `M v`),
+    // Per body: the momentum change equals the impulse of the contact forces on it (docs/method.md,
+    // contact; `-M^T lambda` on the master, `D lambda` on the slave, summed independently of `M v`),
     // and it pushes each disc back (against its initial momentum; a tenth of it is far above
     // round-off and well below what 240 steps of contact give).
     assert_eq!(b.bodies.len(), 2, "bodies {:?}", b.bodies);
@@ -141,7 +141,7 @@ fn two_discs_as_two_bodies_match_the_disc_on_a_plane() {
 
 /// The half model on a two-disc mesh: the upper disc alone on the rigid plane y = 0 (its own
 /// mesh, node for node; the lower disc at rest beside it, untouched), i.e. the symmetric model
-/// of METHOD.md 5 on exactly the slave side of the pair.
+/// of docs/method.md, contact on exactly the slave side of the pair.
 fn half_model(
     two: &str,
     dir: &std::path::Path,
@@ -161,7 +161,7 @@ fn half_model(
 }
 
 /// Mirrored meshes are the same discrete problem as the half model, to solver tolerance, once
-/// the normals are averaged between the two sides (`-mortar_normal average`, METHOD.md 5b and
+/// the normals are averaged between the two sides (`-mortar_normal average`, docs/method.md, two bodies and
 /// `src/contact/mortar/normals.rs`): the averaged normals of mirrored arcs are normal to the
 /// mirror line, the projections map mirrored points onto each other, `M = D` on mirrored facets
 /// (biorthogonality), so `g_q / D_qq` is twice the node's height and `u~_q` twice its vertical
@@ -216,12 +216,12 @@ fn two_discs_with_averaged_normals_are_the_half_model_to_solver_tolerance() {
 }
 
 /// The paper's Figure 7.5 as two bodies: with `M` the lowest slave node's pressure chatters,
-/// with `M_H` it does not. What METHOD.md 7 gives (the period-2 mode of an active node enters
+/// with `M_H` it does not. What docs/method.md, chatter and impacts gives (the period-2 mode of an active node enters
 /// the pressure with `M`, never with `M_H`, whose contact nodes are massless):
 /// * with `M_H` every slave node has one contact episode, with `M` nodes flicker at release
 ///   (more than one);
 /// * the period-2 measure osc2 of the lowest slave node: with `M_H` below 1e-2, with `M`
-///   above it: 1e-2 separates the ranges METHOD.md 7 reports from the independent
+///   above it: 1e-2 separates the ranges docs/method.md, chatter and impacts reports from the independent
 ///   implementation (around 1e-3 with `M_H`, 1e-2 to 1e-1 with `M`);
 /// * the total force varies less with `M_H` (TV index, `TV / (2 max)`, 1 for one hump).
 ///
@@ -320,7 +320,7 @@ fn mean_x(h5: &std::path::Path, field: &str, time: f64, inside: &dyn Fn(f64) -> 
 /// at impact both ends stop, the interface stress is `rho c v0` (= 1) until the compression
 /// wave has run to the far end and back, `2L/c` (= 0.2 = 1600 steps), then each bar leaves
 /// with `-v0`, stress free. The gap closes at `t_a = gap/(2 v0)` = 10.5 steps, between two
-/// steps (METHOD.md 7: an arrival on a step boundary would make the contact node chatter with
+/// steps (docs/method.md, chatter and impacts: an arrival on a step boundary would make the contact node chatter with
 /// `M`). Asserted for `M_H^1` (the project's default) and the consistent `M`:
 /// * the plateau: on `[t_a + L/(2c), t_a + 1.4 L/c]` the pressure (total force / H) is
 ///   `rho c v0` within 1%. The window starts 100 element transits `h/c` after the impact,
@@ -334,7 +334,7 @@ fn mean_x(h5: &std::path::Path, field: &str, time: f64, inside: &dyn Fn(f64) -> 
 ///   discrete start and end fall between steps) plus one element transit `h/(c tau)` = 4 steps
 ///   (the release front is resolved to an element);
 /// * after release each bar's mean velocity (over the bar without its end element column,
-///   whose massless contact nodes keep the undamped period-2 mode of METHOD.md 7) is `-v0`
+///   whose massless contact nodes keep the undamped period-2 mode of docs/method.md, chatter and impacts) is `-v0`
 ///   within 2%: the impulse differs from the continuum's `2 m v0` only within the release
 ///   front, smeared by dispersion over `w = (2L h^2)^(1/3)` (Airy scaling after a path of 2L)
 ///   = 0.037, at most `w/(4L)` of the impulse, i.e. `w/(2L)` = 1.9% of the velocity;
@@ -561,8 +561,8 @@ fn renamed_variant(
 ///   `s` (per step, over the averaging window before the release), a force difference within
 ///   the bound above moves the release by at most `bound x peak / s` steps, plus one for the
 ///   step grid (measured 0-2 steps);
-/// * one episode per slave node (M_H, METHOD.md 7), the energy balance below 1e-8, the energy
-///   after release below the initial one by less than 1e-3 (METHOD.md 7), the pair's momentum
+/// * one episode per slave node (M_H, docs/method.md, chatter and impacts), the energy balance below 1e-8, the energy
+///   after release below the initial one by less than 1e-3 (docs/method.md, chatter and impacts), the pair's momentum
 ///   kept.
 ///
 /// The peaks of the total force and of the nodal pressure are printed figures (the averaged
@@ -642,7 +642,7 @@ fn two_discs_on_non_matching_triangle_meshes_match_the_disc_on_a_plane() {
 
 /// Updated geometry (`-mortar_update_in_contact`, re-evaluated at every step): with the
 /// standard mass the interface of `t_n` used at `t_{n+1}` keeps the energy balance to solver
-/// tolerance, energy can only be lost at activation (METHOD.md 7), and for this small-sliding
+/// tolerance, energy can only be lost at activation (docs/method.md, chatter and impacts), and for this small-sliding
 /// impact the total contact force stays close to the run with the interface frozen from the
 /// touch-down: the normals differ by up to the arc's angle a/R at the contact edge (a the
 /// contact half-width, from the run), the gaps along them by `1 - cos(a/R) <= (a/R)^2 / 2`;
@@ -708,7 +708,7 @@ fn finite_sliding_with_the_mass_free_layer_warns() {
 /// rigid wall (normal (-1, 0)) at `d` = 1e-4 beyond the right bar's far end `right_end`. 1D
 /// theory: the compression wave crosses the right bar in L/c (200 steps), its free far end then
 /// moves at v0 and reaches the wall 2 steps later, so both contacts carry force within the run.
-/// Asserted from theory (METHOD.md 7): the energy balance below 1e-8, the energy lost (only at
+/// Asserted from theory (docs/method.md, chatter and impacts): the energy balance below 1e-8, the energy lost (only at
 /// activation) in [0, 1e-3] of the energy; no contact node penetrates (every gap in the file
 /// above -1e-9 of the initial gap); the wall is touched (its impulse on the right bar pushes it
 /// back, more than 1% of the left bar's momentum); per body, the momentum change equals the

@@ -148,10 +148,10 @@ pub fn section(
     let current = repo.join("target/release/massfree");
     let mut builds: Vec<(&str, PathBuf)> = vec![];
     if let Some(b) = baseline {
-        builds.push(("before (b21e321)", b.to_path_buf()));
+        builds.push(("baseline", b.to_path_buf()));
     }
-    builds.push(("now", current.clone()));
-    let mut md = String::from("\n## Step floor (issue 27)\n");
+    builds.push(("this build", current.clone()));
+    let mut md = String::from("\n## Step floor\n");
 
     // 1. The beam, mass-dominated.
     if parts.contains(&1) {

@@ -1,5 +1,5 @@
 //! The internal force of finite-strain bodies, its tangent and the strain energy, assembled
-//! over this rank's cells (METHOD.md section 5d; kernels in `fem::hyperelastic`).
+//! over this rank's cells (docs/method.md, finite strain; kernels in `fem::hyperelastic`).
 //!
 //! `f_int,alg(u_0, u_1) = sum_K P_K^T f_K(u_0|K, u_1|K)`: each rank evaluates its own cells at
 //! the displacements of their nodes (owned and ghost nodes, gathered by one scatter built

@@ -44,7 +44,8 @@ impl<S: Clone + PartialEq> ActiveSetLoop<S> {
         if self.iterations >= self.max_iterations {
             let (step, time) = (self.step, self.time);
             return Err(Error::Solver(format!(
-                "contact at step {step} (t = {time:e}): the slip directions did not settle in {} iterations",
+                "contact at step {step} (t = {}): the slip directions did not settle in {} iterations",
+                crate::console::time(time),
                 self.max_iterations
             )));
         }
@@ -76,13 +77,15 @@ impl<S: Clone + PartialEq> ActiveSetLoop<S> {
                 .map(|k| tags[k].to_string())
                 .collect();
             return Err(Error::Solver(format!(
-                "contact at step {step} (t = {time:e}): the active set cycles; gmsh nodes {} flip",
+                "contact at step {step} (t = {}): the active set cycles; gmsh nodes {} flip",
+                crate::console::time(time),
                 flips.join(", ")
             )));
         }
         if self.iterations >= self.max_iterations {
             return Err(Error::Solver(format!(
-                "contact at step {step} (t = {time:e}): the active set did not settle in {} iterations",
+                "contact at step {step} (t = {}): the active set did not settle in {} iterations",
+                crate::console::time(time),
                 self.max_iterations
             )));
         }

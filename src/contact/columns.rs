@@ -1,4 +1,4 @@
-//! The first wave's active-set solver, kept for comparison (`-contact_solver columns`): a
+//! The older active-set solver, kept for comparison (`-contact_solver columns`): a
 //! Schur complement `S = B K^{-1} B^T` on the active contact DOFs. The columns
 //! `K^{-1} e_{q,c}` are solved once per contact node and component, the first time the node is
 //! active, and kept with their values at all contact DOFs (their "trace"). A step is then one
@@ -106,7 +106,8 @@ impl<'w> ColumnActiveSet<'w> {
             }
             let sol = solve_spd(&mut s, &mut b, m).ok_or_else(|| {
                 Error::Solver(format!(
-                    "contact at step {step} (t = {time:e}): the active-set system is singular ({m} active nodes)"
+                    "contact at step {step} (t = {}): the active-set system is singular ({m} active nodes)",
+                    crate::console::time(time)
                 ))
             })?;
             mu = vec![0.0; nc];

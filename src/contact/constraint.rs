@@ -15,7 +15,7 @@
 //! `d_q = n_q^T K_qq n_q` keeps its diagonal on `K`'s scale, so Jacobi (or any PETSc
 //! preconditioner, or a direct solver) applies unchanged.
 //!
-//! With friction (METHOD.md 5c, Hueber, Stadler and Wohlmuth 2008) a node's rows are one of
+//! With friction (docs/method.md, friction, Hueber, Stadler and Wohlmuth 2008) a node's rows are one of
 //! three [`Condition`]s, each `L_q (rhs - K du)_q + D_q (y_q - du_q) + h_q = 0` with the
 //! directions `C_q` of `y_q` prescribed (the columns along them move to the right-hand side):
 //! - normal (frictionless, or Tresca/Coulomb slip's normal part): `C = n n^T`, `L = I - n n^T`,
@@ -539,7 +539,7 @@ impl NormalConstraints {
 
 #[cfg(test)]
 mod tests {
-    //! The slip rows against the nonlinear slip condition they linearize (METHOD.md 5c).
+    //! The slip rows against the nonlinear slip condition they linearize (docs/method.md, friction).
     //!
     //! A slipping node's rows, `L r + D (y - du) + h` in its residual `r = (rhs - K du)_q =
     //! factor (lambda n + t)` and its increment `du`, are the semi-smooth Newton step at the

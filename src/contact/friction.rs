@@ -1,6 +1,6 @@
 //! Coulomb and Tresca friction at one contact node: the law and the slip bound of the
 //! primal-dual active set with three sets per node (Hueber, Stadler and Wohlmuth, SIAM J. Sci. Comput. 30,
-//! 2008; METHOD.md 5c). [`super::pdas`] decides the sets inside its active-set loop (with a
+//! 2008; docs/method.md, friction). [`super::pdas`] decides the sets inside its active-set loop (with a
 //! band around the bound against flip-flops), [`super::constraint::Condition`] holds the rows
 //! they lead to.
 //!

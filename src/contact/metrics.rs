@@ -1,4 +1,4 @@
-//! Chatter of contact pressures, as numbers (METHOD.md section 7).
+//! Chatter of contact pressures, as numbers (docs/method.md, chatter and impacts).
 //!
 //! - `osc2`: the period-2 amplitude of a node's pressure history over its contact period,
 //!   `RMS_n(p^{n+1} - 2 p^n + p^{n-1}) / 4 / max_n p^n`: a saw-tooth `+-a` around a smooth curve

@@ -1,5 +1,5 @@
 //! Contact with rigid obstacles, frictionless or with Coulomb/Tresca friction, resolved by a
-//! primal-dual active set inside each time step (METHOD.md section 5; no SNES). The normal
+//! primal-dual active set inside each time step (docs/method.md, contact; no SNES). The normal
 //! condition is described here; friction's three sets per node are in [`constraint`] and
 //! [`pdas`].
 //!
@@ -72,7 +72,7 @@ pub enum ContactSolverKind {
 #[derive(Debug, Clone)]
 pub struct ContactOptions {
     /// `-contact_solver pdas|columns` (default `pdas`): the active-set solver against rigid
-    /// obstacles; `columns` is the first wave's, kept for comparison.
+    /// obstacles; `columns` is the older Schur-complement solver, kept for comparison.
     pub solver: ContactSolverKind,
     /// `-contact_loose_rtol R` (default: the square root of the step solver's rtol): the
     /// relative tolerance of the `pdas` solves until the active set repeats (then one solve to

@@ -2,7 +2,7 @@
 //! `d(t)` of each, and the set of obstacles a contact node sees.
 //!
 //! Every function gives the gap `g` and the unit normal `n` at a point `y`: `g > 0` outside
-//! the obstacle, and `n` points from the body towards the obstacle (METHOD.md section 5), so
+//! the obstacle, and `n` points from the body towards the obstacle (docs/method.md, contact), so
 //! that the gap of a node moved by `du` is `g - n . du` to first order (exactly for a plane).
 //! An obstacle with a motion is placed at `t` by translating its reference shape by `d(t)`;
 //! among several obstacles a node takes the one with the smallest gap (node-local: right for

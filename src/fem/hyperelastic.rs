@@ -1,5 +1,5 @@
 //! Element kernels of finite-strain hyperelasticity in the total Lagrangian form, for the
-//! energy-momentum midpoint step (METHOD.md section 5d; Simo and Tarnow, ZAMP 43, 1992;
+//! energy-momentum midpoint step (docs/method.md, finite strain; Simo and Tarnow, ZAMP 43, 1992;
 //! Gonzalez, CMAME 190, 2000; Betsch, Janz and Hesch, CMAME 335, 2018).
 //!
 //! Per quadrature point, with `G_a = grad_X N_a` in the reference configuration:

@@ -34,7 +34,7 @@ fn sym_g(d: usize) -> Tensor {
     e
 }
 
-/// sigma from the Lame parameters of METHOD.md (2.1), written out component by component.
+/// sigma from the Lame parameters of docs/method.md (the problem), written out component by component.
 fn sigma_expected(eps: &Tensor, mat: &Material) -> Tensor {
     let tr = eps[0][0] + eps[1][1] + eps[2][2];
     let mut s = [[0.0; 3]; 3];

@@ -1,4 +1,4 @@
-//! The mass-free surface layer (Hager & Wohlmuth 2009; METHOD.md section 3): the modified
+//! The mass-free surface layer (Hager & Wohlmuth 2009; docs/method.md, the mass-free layer): the modified
 //! mass matrix `M_H = sum_K E_K^T M_K E_K`, where `E_K` is the identity on elements away from
 //! the contact boundary and, on the elements of the contact layer `Omega_C1` (cells with at
 //! least one contact node), replaces nodal values by combinations of values at non-contact
@@ -40,7 +40,7 @@ use crate::fem::shape::det3;
 use crate::mesh::topology::{boundary_group, facet_key, facet_map, node_cells, FacetCells};
 use crate::mesh::Mesh;
 
-/// Which interpolation operator defines the layer (METHOD.md section 3).
+/// Which interpolation operator defines the layer (docs/method.md, the mass-free layer).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum Variant {
     /// Q^0: donors inside the element (exact for constants).

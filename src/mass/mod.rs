@@ -1,4 +1,4 @@
-//! Mass matrices: consistent `M`, row-sum lumped, and (METHOD.md section 3) the modified
+//! Mass matrices: consistent `M`, row-sum lumped, and (docs/method.md, the mass-free layer) the modified
 //! mass-free-layer matrices `M_H^0`, `M_H^1` = `sum_K E_K^T M_K E_K`. All go through the one
 //! assembler (`assembly::assemble_node_blocks`), stored as node matrices ([`MassMatrix`]).
 
@@ -74,7 +74,7 @@ pub fn build_local_layer(
 }
 
 /// A mass matrix. Every mass here (consistent, lumped, `M_H^0`, `M_H^1`) acts on each
-/// displacement component alike, `M = M_s ⊗ I_dim` (METHOD.md 3: `E_K` maps nodes, not
+/// displacement component alike, `M = M_s ⊗ I_dim` (docs/method.md, the mass-free layer: `E_K` maps nodes, not
 /// components), so the run stores only the node matrix `M_s`, a ninth of the DOF matrix in
 /// 3D (at 3.9M DOFs on 2 ranks about 0.95 GB per rank less), and applies it through PETSc's
 /// MAIJ. The products equal the DOF matrix's to round-off (PETSc's AIJ kernels may group a
@@ -135,7 +135,7 @@ impl MassMatrix {
     }
 
     /// `k += alpha M`; `k` has the pattern of nodes sharing a cell, which holds every mass
-    /// matrix's (the mass-free layer does not widen it, METHOD.md 3). Collective.
+    /// matrix's (the mass-free layer does not widen it, docs/method.md, the mass-free layer). Collective.
     pub fn add_to(&self, k: &mut Matrix, alpha: f64) -> Result<()> {
         match &self.storage {
             Storage::Dofs(m) => k.axpy(alpha, m, Pattern::Subset),

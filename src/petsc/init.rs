@@ -117,14 +117,15 @@ impl Petsc {
         mpi::topology::SimpleCommunicator::self_comm().as_raw().0.cast()
     }
 
-    /// Sets a global option, e.g. `options_set("-ksp_type", Some("cg"))` (the leading `-` is
-    /// required). Only objects configured afterwards (`set_from_options`) see it.
+    /// Enters one of the program's own options, e.g. `options_set("-ksp_type", Some("cg"))`
+    /// (the leading `-` is required). Only objects configured afterwards
+    /// (`set_from_options`) see it. The program's own options are never reported as unused
+    /// ([`Petsc::options_unused`]); an option the user gave elsewhere is entered with
+    /// [`Petsc::options_set_given`].
     pub fn options_set(name: &str, value: Option<&str>) -> Result<()> {
-        let n = cstring(name)?;
-        let v = value.map(cstring).transpose()?;
-        let vp = v.as_ref().map_or(ptr::null(), |v| v.as_ptr());
-        // SAFETY: valid C strings; a null options object means the global database.
-        chk!(ffi::PetscOptionsSetValue(ptr::null_mut(), n.as_ptr(), vp))
+        Self::options_set_given(name, value)?;
+        super::options::record_entered(name);
+        Ok(())
     }
 
     /// Removes a global option (no error if it was not set).
@@ -134,7 +135,8 @@ impl Petsc {
         chk!(ffi::PetscOptionsClearValue(ptr::null_mut(), n.as_ptr()))
     }
 
-    /// Whether the option was given (with or without a value).
+    /// Whether the option was given (with or without a value). Like every read, this marks
+    /// the option used.
     pub fn options_has(name: &str) -> Result<bool> {
         let n = cstring(name)?;
         let mut set = ffi::PetscBool_PETSC_FALSE;

@@ -234,11 +234,11 @@ pub fn post(path: &Path, opts: &PostOptions) -> Result<Vec<String>> {
         lines.push(format!("{}: status {status}", path.display()));
     }
     lines.push(format!(
-        "steps {}..{} (t = {:e} .. {:e}), {} written",
+        "steps {}..{} (t = {} .. {}), {} written",
         step[0],
         step[n - 1],
-        time[0],
-        time[n - 1],
+        crate::console::time(time[0]),
+        crate::console::time(time[n - 1]),
         n
     ));
     lines.push(format!(
@@ -335,8 +335,12 @@ pub fn post(path: &Path, opts: &PostOptions) -> Result<Vec<String>> {
                     }
                 }
                 lines.push(format!(
-                    "contact: steps {}..{} (t = {:e} .. {:e}), max pressure {pmax:.6e} at gmsh node {}",
-                    step[f0], step[f1], time[f0], time[f1], tags[cn[at] as usize]
+                    "contact: steps {}..{} (t = {} .. {}), max pressure {pmax:.6e} at gmsh node {}",
+                    step[f0],
+                    step[f1],
+                    crate::console::time(time[f0]),
+                    crate::console::time(time[f1]),
+                    tags[cn[at] as usize]
                 ));
             }
             None => lines.push("contact: none".to_string()),

@@ -220,9 +220,9 @@ impl<'a> Simulation<'a> {
                 if stop && n + 1 < n_steps {
                     progress.finish();
                     return Err(Error::Interrupted(format!(
-                        "a signal stopped the run after step {} (t = {:e}); continue it with --restart",
+                        "a signal stopped the run after step {} (t = {}); continue it with --restart",
                         n + 1,
-                        report.time
+                        crate::console::time(report.time)
                     )));
                 }
                 let t_errors = Instant::now();
@@ -383,8 +383,8 @@ impl<'a> Simulation<'a> {
         if self.opts.verbose {
             let e = run.midpoint.energy();
             console.say(format!(
-                "step {first}  t = {:e}  kinetic {:.10e}  potential {:.10e}  total {:.10e}",
-                run.midpoint.time_at(first),
+                "step {first}  t = {}  kinetic {:.10e}  potential {:.10e}  total {:.10e}",
+                crate::console::time(run.midpoint.time_at(first)),
                 e.kinetic,
                 e.potential,
                 run.record.e0

@@ -1,4 +1,4 @@
-//! The physics of a scene, assembled once (METHOD.md sections 2-5): stiffness `A`, mass `M`
+//! The physics of a scene, assembled once (docs/method.md): stiffness `A`, mass `M`
 //! (consistent, lumped or the mass-free `M_H`), the loads `f(t)`, Dirichlet data and the
 //! contact solver the scene and the options ask for. Nothing here knows the time integrator:
 //! it gets these as data.

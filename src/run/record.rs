@@ -381,10 +381,10 @@ pub fn summary_lines(d: &Domain, layer: Option<(usize, usize)>, s: &RunSummary) 
             }
         ),
         format!(
-            "{} steps of tau = {:e} to t = {:e}: {:.3} s stepping ({:.3} ms/step), {:.2} KSP iterations/step",
+            "{} steps of tau = {} to t = {}: {:.3} s stepping ({:.3} ms/step), {:.2} KSP iterations/step",
             s.steps,
-            d.scene.tau,
-            s.steps as f64 * d.scene.tau,
+            crate::console::time(d.scene.tau),
+            crate::console::time(s.steps as f64 * d.scene.tau),
             t.stepping,
             1e3 * t.stepping / s.steps.max(1) as f64,
             s.ksp_iterations as f64 / s.steps.max(1) as f64
@@ -400,8 +400,10 @@ pub fn summary_lines(d: &Domain, layer: Option<(usize, usize)>, s: &RunSummary) 
     ];
     for r in s.rotations.iter().filter(|r| r.degrees >= 0.1) {
         lines.push(format!(
-            "rotation: {} turned {:.1} degrees at most (t = {:e})",
-            r.body, r.degrees, r.time
+            "rotation: {} turned {:.1} degrees at most (t = {})",
+            r.body,
+            r.degrees,
+            crate::console::time(r.time)
         ));
     }
     if let Some(nw) = &s.newton {

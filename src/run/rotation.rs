@@ -144,8 +144,9 @@ impl BodyRotations {
             if reg.1 && !reg.4 && angle > WARN_DEGREES {
                 reg.4 = true;
                 console.warn(format!(
-                    "{} has turned {angle:.1} degrees at t = {t:e}: a small-strain (linear) body that turns grows without stress; give it model = \"neo_hookean\" (or \"saint_venant_kirchhoff\") to step it at finite strain",
-                    reg.0
+                    "{} has turned {angle:.1} degrees at t = {}: a small-strain (linear) body that turns grows without stress; give it model = \"neo_hookean\" (or \"saint_venant_kirchhoff\") to step it at finite strain",
+                    reg.0,
+                    crate::console::time(t)
                 ));
             }
         }

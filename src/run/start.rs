@@ -172,7 +172,7 @@ pub fn initial_state(d: &Domain) -> Result<(crate::petsc::Vector, crate::petsc::
     Ok((u0, v0))
 }
 
-/// The massless DOFs start in static equilibrium (METHOD.md: their rows carry no inertia).
+/// The massless DOFs start in static equilibrium (docs/method.md, massless DOFs: their rows carry no inertia).
 /// Contact nodes the projection would push through an obstacle or the master side need their
 /// contact force for it (bodies touching at t = 0): they are held as given, and the projection
 /// is made again without them. Returns the largest change (`None` without massless DOFs).
@@ -250,9 +250,9 @@ pub fn restore(
         c.set_active(cp.active.clone());
     }
     console.say(format!(
-        "restarting from step {} (t = {:e}) of {}",
+        "restarting from step {} (t = {}) of {}",
         cp.step,
-        cp.time,
+        crate::console::time(cp.time),
         path.display()
     ));
     Ok(cp)

@@ -10,80 +10,8 @@
 //! call [`Scene::check_dim`] then. [`Scene::effects`] tells what the scene asks to be built
 //! ([`Effects::summary`]: the one-line report a run prints).
 //!
-//! ```toml
-//! name = "beam"                       # optional, default: file stem
-//! [mesh]
-//! geo = "../meshes/beam_quad.geo"     # or msh = "file.msh"; exactly one
-//! params = { h = 0.25 }               # geo only: gmsh -setnumber
-//! binary = false                      # geo only
-//! [material]                          # every cell outside the [[body]] groups
-//! E = 200.0
-//! nu = 0.3
-//! rho = 1.0
-//! model = "linear"                    # linear (small strain) | neo_hookean |
-//!                                     # saint_venant_kirchhoff (finite strain, Newton)
-//! [[body]]                            # optional, any number: a body with its own values
-//! group = "lower"                     # a physical group of the mesh's dimension
-//! E = 400.0                           # any of E, nu, rho, model; the others from [material]
-//! mass = "consistent"                 # optional, default mass.kind
-//! [[dirichlet]]
-//! group = "left"
-//! value = ["0", "0"]                  # optional, default zero
-//! components = ["x", "y"]             # optional, default all
-//! [[neumann]]
-//! group = "top"
-//! traction = ["0", "-1e-3*sin(2*pi*t)"]
-//! [body_force]
-//! value = ["0", "0.02*x*(10-x)*y^2*sin(2*pi*t)"]   # force per volume, integrated exactly
-//! acceleration = ["0", "-9.81"]       # and/or per mass (gravity): f = M a_h, like the inertia
-//! [initial]
-//! displacement = ["0", "0"]
-//! velocity = ["0", "0"]
-//! [time]
-//! tau = 1e-5
-//! steps = 250                         # or end = 2.5e-3; exactly one
-//! [mass]
-//! kind = "consistent"                 # consistent | lumped | modified0 | modified1
-//! contact_boundary = "bottom"         # required for modified0/modified1
-//! [solver]
-//! ksp_type = "cg"
-//! pc_type = "jacobi"
-//! rtol = 1e-10
-//! options = "-ksp_norm_type unpreconditioned"
-//! [output]
-//! file = "out/beam.h5"                # default out/<name>.h5, relative to the working directory
-//! every = 1
-//! fields = ["displacement", "velocity"]  # also stress, strain, von_mises, effective_stress,
-//!                                     # pressure (cell values) and <name>_nodal (projections)
-//! field_every = { von_mises = 50 }    # optional per-field periods
-//! progress = true
-//! [exact]
-//! displacement = ["0", "0"]
-//! velocity = ["0", "0"]
-//! gradient = [["0", "0"], ["0", "0"]] # grad[i][j] = d u_i / d x_j
-//! error_steps = [30]                  # default: the last step
-//! [contact]
-//! boundary = "contact"
-//! obstacle = { type = "plane", point = [0.0, 0.0], normal = [0.0, 1.0] }
-//! # obstacle = { type = "sphere", center = [0.0, 2.0], radius = 1.0, motion = ["0", "-t"] }
-//! # obstacles = [{ type = "plane", ... }, { type = "cylinder", point = [0, 0, -1],
-//! #               axis = [0, 1, 0], radius = 1 }]   # instead of obstacle; cylinders: 3D only
-//! # friction = 0.3               # Coulomb's coefficient (default 0: frictionless), for every
-//! #                              # obstacle and pair without its own `friction`/`tresca`
-//! # tresca = 0.5                 # instead: a given slip bound (verification)
-//! # obstacle = { type = "plane", ..., friction = 0.5 }   # an obstacle's own
-//! # Two deformable bodies instead of boundary + obstacle (dual mortar, non-matching meshes):
-//! # slave = "upper_contact"
-//! # master = "lower_contact"     # the mass-free layer then runs along both
-//! # Several pairs instead of slave + master (a slave group must not be a master group):
-//! # pairs = [{ slave = "a_contact", master = "b_left" }, { slave = "c_contact", master = "b_right" }]
-//! # ... and rigid obstacles beside the pair(s): boundary + obstacle/obstacles as above, met by
-//! # the nodes of boundary, another part of the boundary (no node shared with a slave group):
-//! # boundary = "lower_bottom"    # the layer runs along it too
-//! # obstacle = { type = "plane", point = [0.0, -1.0], normal = [0.0, -1.0] }
-//! ```
-//!
-//! Numbers are accepted wherever an expression is (`value = [0, -1.5]`).
+//! Every key, its type, default and checks: `docs/scene-reference.md` (a test,
+//! `tests/docs_reference.rs`, holds it to the keys [`parse`] accepts, found by probing).
 //!
 //! Bodies (`[[body]]`): each cell takes the material and mass treatment of the body whose group
 //! holds it, else `[material]` and `mass.kind`; body groups must not overlap. The mass-free

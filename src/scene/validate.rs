@@ -98,8 +98,19 @@ fn mesh(m: RawMesh, base_dir: &Path) -> VResult<MeshSource> {
         }
         (Some(geo), None) => {
             let path = resolve(&geo, "mesh.geo")?;
+            // gmsh ignores a -setnumber the .geo does not declare: a misspelt name would
+            // silently mesh the default.
+            let declared = std::fs::read_to_string(&path)
+                .map(|text| crate::mesh::gmsh::declared_parameters(&text))
+                .unwrap_or_default();
             let mut params = Vec::new();
             for (k, v) in m.params.unwrap_or_default() {
+                if !declared.contains(&k) {
+                    return Err(format!(
+                        "mesh.params.{k}: {geo} declares no parameter \"{k}\" (it has: {})",
+                        if declared.is_empty() { "none".to_string() } else { declared.join(", ") }
+                    ));
+                }
                 if k.is_empty() || !k.chars().all(|c| c.is_ascii_alphanumeric() || c == '_') {
                     return Err(format!(
                         "mesh.params: \"{k}\" is not a valid gmsh parameter name (letters, digits, _)"

@@ -1,5 +1,4 @@
-//! `massfree suite [SPEC] [--reduced] [--ranks N] [-o DIR]`: the hard-case stability suite
-//! (issue 14).
+//! `massfree suite [SPEC] [--reduced] [--ranks N] [--dir DIR]`: the hard-case stability suite.
 //!
 //! Every point of the suite file ([`spec`]: cases, each a shipped scene with a sweep of
 //! overrides and mass kinds) is a real `mpirun -n RANKS massfree run` process, as in a study

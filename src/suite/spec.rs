@@ -14,7 +14,7 @@
 //!
 //! [[case]]
 //! name = "speed/block"               # unique
-//! group = "impact speed"             # what the case shows (the bullet)
+//! group = "impact speed"             # what the case shows (the group's heading)
 //! scene = "../scenes/suite/block_impact.toml"   # relative to the suite file
 //! mass = ["consistent", "modified1"] # optional: one run per kind (default: the scene's)
 //! sweep = { "v/c" = [0.01, 0.1] }    # optional: variables, zipped (one point per index)

@@ -1,5 +1,5 @@
 //! The step's conjugate gradients, written out around PETSc's `MatMult` and `PCApply` so that
-//! the step keeps what the solve computes (issue 27):
+//! the step keeps what the solve computes:
 //!
 //! - `K x` of the solution, summed as `K x_0 + sum alpha_i K p_i` from the products CG makes
 //!   anyway: the next step's initial residual `b - K x_0` then needs no product (the guess is
@@ -9,7 +9,7 @@
 //!   PETSc's six vector operations); any other preconditioner through `PCApply`.
 //!
 //! Stopping test, in the step's own terms. With `r = b - K x`, the midpoint rule's energy
-//! identity holds up to `-1/2 x.r` (METHOD.md section 4: `E^{n+1} - E^n - W = 1/2 du.(K du - b)`),
+//! identity holds up to `-1/2 x.r` (docs/method.md, the midpoint rule: `E^{n+1} - E^n - W = 1/2 du.(K du - b)`),
 //! and the error of `x` in the energy norm is `|e|_K^2 = r.K^{-1}r ~ r.Br`. So CG stops when
 //!
 //! ```text

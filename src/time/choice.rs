@@ -1,4 +1,4 @@
-//! The step solver chosen knowing the run (issue 27): for an operator used unchanged for many
+//! The step solver chosen knowing the run: for an operator used unchanged for many
 //! steps, a sparse Cholesky factorization (MUMPS) pays back its set-up after some number of
 //! steps. [`choose`] compares the run's estimated cost both ways, from the operator's size, the
 //! run's length and regime and the time of one product with `K` (timed at set-up), and takes

@@ -1,4 +1,4 @@
-//! The mass-free layer's rows in the step's preconditioner (issue 28).
+//! The mass-free layer's rows in the step's preconditioner.
 //!
 //! With `M_H` the DOFs of the contact nodes carry no mass, so their rows of
 //! `K = 4/tau^2 M_H + A` hold stiffness only: `K_CC = A_CC` is orders of magnitude below the
@@ -150,7 +150,7 @@ impl LayerBlock {
             (format!("-{prefix}pc_factor_mat_ordering_type"), ordering),
         ];
         for (name, value) in &defaults {
-            if !Petsc::options_has(name)? {
+            if !Petsc::options_given(name)? {
                 Petsc::options_set(name, Some(value))?;
             }
         }

@@ -2,7 +2,7 @@
 //! `(u^n, v^n)` with the products `M v^n`, `A u^n`, the Dirichlet lifting and the energy and
 //! work accounting, and advances one step at a time: `step(forces, contact) -> StepReport`.
 //!
-//! One step (METHOD.md section 4, paper (6.1)):
+//! One step (docs/method.md, the midpoint rule, paper (6.1)):
 //!
 //! ```text
 //!   K du = 2 f^{n+1/2} + (4/tau) M v^n - 2 A u^n  [- 2 B^T lambda],   K = 4/tau^2 M + A,
@@ -551,7 +551,7 @@ impl Midpoint {
     ) -> Result<(usize, Option<StepContact>)> {
         let with_step = |e: Error| match e {
             Error::Solver(m) if !m.starts_with("contact") => {
-                Error::Solver(format!("step {} (t = {t_next:e}): {m}", n + 1))
+                Error::Solver(format!("step {} (t = {}): {m}", n + 1, crate::console::time(t_next)))
             }
             other => other,
         };

@@ -1,4 +1,4 @@
-//! The implicit midpoint rule (paper (6.1), METHOD.md section 4).
+//! The implicit midpoint rule (paper (6.1), docs/method.md, the midpoint rule).
 //!
 //! ```text
 //!   M (v^{n+1} - v^n)/tau + A (u^{n+1} + u^n)/2 = f^{n+1/2},   (u^{n+1} - u^n)/tau = (v^{n+1} + v^n)/2

@@ -1,5 +1,5 @@
 //! The energy-momentum midpoint step of finite-strain bodies: a Newton loop of our own around
-//! the step's KSP (METHOD.md section 5d).
+//! the step's KSP (docs/method.md, finite strain).
 //!
 //! With `du = u_1 - u_0` the step's equation, times 2 as the linear step's,
 //!
@@ -368,7 +368,8 @@ impl Newton {
             }
         })?;
         self.c.zero()?;
-        let where_ = |s: &StepInputs| format!("step {} (t = {:e})", s.step, s.time);
+        let where_ =
+            |s: &StepInputs| format!("step {} (t = {})", s.step, crate::console::time(s.time));
         let mut iterations = 0;
         let mut ksp_iterations = 0;
         let mut halvings = 0;
@@ -660,9 +661,9 @@ impl Newton {
 fn in_iteration(e: Error, s: &StepInputs, iterations: usize) -> Error {
     match e {
         Error::Solver(m) if !m.starts_with("contact") => Error::Solver(format!(
-            "step {} (t = {:e}): Newton iteration {}: {m}",
+            "step {} (t = {}): Newton iteration {}: {m}",
             s.step,
-            s.time,
+            crate::console::time(s.time),
             iterations + 1
         )),
         other => other,

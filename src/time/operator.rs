@@ -198,8 +198,8 @@ impl StepOperator {
         defaults: &StepSolverDefaults,
     ) -> Result<StepOperator> {
         // K is AIJ first: multigrid, factorizations and the mortar's `T^T K T` need it
-        // (issue 26's "block AIJ 1.7 times slower" was a MatDuplicate copy of A, which keeps
-        // PETSc's generic block kernel: `Matrix::duplicate` now rebuilds such copies). In 3D,
+        // (a MatDuplicate copy of block AIJ keeps PETSc's generic block kernel, 1.7 times
+        // slower: `Matrix::duplicate` rebuilds such copies). In 3D,
         // where the regime's solver is CG + Jacobi, K in A's 3 x 3 blocks: its products were
         // 1.4-1.5 times faster than AIJ's (4.6 against 6.6 ms at 266k DOFs), and a contact
         // step against an obstacle 1.3 times faster (its row edits are point-wise
@@ -244,11 +244,11 @@ impl StepOperator {
                         defaults.pc_type = "bjacobi".into();
                         let sub = "-step_sub_pc_type";
                         let order = "-step_sub_pc_factor_mat_ordering_type";
-                        if !crate::petsc::Petsc::options_has(sub)? {
+                        if !crate::petsc::Petsc::options_given(sub)? {
                             crate::petsc::Petsc::options_set(sub, Some("ilu"))?;
                             // Reverse Cuthill-McKee: ILU(0) in that order took 24-29% fewer
                             // iterations on the ball than in the mesh's (natural) order.
-                            if !crate::petsc::Petsc::options_has(order)? {
+                            if !crate::petsc::Petsc::options_given(order)? {
                                 crate::petsc::Petsc::options_set(order, Some("rcm"))?;
                             }
                         }

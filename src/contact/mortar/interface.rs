@@ -1,5 +1,5 @@
 //! The mortar interface of one contact pair: dual-mortar matrices `D` (diagonal) and `M`, the
-//! averaged slave normals and the weighted gaps, on a given configuration (METHOD.md 5b).
+//! averaged slave normals and the weighted gaps, on a given configuration (docs/method.md, two bodies).
 //!
 //! `D_qq = int_{Gamma_s} phi_q`, `M_ql = int_{Gamma_s} psi_q (phi_l o projection)`, both over
 //! the part of the slave surface the master covers (a partly covered facet with the dual basis

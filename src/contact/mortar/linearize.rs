@@ -1,5 +1,5 @@
 //! Directional derivatives ("linearizations") of the 2D mortar geometry, for finite sliding
-//! (issue 24; Popp, Gee, Wall, IJNME 2009; METHOD.md 5c).
+//! (Popp, Gee, Wall, IJNME 2009; docs/method.md, frozen and following interfaces).
 //!
 //! Everything here is a pure function of the same inputs as its counterpart in
 //! `dual.rs`/`segment.rs` plus node ids, and returns the counterpart's value (computed by the

@@ -1,5 +1,5 @@
 //! Directional derivatives ("linearizations") of the 3D mortar geometry, for finite sliding
-//! (issue 24; Popp, Gitterle, Gee, Wall, IJNME 2010; METHOD.md 5c).
+//! (Popp, Gitterle, Gee, Wall, IJNME 2010; docs/method.md, frozen and following interfaces).
 //!
 //! The 3D counterpart of `linearize.rs`, with its conventions: every function takes the
 //! inputs of its counterpart in `dual.rs`/`segment.rs` plus the node ids, and returns the

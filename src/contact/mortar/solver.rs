@@ -17,10 +17,10 @@
 //! `-sum_q (D lambda)_q n_q . u~_q`, the inner solver's. Small sliding
 //! ([`InterfaceMode::Frozen`]): `D`, `M`, normals and gaps are evaluated on the reference
 //! configuration and re-evaluated on the current one while the bodies approach (no node in
-//! contact), then kept through the contact (METHOD.md 5b). Finite sliding
+//! contact), then kept through the contact (docs/method.md, two bodies). Finite sliding
 //! ([`InterfaceMode::Follow`]): inside every contact step, `D`, `M` and the normals at the
 //! step's midpoint and the planes shifted onto the weighted gaps at its end, in rounds until
-//! neither moves (METHOD.md 5c; README "Finite sliding").
+//! neither moves (docs/method.md, frozen and following interfaces).
 //!
 //! Memory: `T` (O(slave nodes) entries beyond the identity) and `T^T K T`, a second operator
 //! with `K`'s pattern widened at the slave nodes towards their master neighbours.

@@ -958,7 +958,7 @@ fn bucket_search_equals_brute_force() {
     assert_eq!((b.min, b.max), ([-0.1, -1.1, -0.1], [2.1, 1.1, 0.1]));
 }
 
-/// A slave facet partly over the master (issue 24): the dual basis biorthogonal on the covered
+/// A slave facet partly over the master (finite sliding): the dual basis biorthogonal on the covered
 /// part keeps what the mortar method needs there. Slave (1,0) -> (0,0), master lines covering
 /// x in [c, 1] at height d, split in two at x = s (two pairs of one facet). Asserted from
 /// theory: `D_jj = int_cov phi_j` (closed form: with `xi = 1 - 2x`, `phi_1 = x`,

@@ -182,8 +182,8 @@ impl Midpoint {
     /// within it). Where the contact solver allows it the step is settled without a solve
     /// ([`Midpoint::kick`]); otherwise by the solves below, which are the correction's
     /// general form (pairs, friction, a geometry that follows the bodies, a moving Dirichlet
-    /// boundary, or a kick that would push an inactive node into an obstacle; METHOD.md and
-    /// README "Impacts that keep their energy").
+    /// boundary, or a kick that would push an inactive node into an obstacle; docs/method.md,
+    /// impacts and the energy correction).
     ///
     /// With the contact
     /// conditions at `t_{n+1}` and the force at the midpoint, an arriving node does the work
@@ -381,7 +381,7 @@ impl Midpoint {
 }
 
 impl Midpoint {
-    /// The energy correction without a solve (issue 28): the step's increment is moved along
+    /// The energy correction without a solve: the step's increment is moved along
     /// `w`, `du <- du - xi w`, where `w` is the step's increment on the massive DOFs without
     /// each body's mean translation ([`Midpoint::without_mean_translations`]) and, on the
     /// massless layer, its static response in the constrained operator of the step's final

@@ -1,7 +1,7 @@
 //! The mass-free layer's velocity: the time derivative of its static response.
 //!
 //! The massless DOFs `C` have no dynamics: each step puts them in static equilibrium with the
-//! massive DOFs `I`, the loads and the contact forces (METHOD.md 5d). Their velocity is the
+//! massive DOFs `I`, the loads and the contact forces (docs/method.md, massless DOFs). Their velocity is the
 //! derivative of that response, with every DOF that carried a contact force in the step held
 //! (`H`: the active nodes, and with pairs the master nodes they press on) and the free
 //! massless DOFs `F = C \ H`:

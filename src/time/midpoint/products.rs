@@ -1,4 +1,4 @@
-//! The step's kept products (issue 27): with the step's own CG (`time::cg`) a step without
+//! The step's kept products: with the step's own CG (`time::cg`) a step without
 //! contact updates `A u` and `M v` from `K du` and one product `M du` instead of recomputing
 //! them, and every `StepOperator::refresh` steps computes them afresh and measures the drift.
 

@@ -1,6 +1,6 @@
 //! Finite sliding ([`InterfaceMode::Follow`]): the rounds of a contact step on the interface at
 //! the step's midpoint, the planes shifted onto the end-of-step weighted gaps, and the rest of
-//! the consistent contact force (README "Finite sliding"; METHOD.md 5c).
+//! the consistent contact force (docs/method.md, frozen and following interfaces).
 
 use std::collections::HashMap;
 
@@ -179,7 +179,8 @@ impl MortarActiveSet<'_> {
             }
             if rounds == MAX_ROUNDS {
                 return Err(Error::Solver(format!(
-                    "mortar: the interface did not settle in {MAX_ROUNDS} rounds at step {step} (t = {time}): the midpoint moved {:.3e} since its evaluation, the planes miss the end-of-step gaps by {:.3e}, tolerance {:.3e} (-mortar_geometry_tol); the consistent force changed by {:.3e}",
+                    "mortar: the interface did not settle in {MAX_ROUNDS} rounds at step {step} (t = {}): the midpoint moved {:.3e} since its evaluation, the planes miss the end-of-step gaps by {:.3e}, tolerance {:.3e} (-mortar_geometry_tol); the consistent force changed by {:.3e}",
+                    crate::console::time(time),
                     largest.0, largest.1, self.geometry_tol, largest.2
                 )));
             }
