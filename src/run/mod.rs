@@ -294,8 +294,8 @@ impl<'a> Simulation<'a> {
         if d.bodies.finite_strain() {
             if let Some(c) = contact.as_deref().filter(|c| !c.follows_operator_changes()) {
                 return Err(Error::Usage(format!(
-                    "finite strain: {} cannot follow the tangent that changes every Newton iteration (two-body pairs and -contact_solver columns work with model = \"linear\" only)",
-                    if c.is_pair() { "the dual mortar pair solver" } else { "this contact solver" }
+                    "finite strain: {} cannot follow the tangent that changes every Newton iteration (-contact_solver columns works with model = \"linear\" only; use pdas)",
+                    if c.is_pair() { "the dual mortar pair solver" } else { "-contact_solver columns" }
                 )));
             }
             let newton =

@@ -1232,3 +1232,22 @@ fn model_errors_name_the_key() {
         &["material.nu = 0.5 is impossible", "neo-Hooke's lambda is infinite"],
     );
 }
+
+/// Every shipped scene (scenes/ and the suite's scenes/suite/) is a valid scene: its keys,
+/// values, expressions and mesh files (a misspelt key or a `mesh.params` name its `.geo` does
+/// not declare would stop a user at once).
+#[test]
+fn every_shipped_scene_loads() {
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes");
+    let mut n = 0;
+    for dir in [root.clone(), root.join("suite")] {
+        for entry in std::fs::read_dir(&dir).unwrap().flatten() {
+            let path = entry.path();
+            if path.extension().is_some_and(|x| x == "toml") {
+                super::load(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+                n += 1;
+            }
+        }
+    }
+    assert!(n >= 30, "only {n} shipped scenes found");
+}

@@ -594,6 +594,37 @@ impl Midpoint {
         }
     }
 
+    /// Whether a contact step gets the energy correction, and the slack it may leave: with
+    /// massless DOFs, a step whose active set changed, or that takes pending work, or whose
+    /// geometry follows the bodies. Following, a step that keeps its active set does work too
+    /// (the midpoint's error on the moving geometry): collected while small (`drift_rtol` of
+    /// the energy), then put back with the activations' (`None` while collecting); what a
+    /// correction leaves below a tenth of that bound joins the drift instead of another solve.
+    pub(super) fn correction_due(
+        &mut self,
+        changed: bool,
+        follows: bool,
+        work: f64,
+    ) -> Option<f64> {
+        if !self.correct {
+            return None;
+        }
+        let scale = self.energy.total().abs().max(self.energy.kinetic);
+        if follows
+            && !changed
+            && self.corrections.pending == 0.0
+            && (self.drift + work).abs() <= self.drift_rtol * scale
+        {
+            self.drift += work;
+            return None;
+        }
+        if !(changed || follows || self.corrections.pending != 0.0) {
+            return None;
+        }
+        self.corrections.pending += std::mem::take(&mut self.drift);
+        Some(if follows { 0.1 * self.drift_rtol * scale } else { 0.0 })
+    }
+
     /// One step `n -> n + 1`, with the contact solver inside it when there is one.
     pub fn step<'c>(
         &mut self,
@@ -657,27 +688,8 @@ impl Midpoint {
         let mut project = false;
         if let Some(c) = report.as_mut() {
             let changed = before.as_deref().is_some_and(|b| b != c.row.active.as_slice());
-            // With the geometry following the bodies a step that keeps its active set does
-            // work too (the midpoint's error on the moving geometry): collected while small,
-            // then put back with the activations'.
             let follows = contact.as_deref().is_some_and(|s| s.geometry_follows());
-            let mut steady = false;
-            if self.correct && follows && !changed && self.corrections.pending == 0.0 {
-                let scale = self.energy.total().abs().max(self.energy.kinetic);
-                steady = (self.drift + c.work).abs() <= self.drift_rtol * scale;
-                if steady {
-                    self.drift += c.work;
-                }
-            }
-            if self.correct && !steady && (changed || follows || self.corrections.pending != 0.0) {
-                self.corrections.pending += std::mem::take(&mut self.drift);
-                // Following, what a correction leaves below a tenth of the drift's bound joins
-                // the drift (put back with the next correction) instead of another solve.
-                let slack = if follows {
-                    0.1 * self.drift_rtol * self.energy.total().abs().max(self.energy.kinetic)
-                } else {
-                    0.0
-                };
+            if let Some(slack) = self.correction_due(changed, follows, c.work) {
                 let (extra_its, last, work) = self.correct_energy(
                     c,
                     contact.as_deref_mut(),

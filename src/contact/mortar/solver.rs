@@ -121,6 +121,9 @@ pub struct MortarActiveSet<'w> {
     rows_enabled: bool,
     d_evaluated: Vec<f64>,
     factor: f64,
+    /// The step operator is a finite-strain tangent (replaced every Newton iteration,
+    /// unsymmetric): `T^T K T` is not marked symmetric.
+    tangent: bool,
 }
 
 /// How the pair's interface moves with the bodies.
@@ -268,6 +271,7 @@ impl<'w> MortarActiveSet<'w> {
             closed_form: options.closed_form,
             rows_enabled: options.gap_rows,
             d_evaluated: d_at_contact_nodes(&iface, &slots, nodes_len),
+            tangent: false,
             factor,
             inner: ActiveSet::new(nodes, factor),
             pair,
@@ -508,7 +512,7 @@ impl MortarActiveSet<'_> {
     /// `T^T K T`, the constraints on it, and the solver's operators.
     fn rebuild(&mut self, k: &Matrix) -> Result<()> {
         let mut k_hat = k.ptap(&self.t)?;
-        k_hat.set_option_symmetric(true)?;
+        k_hat.set_option_symmetric(!self.tangent)?;
         self.inner.prepare(&k_hat)?;
         match self.hat.as_mut() {
             Some(h) => {
@@ -636,6 +640,18 @@ impl ContactSolver for MortarActiveSet<'_> {
         self.rebuild(k)?;
         self.cost.operator_seconds += t0.elapsed().as_secs_f64();
         Ok(())
+    }
+
+    /// A finite-strain Newton iteration's tangent: `T^T K T` and its constraints again, with
+    /// the basis change of the interface as it stands (the rounds of a following interface
+    /// evaluate it again on the iterate's configuration).
+    fn operator_replaced(&mut self, k: &Matrix) -> Result<()> {
+        self.tangent = true;
+        self.prepare(k)
+    }
+
+    fn follows_operator_changes(&self) -> bool {
+        true
     }
 
     fn solve(&mut self, sys: StepSystem<'_>) -> Result<(StepContact, usize)> {

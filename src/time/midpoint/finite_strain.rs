@@ -163,14 +163,15 @@ impl Midpoint {
         let mut project = false;
         if let Some(c) = step.contact.clone() {
             let changed = before.as_deref().is_some_and(|b| b != c.row.active.as_slice());
-            if self.correct && (changed || self.corrections.pending != 0.0) {
+            let follows = contact.as_deref().is_some_and(|s| s.geometry_follows());
+            if let Some(slack) = self.correction_due(changed, follows, c.work) {
                 let (extra, corrected) = self.correct_energy_finite(
                     &c,
                     &f_sum,
-                    n,
-                    t_next,
+                    (n, t_next),
                     &dofs,
                     &du_d,
+                    slack,
                     contact.as_deref_mut(),
                 )?;
                 if let Some(s) = corrected {
@@ -183,9 +184,10 @@ impl Midpoint {
             let c = step.contact.as_ref().expect("a contact step");
             // Released massless nodes: put back in static equilibrium (held: the nodes still
             // active), as the linear step does.
+            // Pairs are left as they are (their constraints live in the mortar basis).
             let b = before.as_deref().unwrap_or_default();
-            if b.iter().zip(&c.row.active).any(|(&was, &is)| was && !is) {
-                let solver = contact.as_deref().expect("contact solver");
+            let solver = contact.as_deref().expect("contact solver");
+            if !solver.is_pair() && b.iter().zip(&c.row.active).any(|(&was, &is)| was && !is) {
                 let nodes = solver.nodes();
                 let dim = nodes.dim;
                 for (k, &a) in c.row.active.iter().enumerate() {
@@ -241,17 +243,19 @@ impl Midpoint {
         &mut self,
         first: &StepContact,
         f_sum: &Vector,
-        n: usize,
-        t_next: f64,
+        (n, t_next): (usize, f64),
         dofs: &[i32],
         du_d: &[f64],
+        slack: f64,
         mut contact: Option<&mut (dyn ContactSolver + 'c)>,
     ) -> Result<(usize, Option<NewtonStep>)> {
         let work = first.work;
         let scale = self.energy.total().abs().max(self.energy.kinetic).max(f64::MIN_POSITIVE);
-        let tol = 1e-10 * scale;
+        let tol = (1e-10 * scale).max(slack);
         let debt = self.corrections.pending;
         if (work + debt).abs() <= tol {
+            // Within the slack: collected with the steady steps' work.
+            self.drift += if slack > 0.0 { work + debt } else { 0.0 };
             self.corrections.pending = 0.0;
             return Ok((0, None));
         }
