@@ -409,3 +409,52 @@ fn the_neo_hookean_slide_off_does_not_depend_on_the_number_of_ranks() {
         );
     }
 }
+
+/// The neo-Hookean balls of `scenes/two_spheres_oblique_neo_hooke.toml` on a coarse mesh (h =
+/// 0.4, hc = 0.1), frictionless and with Coulomb friction (mu = 0.3) between the caps: no
+/// force acts on the pair but the contact, so the two bodies' contact impulses cancel (to
+/// 1e-8 of their size), and the pair's momentum is kept to the same fraction of a ball's;
+/// frictionless, the energy is kept (the contact takes work only at activation and the
+/// correction puts it back, steady steps' work collected below 1e-7 of the energy: the end
+/// within 1e-6 of the start); with friction, the energy lost is what friction dissipated,
+/// `sum t.s`, to 1e-6 of the energy, and it is lost (friction acted). The energy balance
+/// holds at the Newton tolerance in both.
+#[test]
+fn oblique_neo_hookean_balls_keep_momentum_and_lose_only_what_friction_dissipates() {
+    for mu in ["0", "0.3"] {
+        let name = format!("fs-balls-mu{mu}");
+        let dir = scratch(&name);
+        let scene = scene_variant("two_spheres_oblique_neo_hooke.toml", &dir, &[]);
+        let args = ["--friction", mu, "--param", "h=0.4", "--param", "hc=0.1"];
+        let s = run_scene(2, &scene, &args);
+        let (a, b) = (&s.bodies[0], &s.bodies[1]);
+        let size = a.contact_impulse.iter().fold(0.0f64, |m, c| m.max(c.abs()));
+        let ball = a.momentum_initial.iter().fold(0.0f64, |m, c| m.max(c.abs()));
+        assert!(size > 0.1 * ball, "{name}: the balls hardly touched ({size:e})");
+        for c in 0..3 {
+            let sum = (a.contact_impulse[c] + b.contact_impulse[c]).abs();
+            assert!(sum < 1e-8 * size, "{name}: impulses do not cancel in {c}: {sum:e}");
+            let dp = (s.momentum_final[c] - s.momentum_initial[c]).abs();
+            assert!(dp < 1e-8 * ball, "{name}: the pair's momentum moved by {dp:e} in {c}");
+        }
+        assert!(s.energy_balance < 1e-8, "{name}: energy balance {}", s.energy_balance);
+        let contact = s.contact.as_ref().expect("contact");
+        let lost = s.energy_initial - s.energy_final;
+        let miss = (lost - contact.friction_dissipation).abs() / s.energy_initial;
+        eprintln!(
+            "{name}: energy lost {:.3e} of the initial, friction dissipated {:.3e}; angular momentum {:?} -> {:?}",
+            lost / s.energy_initial,
+            contact.friction_dissipation / s.energy_initial,
+            s.angular_momentum_initial,
+            s.angular_momentum_final
+        );
+        assert!(
+            miss < 1e-6,
+            "{name}: energy lost {lost:e}, dissipated {:e}",
+            contact.friction_dissipation
+        );
+        if mu != "0" {
+            assert!(contact.friction_dissipation > 1e-3 * s.energy_initial, "{name}: no slip");
+        }
+    }
+}
