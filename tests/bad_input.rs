@@ -250,3 +250,17 @@ fn contact_pairs_name_the_groups() {
         expect_error(&["run", scene.to_str().unwrap(), "--no-output"], culprit);
     }
 }
+
+/// The stored-columns contact solver cannot follow a tangent that changes every Newton
+/// iteration: at finite strain it is a one-line error naming it (every other solver follows).
+#[test]
+fn finite_strain_with_the_columns_contact_solver_is_an_error() {
+    let dir = scratch("fs-columns");
+    let scene = scene_variant("disc.toml", &dir, &[]);
+    let scene = scene.to_str().unwrap();
+    let args = ["run", scene, "--no-output", "--steps", "1", "--model", "neo_hookean"];
+    expect_error(
+        &[&args[..], &["--", "-contact_solver", "columns"]].concat(),
+        "-contact_solver columns cannot follow",
+    );
+}

@@ -292,11 +292,11 @@ impl<'a> Simulation<'a> {
         let (u0, v0) = start::initial_state(d)?;
         let mut midpoint = Midpoint::new(op, m, a, dirichlet, d.scene.tau, u0, v0, 0.0, &loads)?;
         if d.bodies.finite_strain() {
-            if let Some(c) = contact.as_deref().filter(|c| !c.follows_operator_changes()) {
-                return Err(Error::Usage(format!(
-                    "finite strain: {} cannot follow the tangent that changes every Newton iteration (-contact_solver columns works with model = \"linear\" only; use pdas)",
-                    if c.is_pair() { "the dual mortar pair solver" } else { "-contact_solver columns" }
-                )));
+            // Every contact solver but the stored columns follows Newton's tangent.
+            if contact.as_deref().is_some_and(|c| !c.follows_operator_changes()) {
+                return Err(Error::Usage(
+                    "finite strain: -contact_solver columns cannot follow the tangent that changes every Newton iteration (it works with model = \"linear\" only; use pdas)".into(),
+                ));
             }
             let newton =
                 start::newton(d, &self.app, midpoint.u(), &midpoint.operator().k, midpoint.mass())?;
