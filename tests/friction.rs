@@ -781,6 +781,64 @@ fn ironing_in_3d_drags_with_mu_times_the_normal_force() {
     assert!(last[0] < 0.0 && last[2] > 0.0, "{last:?}");
 }
 
+/// Ironing at depth, `scenes/ironing_deep.toml` (h = 1/32): a rigid disc pressed into the
+/// neo-Hookean block to 20% of its height and dragged along it with mu = 0.3. Where every node
+/// in contact slips, `sum |t_q| = mu sum lambda_q` (the global friction law at finite strain);
+/// the block pushes the disc back and up; 1 and 2 ranks give the same reactions. Smooth with
+/// `M_H^1`: while the disc is dragged, the normal reaction's step-to-step alternation, `max |F_n
+/// - (F_{n-1} + F_{n+1}) / 2|`, is below that of the standard mass `M` (whose contact nodes
+/// arrive with their inertia) and below half of one contact node's share of the force
+/// (node passage alone changes the force by about one share per passed node, over several
+/// steps).
+#[test]
+fn ironing_at_depth_drags_with_mu_times_the_normal_force_and_smooth_reactions() {
+    let mu = 0.3;
+    let mut alternation = Vec::new();
+    let mut reactions = Vec::new();
+    for (mass, ranks) in [("modified1", 2), ("consistent", 2), ("modified1", 1)] {
+        let dir = scratch(&format!("friction_ironing_deep_{mass}"));
+        let scene = scene_variant(
+            "ironing_deep.toml",
+            &dir,
+            &[("h = 0.0625", "h = 0.03125"), ("every = 10", "every = 100")],
+        );
+        let s = run_scene(ranks, &scene, &["--mass", mass]);
+        assert!(s.energy_balance < 1e-8, "{mass}: balance {:e}", s.energy_balance);
+        let h = friction_history(&dir.join(format!("ironing_deep-{ranks}.h5")), 2);
+        let slipping = h.iter().filter(|r| r.3).count();
+        assert!(slipping > 150, "{mass}: {slipping} steps in full slip");
+        assert_slip_at_the_bound(&h, mu);
+        let last = h.last().unwrap().0;
+        assert!(last[0] < 0.0 && last[1] > 0.0, "{mass}: {last:?}");
+        // The drag from t = 1.4 (after the start's transient) to the end, tau = 0.01.
+        let fy: Vec<f64> = h.iter().map(|r| r.0[1]).collect();
+        let drag = 140..fy.len() - 1;
+        let alt = drag.clone().map(|n| (fy[n] - 0.5 * (fy[n - 1] + fy[n + 1])).abs());
+        let alt = alt.fold(0.0f64, f64::max);
+        let contact = s.contact.as_ref().expect("contact");
+        let share =
+            fy[drag].iter().fold(0.0f64, |a, &b| a.max(b)) / contact.max_active_nodes as f64;
+        eprintln!("{mass}, {ranks} rank(s): alternation {alt:.3e}, one node's share {share:.3e}");
+        if mass == "modified1" {
+            assert!(alt < 0.5 * share, "{mass}: alternation {alt:e} against a share {share:e}");
+        }
+        alternation.push(alt);
+        reactions.push(h);
+    }
+    assert!(alternation[0] < alternation[1], "M_H {:e}, M {:e}", alternation[0], alternation[1]);
+    let scale = reactions[0].iter().fold(0.0f64, |a, r| a.max(r.0[1].abs()));
+    for (n, (a, b)) in reactions[0].iter().zip(&reactions[2]).enumerate() {
+        for c in 0..2 {
+            assert!(
+                (a.0[c] - b.0[c]).abs() <= 1e-8 * scale,
+                "step {n}: {:?} against {:?}",
+                a.0,
+                b.0
+            );
+        }
+    }
+}
+
 #[test]
 fn a_block_sliding_on_another_feels_mu_times_the_normal_force_and_the_other_the_opposite() {
     // scenes/slide_off.toml (the upper block lands on the long lower one and slides at 1)

@@ -197,6 +197,20 @@ pub fn momentum(d: &Domain, mv: &Vector) -> Result<[f64; 3]> {
     Ok(out)
 }
 
+/// The reference coordinate of each owned DOF, in DOF order (the node's coordinate in the
+/// DOF's component).
+pub fn reference_positions(d: &Domain) -> Vec<f64> {
+    let dim = d.part.dim;
+    let first = d.part.first_dof();
+    let mut x = vec![0.0; d.part.owned_nodes.len() * dim];
+    for &v in &d.part.owned_nodes {
+        for c in 0..dim {
+            x[d.part.dof(v, c) - first] = d.mesh.coords[v][c];
+        }
+    }
+    x
+}
+
 /// The angular momentum about the centre of mass, `sum_v (x_v - x_c) x (M v)_v` with the
 /// current positions `x_v = X_v + u_v` and `x_c = sum_v (M 1)_v x_v / sum_v (M 1)_v` (three
 /// components; in 2D only the third is not zero). Collective.

@@ -317,6 +317,9 @@ impl<'a> Simulation<'a> {
             d.part.dim,
             diagnostics::node_bodies(d),
         )?;
+        if d.bodies.finite_strain() {
+            midpoint.set_reference_positions(diagnostics::reference_positions(d));
+        }
         midpoint.set_correction_blend(self.app.massless_correction_blend);
         midpoint.set_correction_kick(self.app.massless_correction_kick);
         // With massless DOFs contact steps start from the last increment: the residual test

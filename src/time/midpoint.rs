@@ -20,6 +20,7 @@ mod correction;
 mod finite_strain;
 mod layer_velocity;
 mod products;
+mod rigid;
 
 pub use products::ReuseReport;
 
@@ -157,6 +158,9 @@ pub struct Midpoint {
     groups: Vec<u32>,
     /// The number of bodies over all ranks.
     n_groups: usize,
+    /// Finite strain: the reference position of each owned DOF (the correction's force then
+    /// has no moment either).
+    reference: Option<Vec<f64>>,
     /// The mass-free layer's velocity (the derivative of its static response).
     layer_rate: layer_velocity::LayerRate,
 }
@@ -286,6 +290,7 @@ impl Midpoint {
             m_ones: None,
             groups: Vec::new(),
             n_groups: 1,
+            reference: None,
             layer_rate: Default::default(),
         };
         mp.reuse.interval = mp.op.refresh;

@@ -259,9 +259,13 @@ impl Midpoint {
             self.corrections.pending = 0.0;
             return Ok((0, None));
         }
-        let mut m = self.u.duplicate()?;
-        self.m.mult(&self.du, &mut m)?;
-        self.without_translations(&mut m)?;
+        // M du_0, and m = P M du_0 projected again before each solve at that solve's starting
+        // midpoint positions (the moment of the force is taken where the step applies it).
+        let mut mdu0 = self.u.duplicate()?;
+        self.m.mult(&self.du, &mut mdu0)?;
+        let mut m = mdu0.duplicate()?;
+        m.copy_from(&mdu0)?;
+        self.without_rigid_motions(&mut m)?;
         let q0 = m.dot(&self.du)?;
         let mut forced = f_sum.duplicate()?;
         let mut b = (0.0, work, q0);
@@ -274,6 +278,10 @@ impl Midpoint {
                     self.corrections.skipped += 1;
                 }
                 break;
+            }
+            if k > 0 {
+                m.copy_from(&mdu0)?;
+                self.without_rigid_motions(&mut m)?;
             }
             // The du form is the midpoint equation times 2: the force -2 xi m.
             forced.waxpy(-2.0 * xi, &m, f_sum)?;
