@@ -138,10 +138,10 @@ fn main() {
         std::process::exit(1);
     }
     let quick = args.iter().any(|a| a == "--quick");
-    // --only scaling|solvers|mass|disc|contact3d|two_body|friction|output|stress|suite|setup|step|layer|long|finite_strain runs one
+    // --only scaling|solvers|mass|disc|contact3d|two_body|friction|output|stress|suite|setup|step|layer|long|finite_strain|finite_contact runs one
     // section (step:N,M some parts of it).
     let only = args.iter().position(|a| a == "--only").and_then(|i| args.get(i + 1)).cloned();
-    const SECTIONS: [&str; 15] = [
+    const SECTIONS: [&str; 16] = [
         "scaling",
         "solvers",
         "mass",
@@ -157,6 +157,7 @@ fn main() {
         "layer",
         "long",
         "finite_strain",
+        "finite_contact",
     ];
     if let Some(o) = only.as_deref() {
         let section = o.split_once(':').map_or(o, |(s, _)| s);
@@ -834,6 +835,9 @@ fn main() {
     }
     if want("finite_strain") {
         md += &finite_strain::section(&repo(), &bench_dir(), quick);
+    }
+    if want("finite_contact") {
+        md += &finite_strain::contact_section(&repo(), &bench_dir(), quick);
     }
     let path = bench_dir().join("scaling.md");
     std::fs::write(&path, &md).unwrap();

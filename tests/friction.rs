@@ -785,11 +785,11 @@ fn ironing_in_3d_drags_with_mu_times_the_normal_force() {
 /// neo-Hookean block to 20% of its height and dragged along it with mu = 0.3. Where every node
 /// in contact slips, `sum |t_q| = mu sum lambda_q` (the global friction law at finite strain);
 /// the block pushes the disc back and up; 1 and 2 ranks give the same reactions. Smooth with
-/// `M_H^1`: while the disc is dragged, the normal reaction's step-to-step alternation, `max |F_n
-/// - (F_{n-1} + F_{n+1}) / 2|`, is below that of the standard mass `M` (whose contact nodes
-/// arrive with their inertia) and below half of one contact node's share of the force
-/// (node passage alone changes the force by about one share per passed node, over several
-/// steps).
+/// `M_H^1`: while the disc is dragged, the normal reaction's step-to-step alternation,
+/// `max |F_n - (F_{n-1} + F_{n+1}) / 2|`, is below that of the standard mass `M` (whose
+/// contact nodes arrive with their inertia) and below half of one contact node's share of the
+/// force (node passage alone changes the force by about one share per passed node, over
+/// several steps).
 #[test]
 fn ironing_at_depth_drags_with_mu_times_the_normal_force_and_smooth_reactions() {
     let mu = 0.3;

@@ -2,6 +2,7 @@
 //! convergence rates read back from the CSV, the plots, failed points, bad study files.
 
 mod common;
+use common::{num, read_csv};
 
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
@@ -73,31 +74,6 @@ fn text(o: &Output) -> String {
         String::from_utf8_lossy(&o.stdout),
         String::from_utf8_lossy(&o.stderr)
     )
-}
-
-/// The CSV as one map column -> value per row.
-fn read_csv(path: &Path) -> Vec<HashMap<String, String>> {
-    let t = std::fs::read_to_string(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
-    let mut lines = t.lines();
-    let head: Vec<String> = lines.next().unwrap().split(',').map(str::to_string).collect();
-    lines
-        .map(|l| {
-            // Only the last column (status) may hold commas, quoted.
-            let mut cells: Vec<String> = Vec::new();
-            let mut rest = l;
-            while cells.len() + 1 < head.len() {
-                let (a, b) = rest.split_once(',').unwrap_or((rest, ""));
-                cells.push(a.to_string());
-                rest = b;
-            }
-            cells.push(rest.trim_matches('"').replace("\"\"", "\""));
-            head.iter().cloned().zip(cells).collect()
-        })
-        .collect()
-}
-
-fn num(row: &HashMap<String, String>, key: &str) -> f64 {
-    row[key].parse().unwrap_or_else(|_| panic!("{key} = {:?} in {row:?}", row[key]))
 }
 
 /// The summaries of a study's runs (`runs/ID.summary.toml`), with the ID; `prefix` selects a

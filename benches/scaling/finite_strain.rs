@@ -5,7 +5,10 @@
 //! - the beam of section 7.1 (2D Q1) at about 2 10^4 and 10^6 DOFs, its tau scaled to CFL 1,
 //!   and at 2 10^4 DOFs at CFL 30;
 //! - the block (3D Q1 hexahedra) at CFL 1;
-//! - the ball dropped on a plane (3D P1, the mass-free layer, contact) at about 10^5 DOFs.
+//! - the ball dropped on a plane (3D P1, the mass-free layer, contact) at about 10^5 DOFs;
+//!
+//! and what a contact step costs at finite strain ([`contact_section`], its own section
+//! `finite_contact`).
 
 use std::path::{Path, PathBuf};
 
@@ -86,6 +89,98 @@ pub fn section(repo: &Path, dir: &Path, quick: bool) -> String {
                     / (r as f64 * nw.tangent_seconds.max(1e-12)),
             );
         }
+    }
+    md
+}
+
+/// Contact steps at finite strain (`./run bench --only finite_contact`): per
+/// time step with a node in contact at its end, the Newton iterations (every solve of the step,
+/// the energy correction's too), the active-set iterations per contact solve, the interface's
+/// rounds and solves (pairs following the bodies), and the wall time against a plain Newton
+/// step of the same run (the steps without contact). Aims: a contact step at most 2 plain
+/// steps, at most 5 Newton iterations per contact step on average.
+pub fn contact_section(repo: &Path, dir: &Path, quick: bool) -> String {
+    let mut md = String::from(
+        "\nContact steps at finite strain (neo-Hooke, M_H; one run each; a contact step: a time step ending with a node in contact; Newton its: every solve of the step, the energy correction's included; plain: the same run's steps without contact):\n\n| case | ranks | DOFs | steps | contact steps | Newton its / contact step | Newton its / plain step | active-set its (a contact step's last solve) | interface rounds (solves) / contact step | contact step ms | plain step ms | contact / plain | cycles taken |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|\n",
+    );
+    let s = |v: &[&str]| v.iter().map(|x| x.to_string()).collect::<Vec<_>>();
+    let mut cases: Vec<(String, PathBuf, Vec<String>, usize)> = vec![
+        (
+            "ball on a plane, M_H^0, h = 0.2, hc = 0.04".into(),
+            scene(repo, "sphere.toml", None, dir),
+            s(&["--model", "neo_hookean", "--param", "h=0.2", "--param", "hc=0.04"]),
+            2,
+        ),
+        (
+            "ironing at depth, M_H^1, mu = 0.3, h = 1/32".into(),
+            scene(repo, "ironing_deep.toml", None, dir),
+            s(&["--param", "h=0.03125"]),
+            2,
+        ),
+        (
+            "block sliding off a block (2D pair), M_H^1".into(),
+            scene(repo, "slide_off_neo_hooke.toml", None, dir),
+            s(&[]),
+            2,
+        ),
+        (
+            "two balls oblique (3D pair), M_H^0, h = 0.4, hc = 0.1".into(),
+            scene(repo, "two_spheres_oblique_neo_hooke.toml", None, dir),
+            s(&["--param", "h=0.4", "--param", "hc=0.1"]),
+            2,
+        ),
+    ];
+    if !quick {
+        cases.push((
+            "block sliding off a block (3D pair), M_H^1".into(),
+            scene(repo, "slide_off_3d_neo_hooke.toml", None, dir),
+            s(&[]),
+            2,
+        ));
+        cases.push((
+            "two balls oblique (3D pair), M_H^0, h = 0.2, hc = 0.04".into(),
+            scene(repo, "two_spheres_oblique_neo_hooke.toml", None, dir),
+            s(&[]),
+            2,
+        ));
+    }
+    for (label, path, mut args, r) in cases {
+        eprintln!("bench: finite strain contact, {label}, {r} rank(s)");
+        if quick {
+            args.extend(s(&["--steps", "40"]));
+        }
+        let Some(f) = run(repo, r, &path, &args, dir) else {
+            md += &format!("| {label} | {r} | failed |\n");
+            continue;
+        };
+        let nw = f.newton.expect("Newton statistics");
+        let per = |x: f64, n: usize| if n > 0 { x / n as f64 } else { f64::NAN };
+        let (cms, pms) = (
+            1e3 * per(nw.contact_seconds, nw.contact_steps),
+            1e3 * per(nw.plain_seconds, nw.plain_steps),
+        );
+        let contact = f.contact.as_ref();
+        let active_set = contact.map_or(f64::NAN, |c| c.active_set_iterations_mean);
+        let interface = contact.and_then(|c| c.mortar).filter(|m| m.following_steps > 0).map_or(
+            "-".to_string(),
+            |m| {
+                format!(
+                    "{:.2} ({:.2})",
+                    per(m.rounds as f64, m.following_steps),
+                    per(m.following_solves as f64, m.following_steps)
+                )
+            },
+        );
+        md += &format!(
+            "| {label} | {r} | {} | {} | {} | {:.2} | {:.2} | {active_set:.2} | {interface} | {cms:.2} | {pms:.2} | {:.2} | {} |\n",
+            f.n_dofs,
+            f.steps,
+            nw.contact_steps,
+            per(nw.contact_iterations as f64, nw.contact_steps),
+            per(nw.plain_iterations as f64, nw.plain_steps),
+            cms / pms,
+            nw.cycled,
+        );
     }
     md
 }

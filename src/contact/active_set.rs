@@ -15,6 +15,10 @@ pub struct ActiveSetLoop<S = bool> {
     max_iterations: usize,
     step: usize,
     time: f64,
+    /// Whether a cycle ends the loop at the current set instead of being an error
+    /// ([`ActiveSetLoop::tolerate_cycles`]), and whether one did.
+    tolerant: bool,
+    pub cycled: bool,
 }
 
 impl ActiveSetLoop<bool> {
@@ -34,7 +38,22 @@ impl ActiveSetLoop<bool> {
 
 impl<S: Clone + PartialEq> ActiveSetLoop<S> {
     pub fn with_states(first: &[S], max_iterations: usize, step: usize, time: f64) -> Self {
-        ActiveSetLoop { history: vec![first.to_vec()], iterations: 0, max_iterations, step, time }
+        ActiveSetLoop {
+            history: vec![first.to_vec()],
+            iterations: 0,
+            max_iterations,
+            step,
+            time,
+            tolerant: false,
+            cycled: false,
+        }
+    }
+
+    /// A cycle ends the loop at the set just solved (`advance` gives `Ok(None)` and sets
+    /// `cycled`): in a Newton iteration's linearization the next iteration moves the
+    /// linearization point, and the sets of a cycle there need not recur.
+    pub fn tolerate_cycles(&mut self) {
+        self.tolerant = true;
     }
 
     /// Counts an iteration that kept the set but must be repeated (slip directions that
@@ -72,6 +91,10 @@ impl<S: Clone + PartialEq> ActiveSetLoop<S> {
         }
         let (step, time) = (self.step, self.time);
         if self.history.contains(&next) {
+            if self.tolerant {
+                self.cycled = true;
+                return Ok(None);
+            }
             let flips: Vec<String> = (0..next.len())
                 .filter(|&k| next[k] != active[k])
                 .map(|k| tags[k].to_string())
@@ -91,5 +114,32 @@ impl<S: Clone + PartialEq> ActiveSetLoop<S> {
         }
         self.history.push(next.clone());
         Ok(Some(next))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Sets a, b, a: a cycle. A step's own loop says so in one line naming the nodes that
+    /// flip; a Newton linearization's takes the set it solved last and marks it cycled.
+    #[test]
+    fn a_cycle_is_an_error_unless_the_loop_tolerates_it() {
+        let (a, b) = (vec![true, false, true], vec![true, true, false]);
+        let tags = [7, 8, 9];
+        let mut lp = ActiveSetLoop::new(&a, 10, 2, 0.04);
+        assert_eq!(lp.advance(&a, b.clone(), &tags).unwrap(), Some(b.clone()));
+        let e = lp.advance(&b, a.clone(), &tags).unwrap_err().to_string();
+        assert!(e.contains("the active set cycles; gmsh nodes 8, 9 flip"), "{e}");
+        let mut lp = ActiveSetLoop::new(&a, 10, 2, 0.04);
+        lp.tolerate_cycles();
+        assert_eq!(lp.advance(&a, b.clone(), &tags).unwrap(), Some(b.clone()));
+        assert!(!lp.cycled);
+        assert_eq!(lp.advance(&b, a.clone(), &tags).unwrap(), None);
+        assert!(lp.cycled);
+        // The cap still holds.
+        let mut lp = ActiveSetLoop::new(&a, 1, 2, 0.04);
+        lp.tolerate_cycles();
+        assert!(lp.advance(&a, b, &tags).is_err());
     }
 }

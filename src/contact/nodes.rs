@@ -341,6 +341,7 @@ impl<'w> ContactNodes<'w> {
             master_friction: Vec::new(),
             friction_nodal: Vec::new(),
             contact_nodal: Vec::new(),
+            cycled: false,
         };
         for p in 0..nc {
             if out.row.active[p] {

@@ -170,7 +170,7 @@ impl ContactSolver for ActiveSet<'_> {
     }
 
     fn solve(&mut self, sys: StepSystem<'_>) -> Result<(StepContact, usize)> {
-        let StepSystem { k, ksp, rhs, u, du, step, time, tau } = sys;
+        let StepSystem { k, ksp, rhs, u, du, step, time, tau, linearization } = sys;
         if self.constraints.is_none() {
             self.prepare(k)?;
         }
@@ -255,6 +255,9 @@ impl ContactSolver for ActiveSet<'_> {
         };
         let t0 = Instant::now();
         let mut lp = ActiveSetLoop::with_states(&states, self.max_iterations, step, time);
+        if linearization {
+            lp.tolerate_cycles();
+        }
         let mut its = 0;
         let tight = ksp.rtol()?;
         let rhs_norm = rhs.norm2()?;
@@ -425,7 +428,7 @@ impl ContactSolver for ActiveSet<'_> {
             }
         });
         self.slip_states = (0..nc).map(|p| (states[p], dirs[p].0, dirs[p].1)).collect();
-        let out = self.nodes.step_contact(
+        let mut out = self.nodes.step_contact(
             &frames,
             active.clone(),
             &lambda,
@@ -433,6 +436,7 @@ impl ContactSolver for ActiveSet<'_> {
             lp.iterations,
             step_friction,
         );
+        out.cycled = lp.cycled;
         self.nodes.active = active;
         Ok((out, its))
     }

@@ -21,6 +21,10 @@ pub struct StepSystem<'a> {
     pub step: usize,
     pub time: f64,
     pub tau: f64,
+    /// One Newton iteration's linearization (finite strain): an active set that cycles is
+    /// taken as it is and said so ([`StepContact::cycled`]); the next iteration linearizes
+    /// anew from there. A step's own system (linear bodies): a cycle is an error.
+    pub linearization: bool,
 }
 
 /// What the contact solver found in one step (all per contact node, same on every rank).
@@ -58,6 +62,9 @@ pub struct StepContact {
     /// Per contact node: a force beside `-force n` (the rest of the consistent force of an
     /// interface that follows the bodies; empty otherwise).
     pub contact_nodal: Vec<[f64; 3]>,
+    /// The active set cycled and was taken as it was (a Newton iteration's linearization,
+    /// [`StepSystem::linearization`]): not a settled set.
+    pub cycled: bool,
 }
 
 /// A slave node's plane in the mortar basis, `(c_q, n_q)`: `n_q . y_q <= c_q`.

@@ -352,6 +352,8 @@ pub fn summarize(
         newton: midpoint.newton_stats().map(|mut s| {
             s.force_seconds = max_over_ranks(d.world, s.force_seconds);
             s.tangent_seconds = max_over_ranks(d.world, s.tangent_seconds);
+            s.contact_seconds = max_over_ranks(d.world, s.contact_seconds);
+            s.plain_seconds = max_over_ranks(d.world, s.plain_seconds);
             s
         }),
         rotations: Vec::new(),
@@ -419,6 +421,29 @@ pub fn summary_lines(d: &Domain, layer: Option<(usize, usize)>, s: &RunSummary) 
             s.n_cells as f64 * nw.tangent_evaluations as f64
                 / (d.size as f64 * nw.tangent_seconds.max(1e-12))
         ));
+        if nw.contact_steps > 0 {
+            let per = |x: f64, n: usize| x / n.max(1) as f64;
+            let (c, p) =
+                (per(nw.contact_seconds, nw.contact_steps), per(nw.plain_seconds, nw.plain_steps));
+            lines.push(format!(
+                "Newton in contact: {} contact steps, {:.2} iterations each (plain steps: {}, {:.2} each); a contact step took {:.3} ms{}{}",
+                nw.contact_steps,
+                per(nw.contact_iterations as f64, nw.contact_steps),
+                nw.plain_steps,
+                per(nw.plain_iterations as f64, nw.plain_steps),
+                1e3 * c,
+                if nw.plain_steps > 0 && p > 0.0 {
+                    format!(", {:.2} plain steps ({:.3} ms)", c / p, 1e3 * p)
+                } else {
+                    String::new()
+                },
+                if nw.cycled > 0 {
+                    format!("; {} iterations took a cycling active set as it was", nw.cycled)
+                } else {
+                    String::new()
+                }
+            ));
+        }
     }
     if let Some(d) = s.massless_initialization.filter(|&d| d > 0.0) {
         lines.push(format!(

@@ -56,15 +56,19 @@ pub fn step_operator(
         // times against block Jacobi/ILU(0), 2026-12-05: the beam at 3.3e5 DOFs, CFL 1, one
         // rank 520 -> 413 ms; on 2 ranks the L-block (h = 0.5) 16.8 -> 11.4 ms, loaded twice
         // as hard 1.80 -> 1.57, the ball (h = 0.1) 85 -> 72, the disc 1.27 -> 1.20.
-        // Two-body pairs keep block Jacobi/ILU(0): their operator in the mortar basis,
-        // `T^T K T`, stalled GMRES with SOR on the 3D slide-off (10000 iterations at step
-        // 182), and block ILU(0) takes 10% fewer iterations on the 2D one at the same time.
+        // Two-body pairs take additive Schwarz, ILU(0) on each rank's rows with one layer of
+        // overlap: their operator in the mortar basis, `T^T K T`, stalled GMRES on the 3D
+        // slide-off at step 182 (the block leaving the edge) with SOR and, after the energy
+        // correction's force lost its moment, with block Jacobi/ILU(0) too (10000
+        // iterations); ASM ran it in 33.1 s on 2 ranks (MUMPS LU 53.1 s), and costs 7-11% more
+        // than block Jacobi on the 2D slide-off and the oblique balls. On one rank it is
+        // ILU(0).
         let pairs = d.scene.contact.as_ref().is_some_and(|c| !c.pairs.is_empty());
-        if pairs && (defaults.pc_type == "jacobi" || defaults.pc_type == "sor") {
-            defaults.pc_type = "bjacobi".into();
+        if pairs && matches!(defaults.pc_type.as_str(), "jacobi" | "sor" | "bjacobi") {
+            defaults.pc_type = "asm".into();
         }
-        if pairs && defaults.pc_type == "bjacobi" {
-            why.push_str(" with block Jacobi/ILU(0) (two-body pairs)");
+        if pairs && defaults.pc_type == "asm" {
+            why.push_str(" with additive Schwarz/ILU(0), overlap 1 (two-body pairs)");
         } else if defaults.pc_type == "jacobi" || defaults.pc_type == "bjacobi" {
             defaults.pc_type = "sor".into();
             why.push_str(" with SOR");

@@ -11,9 +11,13 @@
 //! Each point runs a variant of the scene: the study's overrides (mesh parameter, mass kind,
 //! time step and steps, error step, output) are applied to the loaded [`Scene`] by its typed
 //! methods and written by [`Scene::variant_text`].
+//! The model and amplitude axes (`sweep.model`, `sweep.amplitude`, `reference = { model }`)
+//! are in [`models`], the plots in `plots`.
 //! A failed point is a row marked failed with its one-line error; the sweep goes on.
 
 pub mod fieldnorm;
+pub mod models;
+mod plots;
 pub mod reference;
 pub mod spec;
 pub mod table;
@@ -23,9 +27,9 @@ use std::process::{Command, Stdio};
 use std::time::Instant;
 
 use crate::error::{Error, Result};
-use crate::post::plot::{loglog_plot, loglog_plot_styled, Marker, Plot, Series, SeriesStyle};
 use crate::report::RunSummary;
 use crate::scene::{Field, Scene};
+use plots::{part_plots, set_plots};
 use spec::{Reference, Study, StudySet};
 use table::{Columns, ContactColumns, Measured, Row};
 
@@ -57,6 +61,9 @@ struct Point {
     /// The step whose errors are reported.
     error_step: usize,
     solver: Option<usize>,
+    /// Material model (`sweep.model`) and amplitude (`sweep.amplitude`) of the point.
+    model: Option<String>,
+    amplitude: Option<f64>,
     group: usize,
     /// Index of the study's part (0 without parts).
     part: usize,
@@ -93,7 +100,10 @@ fn execute(set: &StudySet, binary: &Path) -> Result<Vec<Row>> {
     let mut scenes = Vec::new();
     for (study, points) in &parts {
         for p in points {
-            scenes.push(match variant(study, p).and_then(|s| s.variant_text()) {
+            let text = variant(study, p)
+                .and_then(|s| s.variant_text())
+                .and_then(|t| models::with_amplitude(study, p.amplitude, t));
+            scenes.push(match text {
                 Ok(text) => Ok(write_scene(&runs.join(format!("{}.scene.toml", p.id)), &text)?),
                 Err(e) => Err(e.to_string()),
             });
@@ -132,6 +142,8 @@ fn execute(set: &StudySet, binary: &Path) -> Result<Vec<Row>> {
             group: p.group,
             part: p.part,
             part_name: if set.multi { study.title.clone() } else { String::new() },
+            model: p.model.clone().unwrap_or_default(),
+            amplitude: p.amplitude,
             ..Default::default()
         })
         .collect();
@@ -205,6 +217,9 @@ fn execute(set: &StudySet, binary: &Path) -> Result<Vec<Row>> {
         contact: set.parts.iter().any(Study::has_contact),
         force: set.parts.iter().any(contact_ref),
         part: set.multi,
+        model: set.parts.iter().any(|s| !s.model.is_empty()),
+        amplitude: set.parts.iter().any(|s| !s.amplitude.is_empty()),
+        against_model: set.parts.iter().any(|s| matches!(s.reference, Reference::Model(_))),
     };
     table::fill_rates(&mut rows, columns.rate_h, columns.rate_tau);
     table::fill_pareto(&mut rows);
@@ -221,6 +236,10 @@ fn execute(set: &StudySet, binary: &Path) -> Result<Vec<Row>> {
         let n = points.len();
         let prefix = if set.multi { format!("{}-", slug(&study.title)) } else { String::new() };
         match part_plots(study, &rows[offset..offset + n], &columns, &prefix, !set.multi) {
+            Ok(p) => files.extend(p),
+            Err(e) => eprintln!("study: warning: {e}"),
+        }
+        match models::plots(study, &rows[offset..offset + n], &prefix) {
             Ok(p) => files.extend(p),
             Err(e) => eprintln!("study: warning: {e}"),
         }
@@ -307,6 +326,7 @@ fn describe(study: &Study) -> String {
         Reference::Mass(m) => format!("error = relative nodal L2 difference of the displacement at the error time to the finest {m} run (smallest {}, then smallest tau; reference row)", study.mesh_param),
         Reference::File(f) if study.has_contact() => format!("{contact_errors} against {}", f.display()),
         Reference::File(f) => format!("error = relative nodal L2 difference of the displacement at the error time to {}", f.display()),
+        Reference::Model(m) => models::describe(study, m, contact_errors),
     };
     let at = match study.end_time {
         Some(t) if study.has_contact() && study.reference != Reference::Exact => {
@@ -334,7 +354,7 @@ fn describe(study: &Study) -> String {
     )
 }
 
-/// The grid (solver, mass, tau, h from the outside in).
+/// The grid (solver, mass, model, amplitude, tau, h from the outside in).
 fn grid(study: &Study) -> Result<Vec<Point>> {
     let opt = |v: &[f64]| -> Vec<Option<f64>> {
         if v.is_empty() {
@@ -367,43 +387,68 @@ fn grid(study: &Study) -> Result<Vec<Point>> {
             }
         });
     }
+    let models: Vec<Option<String>> = if study.model.is_empty() {
+        vec![None]
+    } else {
+        study.model.iter().cloned().map(Some).collect()
+    };
+    let amplitudes = opt(&study.amplitude);
+    // (model, amplitude) pairs: a group holds one of each (rows of a group differ only in h
+    // and tau).
+    let variants: Vec<(usize, usize)> =
+        (0..models.len()).flat_map(|a| (0..amplitudes.len()).map(move |b| (a, b))).collect();
     let mut points = Vec::new();
     for (si, s) in solvers.iter().enumerate() {
         for (mi, m) in masses.iter().enumerate() {
-            let group = si * masses.len() + mi;
-            for (ti, (tau, steps, error_step)) in times.iter().enumerate() {
-                for (hi, h) in opt(&study.h).into_iter().enumerate() {
-                    if study.skip.iter().any(|k| k.matches(h, *tau, m.as_deref())) {
-                        continue;
+            for (vi, &(oi, ai)) in variants.iter().enumerate() {
+                let (model, amplitude) = (&models[oi], amplitudes[ai]);
+                let group = (si * masses.len() + mi) * variants.len() + vi;
+                for (ti, (tau, steps, error_step)) in times.iter().enumerate() {
+                    for (hi, h) in opt(&study.h).into_iter().enumerate() {
+                        if study.skip.iter().any(|k| k.matches(h, *tau, m.as_deref())) {
+                            continue;
+                        }
+                        let mut label = Vec::new();
+                        if let Some(h) = h {
+                            label.push(format!("{}={}", study.mesh_param, table::show_h(h)));
+                        }
+                        if let Some(m) = m {
+                            label.push(format!("mass={m}"));
+                        }
+                        if !study.tau.is_empty() {
+                            label.push(format!("tau={}", table::show_tau(*tau)));
+                        }
+                        if let Some(s) = s {
+                            label.push(format!("solver={}", study.solver[*s].label));
+                        }
+                        if let Some(o) = model {
+                            label.push(format!("model={o}"));
+                        }
+                        if let Some(a) = amplitude {
+                            label.push(format!("amplitude={a}"));
+                        }
+                        if label.is_empty() {
+                            label.push("scene".into());
+                        }
+                        points.push(Point {
+                            h,
+                            mass: m.clone(),
+                            tau: *tau,
+                            steps: *steps,
+                            error_step: *error_step,
+                            solver: *s,
+                            model: model.clone(),
+                            amplitude,
+                            group,
+                            part: 0,
+                            label: label.join(" "),
+                            id: format!(
+                                "s{si}-m{mi}-t{ti}-h{hi}{}{}",
+                                if model.is_some() { format!("-M{oi}") } else { String::new() },
+                                if amplitude.is_some() { format!("-a{ai}") } else { String::new() }
+                            ),
+                        });
                     }
-                    let mut label = Vec::new();
-                    if let Some(h) = h {
-                        label.push(format!("{}={}", study.mesh_param, table::show_h(h)));
-                    }
-                    if let Some(m) = m {
-                        label.push(format!("mass={m}"));
-                    }
-                    if !study.tau.is_empty() {
-                        label.push(format!("tau={}", table::show_tau(*tau)));
-                    }
-                    if let Some(s) = s {
-                        label.push(format!("solver={}", study.solver[*s].label));
-                    }
-                    if label.is_empty() {
-                        label.push("scene".into());
-                    }
-                    points.push(Point {
-                        h,
-                        mass: m.clone(),
-                        tau: *tau,
-                        steps: *steps,
-                        error_step: *error_step,
-                        solver: *s,
-                        group,
-                        part: 0,
-                        label: label.join(" "),
-                        id: format!("s{si}-m{mi}-t{ti}-h{hi}"),
-                    });
                 }
             }
         }
@@ -507,6 +552,9 @@ fn run_point(
         cmd.arg("-o").arg(runs.join(format!("{}.h5", p.id))).arg("--overwrite");
     } else {
         cmd.arg("--no-output");
+    }
+    if let Some(m) = &p.model {
+        cmd.arg("--model").arg(m);
     }
     if let Some(s) = p.solver {
         cmd.arg("--").args(&study.solver[s].options);
@@ -701,6 +749,7 @@ fn compute_errors(study: &Study, points: &[Point], rows: &mut [Row], runs: &Path
                 against(rows, f, &all);
             }
         }
+        Reference::Model(m) => models::compute_errors(study, m, points, rows, runs),
         Reference::Finest => {
             let groups: Vec<usize> = {
                 let mut g: Vec<usize> = points.iter().map(|p| p.group).collect();
@@ -716,289 +765,6 @@ fn compute_errors(study: &Study, points: &[Point], rows: &mut [Row], runs: &Path
             }
         }
     }
-}
-
-/// A legend name for a group of rows (what differs between groups).
-fn group_name(study: &Study, r: &Row) -> String {
-    let mut parts = Vec::new();
-    if study.mass.len() > 1 || study.solver.len() <= 1 {
-        parts.push(if r.mass.is_empty() {
-            r.measured.as_ref().map(|m| m.mass_kind.clone()).unwrap_or_default()
-        } else {
-            r.mass.clone()
-        });
-    }
-    if study.solver.len() > 1 {
-        parts.push(r.solver.clone());
-    }
-    parts.retain(|p| !p.is_empty());
-    if parts.is_empty() {
-        study.scene.name.clone()
-    } else {
-        parts.join(", ")
-    }
-}
-
-/// Series of (x, error) per group (and per tau or h when both are swept).
-fn series(
-    study: &Study,
-    rows: &[Row],
-    x: &dyn Fn(&Row) -> f64,
-    err: &dyn Fn(&Row) -> Option<f64>,
-    split: &dyn Fn(&Row) -> String,
-    prefix: &str,
-    sort: bool,
-) -> Vec<Series> {
-    let mut out: Vec<Series> = Vec::new();
-    for r in rows.iter().filter(|r| r.ok() && !r.is_reference) {
-        let Some(e) = err(r) else { continue };
-        let s = split(r);
-        let name = format!(
-            "{prefix}{}{}",
-            group_name(study, r),
-            if s.is_empty() { s } else { format!(", {s}") }
-        );
-        let pt = (x(r), e);
-        match out.iter_mut().find(|s| s.name == name) {
-            Some(s) => s.points.push(pt),
-            None => out.push(Series { name, points: vec![pt] }),
-        }
-    }
-    if sort {
-        for s in &mut out {
-            s.points.sort_by(|a, b| a.0.total_cmp(&b.0));
-        }
-    }
-    out
-}
-
-/// One part's plots: `PREFIXerror_h.png`, `PREFIXerror_tau.png` and, with `with_time`,
-/// `error_time.png` (files with parts draw one error-against-time plot of all parts,
-/// [`set_plots`]).
-fn part_plots(
-    study: &Study,
-    rows: &[Row],
-    c: &Columns,
-    prefix: &str,
-    with_time: bool,
-) -> Result<Vec<PathBuf>> {
-    let out = &study.output;
-    let mut files = Vec::new();
-    let err_name = match study.reference {
-        Reference::Exact => "error",
-        _ if study.has_contact() => "pressure error (relative)",
-        _ => "error (relative, vs reference)",
-    };
-    let l2 = |r: &Row| r.err_l2;
-    let h1 = |r: &Row| r.err_h1;
-    let hx = |r: &Row| r.h.unwrap_or(f64::NAN);
-    let tx = |r: &Row| r.tau;
-    let by_tau = |r: &Row| {
-        if study.tau.len() > 1 {
-            format!("tau={}", table::show_tau(r.tau))
-        } else {
-            String::new()
-        }
-    };
-    let by_h = |r: &Row| match r.h {
-        Some(h) if study.h.len() > 1 => format!("{}={}", study.mesh_param, table::show_h(h)),
-        _ => String::new(),
-    };
-    let (l2p, h1p) = if c.h1 { ("L2 ", "H1 ") } else { ("", "") };
-    if study.h.len() >= 2 {
-        let mut s = series(study, rows, &hx, &l2, &by_tau, l2p, true);
-        if c.h1 {
-            s.extend(series(study, rows, &hx, &h1, &by_tau, h1p, true));
-        }
-        let path = out.join(format!("{prefix}error_h.png"));
-        let xl = study.mesh_param.clone();
-        let title = format!("{}: {err_name} against {}", study.title, study.mesh_param);
-        let plot = Plot {
-            title: &title,
-            x_label: &xl,
-            y_label: err_name,
-            series: &s,
-            width: 900,
-            height: 650,
-        };
-        loglog_plot(&path, &plot, &[1.0, 2.0])?;
-        files.push(path);
-    }
-    if study.tau.len() >= 2 {
-        let mut s = series(study, rows, &tx, &l2, &by_h, l2p, true);
-        if c.h1 {
-            s.extend(series(study, rows, &tx, &h1, &by_h, h1p, true));
-        }
-        let path = out.join(format!("{prefix}error_tau.png"));
-        let title = format!("{}: {err_name} against tau", study.title);
-        let plot = Plot {
-            title: &title,
-            x_label: "tau",
-            y_label: err_name,
-            series: &s,
-            width: 900,
-            height: 650,
-        };
-        loglog_plot(&path, &plot, &[2.0])?;
-        files.push(path);
-    }
-    if !with_time {
-        return Ok(files);
-    }
-    // Error against run time, with the Pareto front.
-    let time = |r: &Row| r.measured.as_ref().map(|m| m.run_s).unwrap_or(f64::NAN);
-    // One curve per group along its refinements (per tau when both h and tau are swept).
-    let by_tau_if_grid = |r: &Row| if study.h.len() > 1 { by_tau(r) } else { String::new() };
-    let mut s = series(study, rows, &time, &l2, &by_tau_if_grid, "", false);
-    let mut front: Vec<(f64, f64)> =
-        rows.iter().filter(|r| r.pareto).filter_map(|r| Some((time(r), r.err_l2?))).collect();
-    front.sort_by(|a, b| a.0.total_cmp(&b.0));
-    if !front.is_empty() {
-        s.push(Series { name: "Pareto front".into(), points: front });
-    }
-    let path = out.join("error_time.png");
-    let title =
-        format!("{}: {} against run time", study.title, if c.h1 { "L2 error" } else { err_name });
-    let yl = if c.h1 { "L2 error" } else { err_name };
-    let plot = Plot {
-        title: &title,
-        x_label: "run time inside the program (s, median)",
-        y_label: yl,
-        series: &s,
-        width: 900,
-        height: 650,
-    };
-    loglog_plot(&path, &plot, &[])?;
-    files.push(path);
-    Ok(files)
-}
-
-/// The palette colour and marker of a mass kind (the same in every plot of parts).
-fn mass_style(kind: &str) -> (usize, Marker) {
-    match kind {
-        "consistent" => (0, Marker::Circle),
-        "lumped" => (1, Marker::Square),
-        "modified0" => (2, Marker::Triangle),
-        "modified1" => (3, Marker::Diamond),
-        _ => (7, Marker::Circle),
-    }
-}
-
-/// The plots of a file with parts: `error_time.png` (err_l2 against run time) and, for
-/// contact parts, `error_force_time.png` (err_force against run time). One colour and
-/// marker per mass kind; part 1 filled markers and solid lines, part 2 hollow markers, part
-/// 3 filled and thin lines...; one curve per (part, mass kind, tau) along the mesh
-/// refinements; each part's Pareto front as a thick grey line through its front points,
-/// which are ringed.
-fn set_plots(set: &StudySet, rows: &[Row], c: &Columns) -> Result<Vec<PathBuf>> {
-    let mut files = Vec::new();
-    let time = |r: &Row| r.measured.as_ref().map(|m| m.run_s).unwrap_or(f64::NAN);
-    let mut measures: Vec<(
-        &str,
-        &str,
-        Box<dyn Fn(&Row) -> Option<f64>>,
-        Box<dyn Fn(&Row) -> bool>,
-    )> = vec![(
-        "error_time.png",
-        if c.force { "pressure error of the lowest node (relative L2 in time)" } else { "error" },
-        Box::new(|r: &Row| r.err_l2),
-        Box::new(|r: &Row| r.pareto),
-    )];
-    if c.force {
-        measures.push((
-            "error_force_time.png",
-            "total contact force error (relative L2 in time)",
-            Box::new(|r: &Row| r.err_force),
-            Box::new(|r: &Row| r.pareto_force),
-        ));
-    }
-    for (file, y_label, err, on_front) in &measures {
-        let mut series: Vec<Series> = Vec::new();
-        let mut styles: Vec<SeriesStyle> = Vec::new();
-        for (k, study) in set.parts.iter().enumerate() {
-            let part_rows: Vec<&Row> =
-                rows.iter().filter(|r| r.part == k && r.ok() && !r.is_reference).collect();
-            // Curves: per mass kind (and solver) and tau, along h, sorted by time.
-            let mut keys: Vec<(usize, u64)> =
-                part_rows.iter().map(|r| (r.group, r.tau.to_bits())).collect();
-            keys.sort();
-            keys.dedup();
-            let mut named: Vec<usize> = Vec::new();
-            for (g, t) in keys {
-                let mut pts: Vec<(f64, f64)> = part_rows
-                    .iter()
-                    .filter(|r| r.group == g && r.tau.to_bits() == t)
-                    .filter_map(|r| Some((time(r), err(r)?)))
-                    .collect();
-                pts.sort_by(|a, b| a.0.total_cmp(&b.0));
-                let Some(r0) = part_rows.iter().find(|r| r.group == g) else { continue };
-                let kind = if r0.mass.is_empty() {
-                    r0.measured.as_ref().map(|m| m.mass_kind.clone()).unwrap_or_default()
-                } else {
-                    r0.mass.clone()
-                };
-                let (ci, marker) = mass_style(&kind);
-                // The legend names each (part, kind) once.
-                let name = if named.contains(&g) {
-                    String::new()
-                } else {
-                    named.push(g);
-                    format!("{}: {}", study.title, group_name(study, r0))
-                };
-                series.push(Series { name, points: pts });
-                styles.push(SeriesStyle {
-                    color: SeriesStyle::palette(ci),
-                    marker: Some(marker),
-                    filled: k % 2 == 0,
-                    size: 5,
-                    line: true,
-                    line_width: if k < 2 { 2 } else { 1 },
-                });
-            }
-            let mut front: Vec<(f64, f64)> = part_rows
-                .iter()
-                .filter(|r| on_front(r))
-                .filter_map(|r| Some((time(r), err(r)?)))
-                .collect();
-            front.sort_by(|a, b| a.0.total_cmp(&b.0));
-            if !front.is_empty() {
-                series
-                    .push(Series { name: format!("{}: Pareto front", study.title), points: front });
-                styles.push(SeriesStyle {
-                    color: (90, 90, 90),
-                    marker: Some(Marker::Circle),
-                    filled: false,
-                    size: 9,
-                    line: true,
-                    line_width: 1,
-                });
-            }
-        }
-        // The fronts go first so that the points are drawn over them.
-        let order: Vec<usize> = (0..series.len())
-            .filter(|&i| styles[i].size == 9)
-            .chain((0..series.len()).filter(|&i| styles[i].size != 9))
-            .collect();
-        let series: Vec<Series> = order.iter().map(|&i| series[i].clone()).collect();
-        let styles: Vec<SeriesStyle> = order.iter().map(|&i| styles[i]).collect();
-        let path = set.output.join(file);
-        let title = format!(
-            "{}: {} against run time",
-            set.title,
-            if c.force && *file != "error_time.png" { "force error" } else { "error" }
-        );
-        let plot = Plot {
-            title: &title,
-            x_label: "run time inside the program (s, median)",
-            y_label,
-            series: &series,
-            width: 1000,
-            height: 720,
-        };
-        loglog_plot_styled(&path, &plot, &[], &styles)?;
-        files.push(path);
-    }
-    Ok(files)
 }
 
 #[cfg(test)]

@@ -19,6 +19,7 @@
 //! grid alone would skip the reference's peaks between the run's steps; a midpoint or
 //! trapezoidal sum on one grid would weight the two runs differently).
 
+use std::cmp::Ordering;
 use std::path::Path;
 
 use crate::error::{Error, Result};
@@ -84,13 +85,14 @@ pub fn l2_squared_in_time(run: &History, reference: &History) -> Result<(f64, f6
                 h.y.len()
             )));
         }
-        if h.t.windows(2).any(|w| !(w[1] > w[0])) {
+        if h.t.windows(2).any(|w| w[1].partial_cmp(&w[0]) != Some(Ordering::Greater)) {
             return Err(Error::Solver(format!("the {what}'s times do not increase")));
         }
     }
     let a = run.t[0].max(reference.t[0]);
     let b = run.t[run.t.len() - 1].min(reference.t[reference.t.len() - 1]);
-    if !(b > a) {
+    // Also when a bound is NaN.
+    if b.partial_cmp(&a) != Some(Ordering::Greater) {
         return Err(Error::Solver(format!(
             "the run's and the reference's times do not overlap ({}..{} and {}..{})",
             run.t[0],

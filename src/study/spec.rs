@@ -25,7 +25,15 @@
 //!   { label = "gamg", options = ["-ksp_type", "cg", "-pc_type", "gamg"] },
 //! ]
 //! skip = [{ h = 0.04, tau = 0.005 }] # points of the product not run (all given keys match)
+//! model = ["linear", "neo_hookean"]  # material models (linear | neo_hookean |
+//!                                    # saint_venant_kirchhoff), as `run --model`
+//! amplitude = [0.01, 0.1]            # values put for {amplitude} into amplitude_set
 //! ```
+//!
+//! With `sweep.amplitude` the study (or part) sets scene keys from templates, as the suite's
+//! `set` does: `amplitude_set = { "initial.velocity" = ["0", "-11.6024 * {amplitude}"] }`;
+//! `reference = { model = "neo_hookean" }` compares every row with the run of that model at
+//! the same point otherwise (`models`).
 //!
 //! Several scenes in one study: a list of parts, each a study of its own (the keys above but
 //! `output` and `title`; `name` names the part), sharing `ranks`, `repeat` and `reference`
@@ -50,7 +58,7 @@ use std::path::{Path, PathBuf};
 use toml::{Table, Value};
 
 use crate::error::{Error, Result};
-use crate::scene::{self, MassKind, MeshSource, Scene};
+use crate::scene::{self, MassKind, MeshSource, Model, Scene};
 
 /// What the errors of a run are measured against.
 #[derive(Debug, Clone, PartialEq)]
@@ -65,6 +73,9 @@ pub enum Reference {
     /// kind (smallest h, then smallest tau), so that all kinds are measured against the same
     /// approximation of the solution.
     Mass(String),
+    /// Every row against the run of this material model at the same point otherwise (same
+    /// amplitude, h, tau, mass kind and solver): what the other models change (`models`).
+    Model(String),
 }
 
 /// One PETSc option list of `sweep.solver`.
@@ -98,9 +109,9 @@ impl Skip {
     /// Whether the point (h, tau, mass) is skipped (values equal within 1e-9 relative).
     pub fn matches(&self, h: Option<f64>, tau: f64, mass: Option<&str>) -> bool {
         let near = |a: f64, b: f64| (a - b).abs() <= 1e-9 * a.abs().max(b.abs());
-        self.h.map_or(true, |x| h.is_some_and(|y| near(x, y)))
-            && self.tau.map_or(true, |x| near(x, tau))
-            && self.mass.as_deref().map_or(true, |m| mass == Some(m))
+        self.h.is_none_or(|x| h.is_some_and(|y| near(x, y)))
+            && self.tau.is_none_or(|x| near(x, tau))
+            && self.mass.as_deref().is_none_or(|m| mass == Some(m))
     }
 }
 
@@ -129,6 +140,12 @@ pub struct Study {
     pub tau: Vec<f64>,
     pub solver: Vec<Solver>,
     pub skip: Vec<Skip>,
+    /// Material models of `sweep.model` (names as `run --model` takes them).
+    pub model: Vec<String>,
+    /// Values of `sweep.amplitude`, put for `{amplitude}` into `amplitude_set`.
+    pub amplitude: Vec<f64>,
+    /// Scene keys (dotted paths) and their templates in `{amplitude}` (`amplitude_set`).
+    pub amplitude_set: Vec<(String, Value)>,
 }
 
 impl Study {
@@ -137,7 +154,7 @@ impl Study {
     }
 }
 
-const TOP_KEYS: [&str; 15] = [
+const TOP_KEYS: [&str; 16] = [
     "scene",
     "output",
     "title",
@@ -152,9 +169,10 @@ const TOP_KEYS: [&str; 15] = [
     "sweep",
     "description",
     "scaled",
+    "amplitude_set",
     "part",
 ];
-const SWEEP_KEYS: [&str; 5] = ["h", "mass", "tau", "solver", "skip"];
+const SWEEP_KEYS: [&str; 7] = ["h", "mass", "tau", "solver", "skip", "model", "amplitude"];
 /// The top of a file with parts: what the parts share.
 const SET_KEYS: [&str; 7] =
     ["title", "output", "description", "ranks", "repeat", "reference", "part"];
@@ -389,6 +407,9 @@ fn parse_table(path: &Path, table: &Table, part: Option<&str>) -> Result<Study> 
     }
     let solver = solvers(sweep).map_err(&bad)?;
     let skip = skips(sweep).map_err(&bad)?;
+    let model = models(sweep).map_err(&bad)?;
+    let amplitude = positive_list(sweep, "amplitude").map_err(&bad)?;
+    let amplitude_set = amplitude_set(&table, !amplitude.is_empty()).map_err(&bad)?;
 
     // Time: a tau sweep runs to a fixed end time.
     if !tau.is_empty() {
@@ -450,8 +471,18 @@ fn parse_table(path: &Path, table: &Table, part: Option<&str>) -> Result<Study> 
             }
             Reference::Mass(m)
         }
+        Some(Value::Table(t)) if t.contains_key("model") => {
+            check_keys(t, "reference.", &["model"]).map_err(&bad)?;
+            let m = get_str(t, "model").map_err(|m| bad(format!("reference.{m}")))?.unwrap_or_default();
+            if !model.contains(&m) {
+                return Err(bad(format!(
+                    "reference.model = {m:?} is impossible: sweep.model must list it (every row is compared with the run of that model)"
+                )));
+            }
+            Reference::Model(m)
+        }
         Some(Value::Table(t)) => {
-            check_keys(t, "reference.", &["file", "mass"]).map_err(&bad)?;
+            check_keys(t, "reference.", &["file", "mass", "model"]).map_err(&bad)?;
             let f = get_str(t, "file")
                 .map_err(|m| bad(format!("reference.{m}")))?
                 .ok_or_else(|| bad("reference: a table needs file = \"run.h5\"".into()))?;
@@ -463,7 +494,7 @@ fn parse_table(path: &Path, table: &Table, part: Option<&str>) -> Result<Study> 
         }
         Some(v) => {
             return Err(bad(format!(
-                "reference = {v} is impossible (allowed: \"exact\", \"finest\", {{ file = \"run.h5\" }})"
+                "reference = {v} is impossible (allowed: \"exact\", \"finest\", {{ file = \"run.h5\" }}, {{ mass = KIND }}, {{ model = MODEL }})"
             )))
         }
     };
@@ -502,6 +533,9 @@ fn parse_table(path: &Path, table: &Table, part: Option<&str>) -> Result<Study> 
         tau,
         solver,
         skip,
+        model,
+        amplitude,
+        amplitude_set,
     })
 }
 
@@ -620,6 +654,76 @@ fn skips(sweep: &Table) -> std::result::Result<Vec<Skip>, String> {
         };
         let mass = get_str(t, "mass").map_err(|m| format!("{what}.{m}"))?;
         out.push(Skip { h: num("h")?, tau: num("tau")?, mass });
+    }
+    Ok(out)
+}
+
+/// `sweep.model`: names `run --model` takes, each once.
+fn models(sweep: &Table) -> std::result::Result<Vec<String>, String> {
+    let Some(v) = sweep.get("model") else { return Ok(Vec::new()) };
+    let Value::Array(a) = v else {
+        return Err(format!(
+            "sweep.model = {v} is impossible: a list of material models is expected"
+        ));
+    };
+    let mut out = Vec::new();
+    for x in a {
+        match x.as_str().and_then(Model::from_name) {
+            Some(m) => out.push(m.name().to_string()),
+            None => {
+                return Err(format!(
+                    "sweep.model contains {x}, which is unknown (allowed: {})",
+                    MODELS.join(", ")
+                ))
+            }
+        }
+    }
+    if out.is_empty() {
+        return Err("sweep.model is empty".into());
+    }
+    no_duplicates(&out, "sweep.model")?;
+    Ok(out)
+}
+
+/// The material models `sweep.model` takes (those of `run --model`).
+pub const MODELS: [&str; 3] = ["linear", "neo_hookean", "saint_venant_kirchhoff"];
+
+/// `amplitude_set`: scene keys and their templates, checked with the suite's substitution
+/// (a placeholder other than `{amplitude}` is an error); only together with
+/// `sweep.amplitude` (`swept`).
+fn amplitude_set(table: &Table, swept: bool) -> std::result::Result<Vec<(String, Value)>, String> {
+    let t = match table.get("amplitude_set") {
+        None if swept => {
+            return Err("sweep.amplitude needs amplitude_set (the scene keys it sets, e.g. \
+                amplitude_set = { \"initial.velocity\" = [\"0\", \"-{amplitude}\"] })"
+                .into())
+        }
+        None => return Ok(Vec::new()),
+        Some(Value::Table(t)) => t,
+        Some(v) => {
+            return Err(format!(
+                "amplitude_set = {v} is impossible: a table \"scene.key\" = TEMPLATE is expected"
+            ))
+        }
+    };
+    let mut out = Vec::new();
+    for (k, v) in t {
+        if k.is_empty() || k.split('.').any(str::is_empty) {
+            return Err(format!("amplitude_set.{k:?}: not a dotted scene key"));
+        }
+        // The templates with a trial value: what each point will do.
+        crate::suite::spec::value(k, v, &[("amplitude".to_string(), 1.0)])
+            .map_err(|m| format!("amplitude_set.{k}: {m}"))?;
+        out.push((k.clone(), v.clone()));
+    }
+    if out.is_empty() {
+        return Err("amplitude_set is empty".into());
+    }
+    if !swept {
+        return Err(format!(
+            "amplitude_set.{} is set but there is no sweep.amplitude (its values fill {{amplitude}})",
+            out[0].0
+        ));
     }
     Ok(out)
 }

@@ -53,6 +53,10 @@ pub struct Row {
     /// The study part (scene) of the row and its name (empty without parts).
     pub part: usize,
     pub part_name: String,
+    /// The material model (`sweep.model`; empty: the scene's) and the amplitude
+    /// (`sweep.amplitude`) of the row.
+    pub model: String,
+    pub amplitude: Option<f64>,
     pub measured: Option<Measured>,
     /// The one-line error of a failed point.
     pub failure: Option<String>,
@@ -61,6 +65,11 @@ pub struct Row {
     /// Contact scenes against a reference run: the total contact force's relative L2
     /// difference in time (err_l2 is the lowest node's pressure's).
     pub err_force: Option<f64>,
+    /// Against another model's run (`reference = { model }`): the relative nodal L2 difference
+    /// of the final displacement.
+    pub err_u: Option<f64>,
+    /// Against another model's run: this row's run_s over the reference run's.
+    pub time_ratio: Option<f64>,
     /// This row is the reference of its group (its error is zero by definition).
     pub is_reference: bool,
     pub rate_l2_h: Option<f64>,
@@ -193,6 +202,11 @@ pub struct Columns<'a> {
     pub force: bool,
     /// A first column naming the part (files with parts).
     pub part: bool,
+    /// The `model` and `amplitude` columns (`sweep.model`, `sweep.amplitude`).
+    pub model: bool,
+    pub amplitude: bool,
+    /// Rows against another model's run: `err_u` and `time_ratio`.
+    pub against_model: bool,
 }
 
 fn sci(x: Option<f64>) -> String {
@@ -234,10 +248,19 @@ fn header(c: &Columns) -> Vec<String> {
         "mass".into(),
         "solver".into(),
         "ranks".into(),
-        "err_l2".into(),
     ]);
+    if c.model {
+        h.push("model".into());
+    }
+    if c.amplitude {
+        h.push("amplitude".into());
+    }
+    h.push("err_l2".into());
     if c.force {
         h.push("err_force".into());
+    }
+    if c.against_model {
+        h.push("err_u".into());
     }
     if c.rate_h {
         h.push(format!("rate_l2_{}", c.h_name));
@@ -254,8 +277,11 @@ fn header(c: &Columns) -> Vec<String> {
             h.push("rate_h1_tau".into());
         }
     }
+    h.push("run_s".into());
+    if c.against_model {
+        h.push("time_ratio".into());
+    }
     for s in [
-        "run_s",
         "mesh_partition_s",
         "assembly_s",
         "setup_s",
@@ -314,10 +340,19 @@ fn cells(r: &Row, c: &Columns, md: bool) -> Vec<String> {
         m.map(|m| m.mass_kind.clone()).filter(|s| !s.is_empty()).unwrap_or_else(|| r.mass.clone()),
         r.solver.clone(),
         r.ranks.to_string(),
-        err(r.err_l2),
     ]);
+    if c.model {
+        v.push(r.model.clone());
+    }
+    if c.amplitude {
+        v.push(r.amplitude.map(|a| format!("{a}")).unwrap_or_default());
+    }
+    v.push(err(r.err_l2));
     if c.force {
         v.push(err(r.err_force));
+    }
+    if c.against_model {
+        v.push(err(r.err_u));
     }
     if c.rate_h {
         v.push(fix(r.rate_l2_h, 3));
@@ -336,6 +371,9 @@ fn cells(r: &Row, c: &Columns, md: bool) -> Vec<String> {
     }
     let f = |g: &dyn Fn(&Measured) -> f64, d: usize| fix(m.map(g), d);
     v.push(f(&|m| m.run_s, 3));
+    if c.against_model {
+        v.push(fix(r.time_ratio, 3));
+    }
     v.push(f(&|m| m.mesh_s + m.partition_s, 3));
     v.push(f(&|m| m.assembly_s, 3));
     v.push(f(&|m| m.setup_s, 3));

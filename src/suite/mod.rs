@@ -145,6 +145,7 @@ fn execute(spec: &Spec, binary: &Path) -> Result<Vec<Row>> {
             ranks: spec.ranks,
             tau: scene.as_ref().map_or(0.0, |s| s.2),
             single_episode: case.single_episode,
+            rank_tol: case.rank_tol,
             file: format!("runs/{}.h5", p.id),
             result: Err(String::new()),
         };

@@ -26,6 +26,8 @@
 //! rank_sweep = true                  # also run on the suite's rank_sweep counts
 //! rank_steps = 500                   # optional: compare the rank sweep's first 500 steps only
 //!                                    # (chaotic histories: round-off differences grow)
+//! rank_tol = 1e-6                    # optional: this case's rank tolerance (a solver whose own
+//!                                    # stopping test is looser than the suite's rank_tol)
 //! single_episode = true              # theory: one contact episode per node and impact with M_H
 //! [case.reduced]                     # with --reduced: replaces mass / sweep / petsc, merges
 //! skip = false                       # params and set; skip = true leaves the case out
@@ -82,6 +84,7 @@ struct RawCase {
     #[serde(default)]
     rank_sweep: bool,
     rank_steps: Option<usize>,
+    rank_tol: Option<f64>,
     #[serde(default)]
     single_episode: bool,
     reduced: Option<RawCaseReduced>,
@@ -128,6 +131,8 @@ pub struct Case {
     pub rank_sweep: bool,
     /// The rank sweep compares the first so many steps (all without).
     pub rank_steps: Option<usize>,
+    /// This case's rank tolerance (`None`: the suite's `rank_tol`).
+    pub rank_tol: Option<f64>,
     pub single_episode: bool,
 }
 
@@ -283,6 +288,12 @@ fn case(base: &Path, c: &RawCase) -> std::result::Result<Case, String> {
         petsc: c.petsc.clone().unwrap_or_default(),
         rank_sweep: c.rank_sweep,
         rank_steps: c.rank_steps,
+        rank_tol: match c.rank_tol {
+            Some(x) if !(x > 0.0 && x.is_finite()) => {
+                return Err(format!("rank_tol = {x} is impossible: a number > 0 is expected"))
+            }
+            t => t,
+        },
         single_episode: c.single_episode,
     })
 }
@@ -355,7 +366,11 @@ fn constant(s: &str, vars: &[(String, f64)]) -> std::result::Result<f64, String>
 /// A value of `set` with the variables put in: strings get `{var}` replaced, a string
 /// `"= expr"` becomes its number (rounded to a whole number >= 1 for the keys that count:
 /// `...steps`, `...every`).
-fn value(key: &str, v: &Value, vars: &[(String, f64)]) -> std::result::Result<Value, String> {
+pub(crate) fn value(
+    key: &str,
+    v: &Value,
+    vars: &[(String, f64)],
+) -> std::result::Result<Value, String> {
     Ok(match v {
         Value::String(s) => match s.trim_start().strip_prefix('=') {
             Some(e) => {

@@ -28,6 +28,8 @@ pub struct Row {
     /// The time step of the point's scene.
     pub tau: f64,
     pub single_episode: bool,
+    /// The case's own rank tolerance (`None`: the suite's).
+    pub rank_tol: Option<f64>,
     pub file: String,
     pub result: std::result::Result<Done, String>,
 }
@@ -72,7 +74,8 @@ impl Row {
         if !within(s.penetration, tol.penetration * s.body_size) {
             out.push("penetration");
         }
-        if d.ranks.iter().any(|(_, r)| !matches!(r, Ok(x) if *x <= tol.ranks)) {
+        let ranks = self.rank_tol.unwrap_or(tol.ranks);
+        if d.ranks.iter().any(|(_, r)| !matches!(r, Ok(x) if *x <= ranks)) {
             out.push("ranks");
         }
         out
@@ -89,6 +92,16 @@ impl Row {
             }
         }
         out
+    }
+
+    /// The constitutive model of the run: the finite-strain model of `[material]` as the
+    /// run's effects line names it, `per body` when only `[[body]]` tables choose finite
+    /// strain, else `linear` (empty for a failed run).
+    pub fn model(&self) -> String {
+        match &self.result {
+            Ok(d) => model_of(&d.summary),
+            Err(_) => String::new(),
+        }
     }
 
     pub fn mass_kind(&self) -> String {
@@ -136,6 +149,16 @@ impl Row {
     }
 }
 
+/// The model a run's summary names ([`Row::model`]).
+fn model_of(s: &RunSummary) -> String {
+    let named = s.effects.split("elasticity (finite strain, ").nth(1);
+    match named.and_then(|rest| rest.split(')').next()) {
+        Some(m) => m.to_string(),
+        None if s.newton.is_some() => "per body".into(),
+        None => "linear".into(),
+    }
+}
+
 fn e(x: f64) -> String {
     if x == 0.0 {
         "0".into()
@@ -151,10 +174,11 @@ fn f2(x: f64) -> String {
 }
 
 /// The CSV columns (one line per run; the tests read them by name).
-pub const CSV_COLUMNS: [&str; 41] = [
+pub const CSV_COLUMNS: [&str; 42] = [
     "case",
     "group",
     "variant",
+    "model",
     "mass",
     "ranks",
     "dofs",
@@ -213,6 +237,7 @@ pub fn csv(rows: &[Row], tol: Tolerances) -> String {
             r.case.clone(),
             r.group.clone(),
             r.variant.clone(),
+            r.model(),
             r.mass_kind(),
             r.ranks.to_string(),
         ];
@@ -262,7 +287,7 @@ pub fn csv(rows: &[Row], tol: Tolerances) -> String {
             Err(msg) => {
                 f.extend(["".into(), "".into(), "".into(), "".into(), "error".into()]);
                 f.push(format!("error: {msg}"));
-                f.extend(std::iter::repeat_n(String::new(), CSV_COLUMNS.len() - 12));
+                f.extend(std::iter::repeat_n(String::new(), CSV_COLUMNS.len() - 13));
             }
         }
         f.push(r.file.clone());
@@ -277,9 +302,9 @@ pub fn csv(rows: &[Row], tol: Tolerances) -> String {
 pub fn markdown(rows: &[Row], tol: Tolerances) -> String {
     let mut out = String::new();
     out.push_str(
-        "| case | variant | mass | DOFs | steps | CFL | status | energy rise | loss | impacts | loss / impact | penetration / size | osc2 p | TV p | osc2 F | TV F | episodes / impact max (mean) | PDAS mean / max | KSP mean / max | rank diff | wall s | stepping ms/step | KSP its, time vs M |\n",
+        "| case | variant | model | mass | DOFs | steps | CFL | status | energy rise | loss | impacts | loss / impact | penetration / size | osc2 p | TV p | osc2 F | TV F | episodes / impact max (mean) | PDAS mean / max | KSP mean / max | rank diff | wall s | stepping ms/step | KSP its, time vs M |\n",
     );
-    out.push_str(&"|---".repeat(23));
+    out.push_str(&"|---".repeat(24));
     out.push_str("|\n");
     for r in rows {
         let fails = r.failures(tol);
@@ -292,7 +317,7 @@ pub fn markdown(rows: &[Row], tol: Tolerances) -> String {
         if !flags.is_empty() {
             status.push_str(&format!(" [{}]", flags.join(", ")));
         }
-        let head = format!("| {} | {} | {} ", r.case, r.variant, r.mass_kind());
+        let head = format!("| {} | {} | {} | {} ", r.case, r.variant, r.model(), r.mass_kind());
         match &r.result {
             Ok(d) => {
                 let s = &d.stability;
@@ -350,9 +375,9 @@ fn cfl(x: f64) -> String {
 /// One line per case: its runs, failures and the extremes of the metrics over its runs.
 pub fn case_summary(rows: &[Row], tol: Tolerances) -> String {
     let mut out = String::from(
-        "| group | case | runs | failed | largest energy rise | largest loss / impact (mass) | largest penetration / size | osc2 F: M, lumped / M_H (largest) | episodes / impact max: M, lumped / M_H | flicker (M_H runs) | rank diff | wall s | cost M_H / M: KSP its (time), largest |\n",
+        "| group | case | model | runs | failed | largest energy rise | largest loss / impact (mass) | largest penetration / size | osc2 F: M, lumped / M_H (largest) | episodes / impact max: M, lumped / M_H | flicker (M_H runs) | rank diff | wall s | cost M_H / M: KSP its (time), largest |\n",
     );
-    out.push_str(&"|---".repeat(13));
+    out.push_str(&"|---".repeat(14));
     out.push_str("|\n");
     let mut names: Vec<&str> = Vec::new();
     for r in rows {
@@ -391,6 +416,12 @@ pub fn case_summary(rows: &[Row], tol: Tolerances) -> String {
             .filter_map(|r| r.rank_diff())
             .fold(None, |a: Option<f64>, b| Some(a.map_or(b, |a| a.max(b))));
         let wall: f64 = done.iter().map(|(_, d)| d.process_s).sum();
+        let mut models: Vec<String> = Vec::new();
+        for (r, _) in &done {
+            if !models.contains(&r.model()) {
+                models.push(r.model());
+            }
+        }
         let costs: Vec<(f64, f64)> = rs.iter().filter_map(|r| r.cost_to_m(rows)).collect();
         let cost = if costs.is_empty() {
             "-".to_string()
@@ -400,8 +431,9 @@ pub fn case_summary(rows: &[Row], tol: Tolerances) -> String {
             format!("{its:.2} ({time:.2})")
         };
         out.push_str(&format!(
-            "| {} | {name} | {} | {} | {} | {loss} | {} | {} | {} | {} | {} | {:.0} | {cost} |\n",
+            "| {} | {name} | {} | {} | {} | {} | {loss} | {} | {} | {} | {} | {} | {:.0} | {cost} |\n",
             rs[0].group,
+            if models.is_empty() { "-".to_string() } else { models.join(", ") },
             rs.len(),
             if failed == 0 { "0".to_string() } else { format!("**{failed}**") },
             e(max(&|d| d.stability.energy_rise)),
@@ -432,6 +464,7 @@ mod tests {
             ranks: 2,
             tau: 1e-3,
             single_episode: true,
+            rank_tol: None,
             file: String::new(),
             result: Ok(Done { summary, stability, process_s: 1.0, ranks: Vec::new() }),
         }

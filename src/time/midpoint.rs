@@ -592,6 +592,7 @@ impl Midpoint {
                         step: n + 1,
                         time: t_next,
                         tau: self.tau,
+                        linearization: false,
                     })
                     .map_err(with_step)?;
                 Ok((its, Some(c)))

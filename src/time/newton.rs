@@ -93,6 +93,41 @@ pub struct NewtonStats {
     pub tangent_evaluations: usize,
     #[serde(default)]
     pub tangent_seconds: f64,
+    /// Time steps with a node in contact at their end: their Newton iterations (every solve
+    /// of the step, the energy correction's too) and wall seconds; and the same of the steps
+    /// without (plain Newton steps), for the cost of a contact step.
+    #[serde(default)]
+    pub contact_steps: usize,
+    #[serde(default)]
+    pub contact_iterations: usize,
+    #[serde(default)]
+    pub contact_seconds: f64,
+    #[serde(default)]
+    pub plain_steps: usize,
+    #[serde(default)]
+    pub plain_iterations: usize,
+    #[serde(default)]
+    pub plain_seconds: f64,
+    /// Newton iterations whose contact active set cycled on the linearization and was taken
+    /// as it was (the next iteration linearizes anew).
+    #[serde(default)]
+    pub cycled: usize,
+}
+
+impl NewtonStats {
+    /// Books one time step: `contact` whether a node is in contact at its end, its Newton
+    /// iterations and wall seconds.
+    pub fn book_step(&mut self, contact: bool, iterations: usize, seconds: f64) {
+        if contact {
+            self.contact_steps += 1;
+            self.contact_iterations += iterations;
+            self.contact_seconds += seconds;
+        } else {
+            self.plain_steps += 1;
+            self.plain_iterations += iterations;
+            self.plain_seconds += seconds;
+        }
+    }
 }
 
 /// One step's result.
@@ -473,9 +508,14 @@ impl Newton {
                 let last: Vec<String> =
                     history.iter().rev().take(3).rev().map(|x| format!("{x:.3e}")).collect();
                 return Err(Error::Solver(format!(
-                    "{}: Newton did not converge in {} iterations; the largest residual is in {body} ({worst:.3e}); last residuals {} against {:.3e} (-newton_rtol {:e}), energy error {:.3e} of the energy (-newton_energy_rtol {:e}); try a smaller tau or -newton_max_it",
+                    "{}: Newton did not converge in {} iterations{}; the largest residual is in {body} ({worst:.3e}); last residuals {} against {:.3e} (-newton_rtol {:e}), energy error {:.3e} of the energy (-newton_energy_rtol {:e}); try a smaller tau or -newton_max_it",
                     where_(&s),
                     opts.max_it,
+                    if report.as_ref().is_some_and(|r| r.cycled) {
+                        " (the contact active set cycled on the last linearization)"
+                    } else {
+                        ""
+                    },
                     last.join(", "),
                     opts.rtol * scale,
                     opts.rtol,
@@ -508,7 +548,12 @@ impl Newton {
                 if let Some(solver) = contact.as_deref_mut() {
                     let (rep, its) = self.contact_iteration(&mut s, solver, iterations)?;
                     ksp_iterations += its;
-                    set_repeated = report.as_ref().is_some_and(|r| r.row.active == rep.row.active);
+                    // A set taken from a cycle is not settled: another iteration.
+                    set_repeated = !rep.cycled
+                        && report.as_ref().is_some_and(|r| r.row.active == rep.row.active);
+                    if rep.cycled {
+                        self.stats.cycled += 1;
+                    }
                     report = Some(rep);
                     iterations += 1;
                     halvings = 0;
@@ -568,6 +613,7 @@ impl Newton {
             step: s.step,
             time: s.time,
             tau: s.tau,
+            linearization: true,
         };
         let solved = solver.solve(system);
         let (rep, its) = solved.map_err(|e| in_iteration(e, s, iterations))?;

@@ -2,6 +2,7 @@
 //! mpirun, and reading back summaries and HDF5 output.
 #![allow(dead_code)]
 
+use std::collections::HashMap;
 use std::os::unix::process::CommandExt;
 use std::path::{Path, PathBuf};
 use std::process::{Child, ChildStdout, Command, ExitStatus, Output};
@@ -559,4 +560,30 @@ impl Rng {
         self.0 = x;
         (x.wrapping_mul(0x2545_f491_4f6c_dd1d) >> 11) as f64 / (1u64 << 53) as f64
     }
+}
+
+/// A study's `results.csv` as one map column -> value per row.
+pub fn read_csv(path: &Path) -> Vec<HashMap<String, String>> {
+    let t = std::fs::read_to_string(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    let mut lines = t.lines();
+    let head: Vec<String> = lines.next().unwrap().split(',').map(str::to_string).collect();
+    lines
+        .map(|l| {
+            // Only the last column (status) may hold commas, quoted.
+            let mut cells: Vec<String> = Vec::new();
+            let mut rest = l;
+            while cells.len() + 1 < head.len() {
+                let (a, b) = rest.split_once(',').unwrap_or((rest, ""));
+                cells.push(a.to_string());
+                rest = b;
+            }
+            cells.push(rest.trim_matches('"').replace("\"\"", "\""));
+            head.iter().cloned().zip(cells).collect()
+        })
+        .collect()
+}
+
+/// A number of a study's CSV row.
+pub fn num(row: &HashMap<String, String>, key: &str) -> f64 {
+    row[key].parse().unwrap_or_else(|_| panic!("{key} = {:?} in {row:?}", row[key]))
 }

@@ -554,7 +554,7 @@ impl MortarActiveSet<'_> {
     /// One solve of the active set on the interface as it stands: the basis changes around
     /// the inner solver, and the master side's forces.
     fn round(&mut self, sys: StepSystem<'_>) -> Result<(StepContact, usize)> {
-        let StepSystem { ksp, rhs, u, du, step, time, tau, .. } = sys;
+        let StepSystem { ksp, rhs, u, du, step, time, tau, linearization, .. } = sys;
         // A node with no master under it any more cannot stay in contact.
         let nodes = self.inner.nodes_mut();
         if let Some(planes) = nodes.node_planes.as_ref() {
@@ -591,6 +591,7 @@ impl MortarActiveSet<'_> {
             step,
             time,
             tau,
+            linearization,
         };
         let (mut out, its) = self.inner.solve(inner)?;
         let t2 = std::time::Instant::now();

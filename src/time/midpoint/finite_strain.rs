@@ -107,6 +107,7 @@ impl Midpoint {
         forces: &dyn Forces,
         mut contact: Option<&mut (dyn ContactSolver + 'c)>,
     ) -> Result<StepReport> {
+        let started = std::time::Instant::now();
         let tau = self.tau;
         let t_next = self.time_at(n + 1);
         let (loads, varying) = (forces.present(), forces.time_dependent());
@@ -223,6 +224,10 @@ impl Midpoint {
         self.after_step_layer(loaded, loads && varying)?;
         self.f_sum = Some(f_sum);
         self.increments += 1;
+        let touching = step.contact.as_ref().is_some_and(|c| c.row.active.iter().any(|&a| a));
+        if let Some(newton) = self.newton.as_mut() {
+            newton.stats.book_step(touching, iterations, started.elapsed().as_secs_f64());
+        }
         Ok(StepReport {
             time: t_next,
             ksp_iterations,

@@ -25,7 +25,7 @@ impl MortarActiveSet<'_> {
     /// more (`geometry_tol`). While no node is active or about to be, the interface is
     /// re-evaluated only as the update distance says, like the frozen one's approach.
     pub(super) fn solve_following(&mut self, sys: StepSystem<'_>) -> Result<(StepContact, usize)> {
-        let StepSystem { k, ksp, rhs, u, du, step, time, tau } = sys;
+        let StepSystem { k, ksp, rhs, u, du, step, time, tau, linearization } = sys;
         const MAX_ROUNDS: usize = 100;
         // A step solved again (the energy correction) starts from its shifts, unless a node
         // lost its master (its plane is gone: the step starts afresh).
@@ -91,8 +91,17 @@ impl MortarActiveSet<'_> {
             }
             let applied = self.rest.clone();
             self.load_rest()?;
-            let sys =
-                StepSystem { k: &mut *k, ksp: &mut *ksp, rhs, u, du: &mut *du, step, time, tau };
+            let sys = StepSystem {
+                k: &mut *k,
+                ksp: &mut *ksp,
+                rhs,
+                u,
+                du: &mut *du,
+                step,
+                time,
+                tau,
+                linearization,
+            };
             let (mut out, n) = self.round(sys)?;
             its += n;
             if !out.row.active.iter().any(|&a| a) {
