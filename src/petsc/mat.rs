@@ -364,6 +364,20 @@ impl Matrix {
         Matrix::from_raw(c)
     }
 
+    /// `c = P^T A P` again, in place: `c` came from [`Matrix::ptap`] of a matrix with this
+    /// one's nonzero pattern and the same `P` (PETSc's `MatPtAP` with `MAT_REUSE_MATRIX`: the
+    /// numeric part only; values written into `c` since are overwritten).
+    pub fn ptap_into(&self, p: &Matrix, c: &mut Matrix) -> Result<()> {
+        // SAFETY: valid assembled handles; `c.m` is the product's own handle, updated in place.
+        chk!(ffi::MatPtAP(
+            self.m,
+            p.m,
+            ffi::MatReuse_MAT_REUSE_MATRIX,
+            ffi::PETSC_DEFAULT as f64,
+            &mut c.m
+        ))
+    }
+
     /// `z = y + A x`.
     pub fn mult_add(&self, x: &Vector, y: &Vector, z: &mut Vector) -> Result<()> {
         // SAFETY: valid handles; `z` is distinct from `x` (PETSc allows z == y, not needed).

@@ -6,7 +6,7 @@
 //! substitution, [`crate::suite::spec::value`]). With `reference = { model = M }` every row is
 //! compared with the run of model `M` at the same point otherwise (amplitude, h, tau, mass
 //! kind, solver): the contact histories as against any reference run ([`super::reference`]),
-//! the final displacement field ([`super::fieldnorm`]) and the run time (`time_ratio`). The
+//! the final displacement field ([`super::fieldnorm`]) and the stepping time (`time_ratio`). The
 //! plots `difference_amplitude.png` and `cost_amplitude.png` show both against the amplitude.
 
 use std::path::{Path, PathBuf};

@@ -124,6 +124,10 @@ pub struct MortarActiveSet<'w> {
     /// The step operator is a finite-strain tangent (replaced every Newton iteration,
     /// unsymmetric): `T^T K T` is not marked symmetric.
     tangent: bool,
+    /// The step operator and the `T` that `T^T K T` was last computed from (`T` replaced:
+    /// `None`): with both unchanged a Newton iteration's tangent refills the product in place
+    /// (`MatPtAP`'s numeric part on its symbolic one).
+    product_of: Option<crate::petsc::ffi::Mat>,
 }
 
 /// How the pair's interface moves with the bodies.
@@ -272,6 +276,7 @@ impl<'w> MortarActiveSet<'w> {
             rows_enabled: options.gap_rows,
             d_evaluated: d_at_contact_nodes(&iface, &slots, nodes_len),
             tangent: false,
+            product_of: None,
             factor,
             inner: ActiveSet::new(nodes, factor),
             pair,
@@ -490,6 +495,7 @@ impl MortarActiveSet<'_> {
         self.inner.nodes_mut().node_planes = Some(self.shifted_planes());
         // Without rows (frozen, or no active node) the main terms in every component, as the
         // frozen interface has them.
+        self.product_of = None;
         (self.e, self.t) = match !self.rows_enabled || self.mode == InterfaceMode::Frozen {
             false => (
                 rows::transfer_following(&self.pair.part, &iface, &self.gap_rows, false)?,
@@ -511,6 +517,20 @@ impl MortarActiveSet<'_> {
 
     /// `T^T K T`, the constraints on it, and the solver's operators.
     fn rebuild(&mut self, k: &Matrix) -> Result<()> {
+        // A finite-strain tangent on the same step operator and basis change: the product's
+        // pattern is the last one's (the constraints only write values within it).
+        if let Some(h) =
+            self.hat.as_mut().filter(|_| self.tangent && self.product_of == Some(k.raw()))
+        {
+            k.ptap_into(&self.t, &mut h.k)?;
+            h.k.set_option_symmetric(false)?;
+            self.inner.prepare(&h.k)?;
+            if let Some(ksp) = h.ksp.as_mut() {
+                ksp.set_operators(&h.k, &h.k)?;
+            }
+            return Ok(());
+        }
+        self.product_of = Some(k.raw());
         let mut k_hat = k.ptap(&self.t)?;
         k_hat.set_option_symmetric(!self.tangent)?;
         self.inner.prepare(&k_hat)?;
