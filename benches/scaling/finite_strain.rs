@@ -171,14 +171,19 @@ pub fn contact_section(repo: &Path, dir: &Path, quick: bool) -> String {
                 )
             },
         );
+        // "-" where a run has no steps of a kind (the ironing is in contact throughout).
+        let f2 = |x: f64| if x.is_finite() { format!("{x:.2}") } else { "-".to_string() };
         md += &format!(
-            "| {label} | {r} | {} | {} | {} | {:.2} | {:.2} | {active_set:.2} | {interface} | {cms:.2} | {pms:.2} | {:.2} | {} |\n",
+            "| {label} | {r} | {} | {} | {} | {} | {} | {} | {interface} | {} | {} | {} | {} |\n",
             f.n_dofs,
             f.steps,
             nw.contact_steps,
-            per(nw.contact_iterations as f64, nw.contact_steps),
-            per(nw.plain_iterations as f64, nw.plain_steps),
-            cms / pms,
+            f2(per(nw.contact_iterations as f64, nw.contact_steps)),
+            f2(per(nw.plain_iterations as f64, nw.plain_steps)),
+            f2(active_set),
+            f2(cms),
+            f2(pms),
+            f2(cms / pms),
             nw.cycled,
         );
     }
