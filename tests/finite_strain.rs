@@ -80,8 +80,11 @@ fn a_spinning_square_keeps_its_energy_angular_momentum_and_size_with_every_mass(
     // Between the rim strains of the inscribed and the circumscribed disc: the square's mean
     // side stretch, about which it breathes (it starts unstressed: up to twice as far).
     let (inner, outer) = (rim_strain(omega, 0.5), rim_strain(omega, 0.5f64.sqrt()));
-    for mass in ["consistent", "modified0", "modified1"] {
-        let s = run_scene(2, &scene, &["--mass", mass]);
+    // The consistent mass on 2 ranks, the layer's on 1: 10^4 steps of a small body are
+    // latency-bound on 2 ranks beside another test (the physics is the test here; rank-count
+    // independence is tested elsewhere).
+    for (mass, ranks) in [("consistent", 2), ("modified0", 1), ("modified1", 1)] {
+        let s = run_scene(ranks, &scene, &["--mass", mass]);
         assert!(s.energy_drift < 1e-10, "{mass}: energy drift {:e}", s.energy_drift);
         let (l0, l1) = (s.angular_momentum_initial[2], s.angular_momentum_final[2]);
         assert!(rel_diff(l0, l1) < 1e-10, "{mass}: angular momentum {l0} -> {l1}");
@@ -89,7 +92,7 @@ fn a_spinning_square_keeps_its_energy_angular_momentum_and_size_with_every_mass(
         assert!(s.rotations[0].degrees > 179.0, "{mass}: {:?}", s.rotations);
         let newton = s.newton.expect("Newton statistics");
         assert_eq!(newton.steps, 10_000);
-        let sides = side_lengths(&dir.join("spin-2.h5"));
+        let sides = side_lengths(&dir.join(format!("spin-{ranks}.h5")));
         assert_eq!(sides.len(), 101);
         for k in 0..4 {
             let stretch: Vec<f64> = sides.iter().map(|s| s[k] - 1.0).collect();

@@ -353,6 +353,28 @@ impl Matrix {
     /// `P^T A P` as a new matrix (`A` = self, square; PETSc's `MatPtAP`).
     pub fn ptap(&self, p: &Matrix) -> Result<Matrix> {
         let mut c: ffi::Mat = ptr::null_mut();
+        // Distributed: PETSc's "backend" product (local sequential products assembled by
+        // COO), whose numeric part is the cheap one (the oblique 3D balls' `T^T K T`
+        // rebuilds: 2.5 -> 1.8 s, the plain Newton steps of a pair a quarter faster).
+        if self.type_name()? == "mpiaij" && p.type_name()? == "mpiaij" {
+            // SAFETY: valid assembled handles; `c` is an out-pointer, then the product matrix,
+            // set up in PETSc's documented order (type, algorithm, fill, options, symbolic,
+            // numeric); the algorithm's name is a static C string.
+            chk!(ffi::MatProductCreate(self.m, p.m, ptr::null_mut(), &mut c))?;
+            let mut c = Matrix { m: c, range: (0, 0), size: (0, 0) }; // freed on an error
+            chk!(ffi::MatProductSetType(c.m, ffi::MatProductType_MATPRODUCT_PtAP))?;
+            chk!(ffi::MatProductSetAlgorithm(c.m, c"backend".as_ptr()))?;
+            chk!(ffi::MatProductSetFill(c.m, ffi::PETSC_DEFAULT as f64))?;
+            chk!(ffi::MatProductSetFromOptions(c.m))?;
+            // (Its rows keep P's node blocks, which GAMG aggregates by: without them the
+            // friction test's step took 4 times the iterations.)
+            let bs = p.block_size()? as i32;
+            chk!(ffi::MatSetBlockSizes(c.m, bs, bs))?;
+            chk!(ffi::MatProductSymbolic(c.m))?;
+            chk!(ffi::MatProductNumeric(c.m))?;
+            c.read_layout()?;
+            return Ok(c);
+        }
         // SAFETY: valid assembled handles; `c` is an out-pointer (MAT_INITIAL_MATRIX).
         chk!(ffi::MatPtAP(
             self.m,

@@ -416,7 +416,7 @@ impl Newton {
         }
         let mut history: Vec<f64> = Vec::new();
         let mut report: Option<StepContact> = None;
-        let mut set_repeated = false;
+        let mut set_settled = false;
         // The tangent is evaluated with the force where it will be needed: at the first
         // guess, unless the last step needed no correction or a kept tangent is used. `fresh`:
         // the last evaluation has the tangent at the current iterate.
@@ -485,8 +485,10 @@ impl Newton {
             let stalled = history.len() >= 2 && norm > 0.5 * history[history.len() - 2];
             let floor = at_floor && (energy_ok || stalled);
             let converged = ((norm <= opts.rtol * scale && energy_ok) || floor)
-                // With contact: at least one constrained solve, and its active set repeated.
-                && (!with_contact || (iterations > 0 && set_repeated));
+                // With contact: at least one constrained solve whose active set settled (its
+                // inner loop converged on the linearization at the iterate before; with the
+                // residual in tolerance that is the set of the iterate itself).
+                && (!with_contact || (iterations > 0 && set_settled));
             if converged {
                 self.stats.steps += 1;
                 self.stats.last = iterations;
@@ -549,8 +551,7 @@ impl Newton {
                     let (rep, its) = self.contact_iteration(&mut s, solver, iterations)?;
                     ksp_iterations += its;
                     // A set taken from a cycle is not settled: another iteration.
-                    set_repeated = !rep.cycled
-                        && report.as_ref().is_some_and(|r| r.row.active == rep.row.active);
+                    set_settled = !rep.cycled;
                     if rep.cycled {
                         self.stats.cycled += 1;
                     }

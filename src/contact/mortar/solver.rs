@@ -125,9 +125,12 @@ pub struct MortarActiveSet<'w> {
     /// unsymmetric): `T^T K T` is not marked symmetric.
     tangent: bool,
     /// The step operator and the `T` that `T^T K T` was last computed from (`T` replaced:
-    /// `None`): with both unchanged a Newton iteration's tangent refills the product in place
-    /// (`MatPtAP`'s numeric part on its symbolic one).
+    /// `None`; a `T` of the same pattern is copied into the old one): with both unchanged a
+    /// Newton iteration's tangent refills the product in place (`MatPtAP`'s numeric part on
+    /// its symbolic one).
     product_of: Option<crate::petsc::ffi::Mat>,
+    /// A fingerprint of this rank's rows of `T`'s nonzero pattern.
+    t_pattern: u64,
 }
 
 /// How the pair's interface moves with the bodies.
@@ -277,6 +280,7 @@ impl<'w> MortarActiveSet<'w> {
             d_evaluated: d_at_contact_nodes(&iface, &slots, nodes_len),
             tangent: false,
             product_of: None,
+            t_pattern: 0,
             factor,
             inner: ActiveSet::new(nodes, factor),
             pair,
@@ -426,6 +430,19 @@ fn basis_change(
     Ok(m)
 }
 
+/// A fingerprint of the nonzero pattern of this rank's rows of `m` (equal patterns, equal
+/// fingerprints; different ones collide with probability 2^-64).
+fn pattern_of(m: &Matrix) -> Result<u64> {
+    use std::hash::{Hash, Hasher};
+    let mut h = std::collections::hash_map::DefaultHasher::new();
+    let (lo, hi) = m.ownership_range();
+    for r in lo..hi {
+        m.with_row(r, |cols, _| cols.hash(&mut h))?;
+    }
+    (lo, hi).hash(&mut h);
+    Ok(h.finish())
+}
+
 /// A solver for `k` configured like `like` (type, preconditioner, tolerance), then the
 /// command line's `-step_` options, as the step operator's own.
 fn ksp_like(k: &Matrix, like: &Ksp) -> Result<Ksp> {
@@ -495,8 +512,7 @@ impl MortarActiveSet<'_> {
         self.inner.nodes_mut().node_planes = Some(self.shifted_planes());
         // Without rows (frozen, or no active node) the main terms in every component, as the
         // frozen interface has them.
-        self.product_of = None;
-        (self.e, self.t) = match !self.rows_enabled || self.mode == InterfaceMode::Frozen {
+        let (e, t) = match !self.rows_enabled || self.mode == InterfaceMode::Frozen {
             false => (
                 rows::transfer_following(&self.pair.part, &iface, &self.gap_rows, false)?,
                 rows::transfer_following(&self.pair.part, &iface, &self.gap_rows, true)?,
@@ -510,6 +526,26 @@ impl MortarActiveSet<'_> {
         self.d_evaluated = d_at_contact_nodes(&iface, &slots, n_nodes);
         self.couplings = couplings(&iface, &slots);
         self.master = iface.master;
+        // A basis change of the last one's pattern (the same slave-master couplings: the
+        // interface moved within its facets) goes into the last one's matrix: the product
+        // `T^T K T` keeps its symbolic part (PETSc reuses a product for its own `P` only).
+        let pattern = pattern_of(&t)?;
+        let same = i32::from(pattern == self.t_pattern);
+        let mut all = 0i32;
+        mpi::traits::CommunicatorCollectives::all_reduce_into(
+            self.inner.nodes().world,
+            &same,
+            &mut all,
+            mpi::collective::SystemOperation::min(),
+        );
+        if all == 1 {
+            self.t.copy_values_from(&t)?;
+        } else {
+            self.t = t;
+            self.product_of = None;
+        }
+        self.e = e;
+        self.t_pattern = pattern;
         self.rebuild(k)?;
         self.cost.operator_seconds += t0.elapsed().as_secs_f64() - rows_seconds;
         Ok(())
@@ -519,12 +555,10 @@ impl MortarActiveSet<'_> {
     fn rebuild(&mut self, k: &Matrix) -> Result<()> {
         // A finite-strain tangent on the same step operator and basis change: the product's
         // pattern is the last one's (the constraints only write values within it).
-        if let Some(h) =
-            self.hat.as_mut().filter(|_| self.tangent && self.product_of == Some(k.raw()))
-        {
+        if let Some(h) = self.hat.as_mut().filter(|_| self.product_of == Some(k.raw())) {
             k.ptap_into(&self.t, &mut h.k)?;
-            h.k.set_option_symmetric(false)?;
-            self.inner.prepare(&h.k)?;
+            h.k.set_option_symmetric(!self.tangent)?;
+            self.inner.operator_replaced(&h.k)?;
             if let Some(ksp) = h.ksp.as_mut() {
                 ksp.set_operators(&h.k, &h.k)?;
             }
