@@ -553,8 +553,9 @@ impl MortarActiveSet<'_> {
 
     /// `T^T K T`, the constraints on it, and the solver's operators.
     fn rebuild(&mut self, k: &Matrix) -> Result<()> {
-        // A finite-strain tangent on the same step operator and basis change: the product's
-        // pattern is the last one's (the constraints only write values within it).
+        // The same step operator (a finite-strain tangent refilled in place, or the linear
+        // one) and a basis change of the last one's pattern: the product's pattern is the
+        // last one's (the constraints only write values within it).
         if let Some(h) = self.hat.as_mut().filter(|_| self.product_of == Some(k.raw())) {
             k.ptap_into(&self.t, &mut h.k)?;
             h.k.set_option_symmetric(!self.tangent)?;
