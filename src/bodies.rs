@@ -22,7 +22,7 @@ use crate::mesh::topology::boundary_group;
 use crate::mesh::Mesh;
 use crate::partition::surface::Surface;
 use crate::partition::Partition;
-use crate::scene::{MassKind, MaterialSpec, Scene};
+use crate::scene::{Formulation, MassKind, MaterialSpec, Scene};
 use crate::time::Regime;
 use mpi::collective::SystemOperation;
 use mpi::topology::SimpleCommunicator;
@@ -106,7 +106,10 @@ impl Bodies {
                 name,
                 group,
                 spec,
-                material: Material::from_young_poisson(spec.e, spec.nu, spec.rho),
+                material: Material {
+                    mean_dilatation: spec.formulation == Formulation::Mixed,
+                    ..Material::from_young_poisson(spec.e, spec.nu, spec.rho)
+                },
                 mass,
                 mass_given: given,
                 n_cells: 0,
@@ -122,6 +125,7 @@ impl Bodies {
         if scene.bodies.is_empty() {
             let mut n = vec![(0..mesh.cells.len()).filter(|&c| own(c)).count() as u64];
             sum(&mut n);
+            mixed_on_tensor_cells(&regions, mesh, own, &|_| 0, sum).map_err(fail)?;
             regions[0].n_cells = n[0] as usize;
             let kind = scene.mass.kind;
             let layer = (kind.is_modified() && !groups.is_empty()).then_some((kind, groups));
@@ -189,6 +193,8 @@ impl Bodies {
             }
         }
         sum(&mut counts);
+        mixed_on_tensor_cells(&regions, mesh, own, &|c| cell_region[c] as usize, sum)
+            .map_err(fail)?;
         for (reg, &n) in regions.iter_mut().zip(&counts) {
             reg.n_cells = n as usize;
         }
@@ -395,6 +401,33 @@ impl Bodies {
             }
         }
         worst.expect("a mesh has cells")
+    }
+}
+
+/// The mixed (mean-dilatation) formulation is built for quadrilaterals and hexahedra: a region
+/// with it must have no triangles or tetrahedra on any rank. Collective (`sum` adds over the
+/// ranks).
+fn mixed_on_tensor_cells(
+    regions: &[Region],
+    mesh: &Mesh,
+    own: &dyn Fn(usize) -> bool,
+    region_of: &dyn Fn(usize) -> usize,
+    sum: &dyn Fn(&mut Vec<u64>),
+) -> std::result::Result<(), String> {
+    let mut simplices = vec![0u64; regions.len()];
+    for (c, cell) in mesh.cells.iter().enumerate() {
+        let r = region_of(c);
+        if own(c) && regions[r].material.mean_dilatation && cell.kind.is_simplex() {
+            simplices[r] += 1;
+        }
+    }
+    sum(&mut simplices);
+    match simplices.iter().position(|&n| n > 0) {
+        Some(r) => Err(format!(
+            "{}: formulation = \"mixed\" needs quadrilaterals or hexahedra, and {} of its cells are triangles or tetrahedra",
+            regions[r].name, simplices[r]
+        )),
+        None => Ok(()),
     }
 }
 

@@ -60,6 +60,11 @@ impl ElementKind {
         }
     }
     /// Topological dimension.
+    /// Triangles and tetrahedra (constant strain in the linear elements).
+    pub fn is_simplex(self) -> bool {
+        matches!(self, ElementKind::Tri3 | ElementKind::Tet4)
+    }
+
     pub fn dim(self) -> usize {
         match self {
             ElementKind::Point1 => 0,

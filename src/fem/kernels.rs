@@ -33,6 +33,10 @@ pub struct Material {
     pub lambda: f64,
     pub mu: f64,
     pub rho: f64,
+    /// The mean-dilatation (Q1/P0) form of quadrilaterals and hexahedra: the volumetric strain
+    /// of the `lambda` term is its cell average, the constant pressure `p = lambda theta_bar`
+    /// condensed cell by cell (`formulation = "mixed"`; [`stiffness`]).
+    pub mean_dilatation: bool,
 }
 
 impl Material {
@@ -45,6 +49,7 @@ impl Material {
             lambda: e * nu / ((1.0 + nu) * (1.0 - 2.0 * nu)),
             mu: e / (2.0 * (1.0 + nu)),
             rho,
+            mean_dilatation: false,
         }
     }
 
@@ -159,6 +164,17 @@ pub(super) fn inverted(kind: ElementKind, det: f64, q: usize) -> Error {
 /// on Line2/Quad4/Hex8 (exact on parallelograms/parallelepipeds; full integration on
 /// distorted elements). `out` has length >= (n d)^2 and is overwritten (row-major).
 ///
+/// With `mat.mean_dilatation` (quadrilaterals and hexahedra; ignored on simplices, whose
+/// strain is constant) the `lambda` term takes the cell's mean dilatation instead
+/// (B-bar, the Q1/P0 element with its pressure condensed):
+///
+/// K[(a d + i), (b d + j)] = lambda / |K| b_a,i b_b,j + (the two mu terms),
+/// b_a = int_K grad N_a dx,
+///
+/// the stiffness of the energy `int_K mu eps:eps dx + lambda/2 |K| theta_bar^2`,
+/// `theta_bar = 1/|K| int_K div u dx`: one volumetric constraint per cell instead of one per
+/// quadrature point, so no locking as `lambda/mu` grows.
+///
 /// Errors: `Error::Mesh("inverted or degenerate <kind> ...")` if det J <= 0 (or NaN) at a
 /// quadrature point; `out` then holds garbage.
 pub fn stiffness(
@@ -208,6 +224,20 @@ fn stiffness_impl<const N: usize, const D: usize, const Q: usize>(
             }
         }
     }
+    // Mean dilatation: b_a = int grad N_a and |K|.
+    let mean = mat.mean_dilatation && Q > 1;
+    let mut b_int = [[0.0f64; 3]; N];
+    let mut volume = 0.0;
+    if mean {
+        for q in 0..Q {
+            volume += t.w[q] * jacobian_det(D, N, coords, &t.dn[q]);
+            for a in 0..N {
+                for i in 0..D {
+                    b_int[a][i] += gw[q][a][i];
+                }
+            }
+        }
+    }
     // For each node pair b >= a: G[i][j] = int dN_a/dx_i dN_b/dx_j dx, then
     // K_ab[i][j] = lambda G[i][j] + mu G[j][i] + mu delta_ij tr G; block (b, a) = K_ab^T.
     let (l, m) = (mat.lambda, mat.mu);
@@ -229,7 +259,9 @@ fn stiffness_impl<const N: usize, const D: usize, const Q: usize>(
             }
             for i in 0..D {
                 for j in 0..D {
-                    let mut v = l * gab[i][j] + m * gab[j][i];
+                    let vol =
+                        if mean { l / volume * b_int[a][i] * b_int[b][j] } else { l * gab[i][j] };
+                    let mut v = vol + m * gab[j][i];
                     if i == j {
                         v += m * tr;
                     }

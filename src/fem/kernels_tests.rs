@@ -106,7 +106,7 @@ fn lame_parameters() {
 #[test]
 fn stiffness_reference_triangle_hand_computed() {
     let (l, m) = (1.5, 0.7);
-    let mat = Material { lambda: l, mu: m, rho: 1.0 };
+    let mat = Material { lambda: l, mu: m, rho: 1.0, mean_dilatation: false };
     let c = l + 2.0 * m;
     // K = |T| B^T D B with |T| = 1/2, B from grad N = (-1,-1), (1,0), (0,1).
     #[rustfmt::skip]
@@ -929,5 +929,113 @@ fn node_mass_blocks_are_the_mass_per_component() {
                 }
             }
         }
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Mean dilatation (formulation = "mixed").
+
+fn mixed(m: Material) -> Material {
+    Material { mean_dilatation: true, ..m }
+}
+
+/// The patch test: an affine displacement has a constant dilatation, so its cell mean is
+/// itself and the mean-dilatation element gives the plain element's (exact) nodal forces.
+#[test]
+fn mean_dilatation_passes_the_patch_test() {
+    for kind in [ElementKind::Quad4, ElementKind::Hex8] {
+        let d = kind.dim();
+        let x = cell_coords(kind, true);
+        let nd = x.len() * d;
+        let (mut k, mut kb) = (vec![0.0; nd * nd], vec![0.0; nd * nd]);
+        stiffness(kind, &x, &mat(), &mut k).unwrap();
+        stiffness(kind, &x, &mixed(mat()), &mut kb).unwrap();
+        let g = [[0.3, -0.7, 0.2], [0.5, 0.9, -0.4], [-0.1, 0.6, 1.1]];
+        let u: Vec<f64> = (0..nd)
+            .map(|r| {
+                let (a, i) = (r / d, r % d);
+                0.25 + (0..d).map(|j| g[i][j] * x[a][j]).sum::<f64>()
+            })
+            .collect();
+        let (f, fb) = (matvec(&k, nd, &u), matvec(&kb, nd, &u));
+        let scale = norm_inf(&f);
+        for r in 0..nd {
+            assert!(
+                (f[r] - fb[r]).abs() <= 1e-12 * scale,
+                "{}: {} vs {}",
+                kind.name(),
+                f[r],
+                fb[r]
+            );
+        }
+    }
+}
+
+/// The volumetric part is the rank-one `lambda/|K| b b^T`, `b_a = int grad N_a` with
+/// `sum_a b_a (x) x_a = |K| I` (the integral of grad x); what is left is the mu part; the
+/// element keeps exactly the rigid motions as zero-energy modes (no spurious modes).
+#[test]
+fn mean_dilatation_is_rank_one_in_lambda_and_has_no_spurious_modes() {
+    for kind in [ElementKind::Quad4, ElementKind::Hex8] {
+        let d = kind.dim();
+        let x = cell_coords(kind, true);
+        let n = x.len();
+        let nd = n * d;
+        let lam = Material { lambda: 1.0, mu: 0.0, rho: 1.0, mean_dilatation: true };
+        let mut kl = vec![0.0; nd * nd];
+        stiffness(kind, &x, &lam, &mut kl).unwrap();
+        let vol = volume_high_order(kind, &x);
+        // b from the diagonal blocks' row a: K_(a,i),(a,i) = b_a,i^2/|K|; recover b by
+        // b b^T = |K| K and check sum_a b_a (x) x_a = |K| I.
+        let mut id = [[0.0; 3]; 3];
+        let r0 = (0..nd).max_by(|&p, &q| kl[p * nd + p].total_cmp(&kl[q * nd + q])).unwrap();
+        let b0 = (vol * kl[r0 * nd + r0]).sqrt();
+        let b: Vec<f64> = (0..nd).map(|c| vol * kl[r0 * nd + c] / b0).collect();
+        for p in 0..nd {
+            for q in 0..nd {
+                assert!((kl[p * nd + q] - b[p] * b[q] / vol).abs() < 1e-12, "rank one");
+            }
+        }
+        for a in 0..n {
+            for i in 0..d {
+                for j in 0..d {
+                    id[i][j] += b[a * d + i] * x[a][j];
+                }
+            }
+        }
+        // (b is known up to its sign.)
+        let sign = id[0][0].signum();
+        for i in 0..d {
+            for j in 0..d {
+                id[i][j] *= sign;
+                let want = if i == j { vol } else { 0.0 };
+                assert!((id[i][j] - want).abs() < 1e-12 * vol, "{}: sum b x = |K| I", kind.name());
+            }
+        }
+        // Nearly incompressible: the zero eigenvalues are the rigid motions only.
+        let m = mixed(Material::from_young_poisson(1.0, 0.4999, 1.0));
+        let mut kb = vec![0.0; nd * nd];
+        stiffness(kind, &x, &m, &mut kb).unwrap();
+        for r in rigid_modes(d, &x) {
+            assert!(norm_inf(&matvec(&kb, nd, &r)) < 1e-9 * m.lambda, "rigid mode");
+        }
+        let e = sym_eigenvalues(&kb, nd);
+        let rigid = d * (d + 1) / 2;
+        assert!(e[..rigid].iter().all(|v| v.abs() < 1e-9 * m.lambda), "{e:?}");
+        assert!(e[rigid] > 1e-3 * m.mu, "{}: a spurious zero-energy mode: {e:?}", kind.name());
+    }
+}
+
+/// Simplices have a constant strain already: the flag changes nothing there.
+#[test]
+fn mean_dilatation_leaves_simplices_as_they_are() {
+    for kind in [ElementKind::Tri3, ElementKind::Tet4] {
+        let d = kind.dim();
+        let x = cell_coords(kind, false);
+        let nd = x.len() * d;
+        let (mut k, mut kb) = (vec![0.0; nd * nd], vec![0.0; nd * nd]);
+        stiffness(kind, &x, &mat(), &mut k).unwrap();
+        stiffness(kind, &x, &mixed(mat()), &mut kb).unwrap();
+        assert_eq!(k, kb);
     }
 }

@@ -288,7 +288,33 @@ pub fn integrate(
     cell: &mut [f64],
     nodal: &mut [f64],
 ) -> f64 {
-    integrate_with(samples, n, d, |s| (s.eps, hooke(&s.eps, mat)), q, cell, nodal)
+    // Mean dilatation: the pressure part takes the cell's mean volumetric strain.
+    let shift = if mat.mean_dilatation && samples.len() > 1 {
+        let (mut th, mut vol) = (0.0, 0.0);
+        for s in samples {
+            th += s.weight * trace(&s.eps);
+            vol += s.weight;
+        }
+        Some(th / vol)
+    } else {
+        None
+    };
+    integrate_with(
+        samples,
+        n,
+        d,
+        |s| {
+            let mut sigma = hooke(&s.eps, mat);
+            if let Some(mean) = shift {
+                let p = mat.lambda * (mean - trace(&s.eps));
+                (0..3).for_each(|i| sigma[i][i] += p);
+            }
+            (s.eps, sigma)
+        },
+        q,
+        cell,
+        nodal,
+    )
 }
 
 /// [`integrate`] for a finite-strain law: at each point the Green-Lagrange strain

@@ -8,7 +8,7 @@
 //! effects: elasticity, mass-free layer (modified1 along "contact"), Dirichlet (zero values), contact (plane obstacle); not built: initial displacement, initial velocity, body force, tractions, Dirichlet lifting, exact errors, stress output
 //! ```
 
-use super::model::{BodySpec, MassKind, Model, Obstacle, Scene, Shape};
+use super::model::{BodySpec, Formulation, MassKind, Model, Obstacle, Scene, Shape};
 use crate::scene::expr::VecExpr;
 
 /// How a load or prescribed value varies in time.
@@ -100,6 +100,8 @@ pub struct Effects {
     /// `[material]`'s constitutive model when it is a finite-strain one (bodies that set
     /// their own say so in `bodies`).
     pub finite_strain: Option<Model>,
+    /// `[material]`'s formulation is the mixed (mean-dilatation) one.
+    pub mixed: bool,
     /// A non-zero initial displacement / velocity is interpolated (else the body starts at rest
     /// in its reference configuration).
     pub initial_displacement: bool,
@@ -157,6 +159,7 @@ impl Scene {
             layer,
             bodies: self.bodies.iter().map(body_brief).collect(),
             finite_strain: Some(self.material.model).filter(|m| m.is_finite_strain()),
+            mixed: self.material.formulation == Formulation::Mixed,
             initial_displacement: nonzero(&self.initial_displacement),
             initial_velocity: nonzero(&self.initial_velocity),
             body_force: Variation::of(self.body_force.iter().chain(&self.body_acceleration)),
@@ -213,6 +216,9 @@ fn body_brief(b: &BodySpec) -> String {
         .collect();
     if b.sets[3] {
         items.push(format!("model {}", b.material.model.name()));
+    }
+    if b.material.formulation != Formulation::Displacement {
+        items.push(format!("formulation {}", b.material.formulation.name()));
     }
     if let Some(m) = b.mass {
         items.push(format!("mass {}", m.name()));
@@ -317,9 +323,10 @@ impl Effects {
             ("exact errors", flag("exact errors", self.exact_errors)),
             ("stress output", with("stress output", stress.as_deref())),
         ];
-        let mut built = vec![match self.finite_strain {
-            Some(m) => format!("elasticity (finite strain, {})", m.name()),
-            None => "elasticity".to_string(),
+        let mut built = vec![match (self.finite_strain, self.mixed) {
+            (Some(m), _) => format!("elasticity (finite strain, {})", m.name()),
+            (None, true) => "elasticity (mixed: mean dilatation)".to_string(),
+            (None, false) => "elasticity".to_string(),
         }];
         if !self.bodies.is_empty() {
             built.push(format!("bodies ({})", self.bodies.join("; ")));

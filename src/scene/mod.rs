@@ -41,8 +41,8 @@ pub use effects::{Effects, ObstacleEffect, ObstacleKind, Variation};
 
 pub use model::{
     master_groups, slave_groups, steps_to_end, BodySpec, ContactPair, ContactSpec, DirichletSpec,
-    EndSteps, ExactSpec, Field, FrictionSpec, MassKind, MassSpec, MaterialSpec, MeshSource, Model,
-    NeumannSpec, Obstacle, OutputSpec, Scene, Shape, SolverSpec,
+    EndSteps, ExactSpec, Field, Formulation, FrictionSpec, MassKind, MassSpec, MaterialSpec,
+    MeshSource, Model, NeumannSpec, Obstacle, OutputSpec, Scene, Shape, SolverSpec,
 };
 
 use crate::error::{Error, Result};

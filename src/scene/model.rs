@@ -64,6 +64,35 @@ pub struct MaterialSpec {
     pub rho: f64,
     /// The constitutive model (`model`, default `linear`: small strain).
     pub model: Model,
+    /// How the volumetric strain is discretized (`formulation`, default `displacement`).
+    pub formulation: Formulation,
+}
+
+/// `formulation`: the plain displacement element, or the mixed (mean-dilatation, Q1/P0) one
+/// whose pressure is constant per cell and condensed, free of volumetric locking as `nu`
+/// approaches 0.5.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Formulation {
+    #[default]
+    Displacement,
+    Mixed,
+}
+
+impl Formulation {
+    pub fn from_name(name: &str) -> Option<Formulation> {
+        match name {
+            "displacement" => Some(Formulation::Displacement),
+            "mixed" => Some(Formulation::Mixed),
+            _ => None,
+        }
+    }
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Formulation::Displacement => "displacement",
+            Formulation::Mixed => "mixed",
+        }
+    }
 }
 
 /// One `[[body]]`: a physical group of cells (of the mesh's dimension) with its own material

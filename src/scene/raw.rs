@@ -79,6 +79,7 @@ pub(super) struct RawMaterial {
     pub(super) nu: f64,
     pub(super) rho: f64,
     pub(super) model: Option<String>,
+    pub(super) formulation: Option<String>,
 }
 
 #[derive(Deserialize)]
@@ -91,6 +92,7 @@ pub(super) struct RawBody {
     pub(super) rho: Option<f64>,
     pub(super) mass: Option<MassKind>,
     pub(super) model: Option<String>,
+    pub(super) formulation: Option<String>,
 }
 
 #[derive(Deserialize, Clone, Copy, PartialEq)]

@@ -152,7 +152,16 @@ fn full_scene_round_trips() {
         }
         m => panic!("{m:?}"),
     }
-    assert_eq!(s.material, MaterialSpec { e: 200.0, nu: 0.3, rho: 1.0, model: Model::Linear });
+    assert_eq!(
+        s.material,
+        MaterialSpec {
+            e: 200.0,
+            nu: 0.3,
+            rho: 1.0,
+            model: Model::Linear,
+            formulation: Formulation::Displacement
+        }
+    );
     assert_eq!(s.dirichlet.len(), 2);
     assert_eq!(s.dirichlet[0].group, "left");
     assert_eq!(s.dirichlet[0].components, vec![0, 1]);
@@ -465,11 +474,11 @@ fn unknown_keys() {
     assert!(m.contains("unknown key \"materail\""), "{m}");
     assert_err(
         &minimal_with("rho = 2", "rho = 2\nrho2 = 3"),
-        &["unknown key \"material.rho2\" (allowed: E, nu, rho, model)", "(line 8)"],
+        &["unknown key \"material.rho2\" (allowed: E, nu, rho, model, formulation)", "(line 8)"],
     );
     assert_err(
         &minimal_with("E = 1", "e = 1"),
-        &["unknown key \"material.e\" (allowed: E, nu, rho, model)"],
+        &["unknown key \"material.e\" (allowed: E, nu, rho, model, formulation)"],
     );
     assert_err(
         &full_with("group = \"clamp\"", "group = \"clamp\"\nvalues = [1]"),
@@ -715,6 +724,7 @@ fn effects_follow_the_scene() {
             layer: Some((MassKind::Modified1, "\"bottom\"".into())),
             bodies: vec![],
             finite_strain: None,
+            mixed: false,
             initial_displacement: false,
             initial_velocity: true,
             body_force: varying,
@@ -742,6 +752,7 @@ fn effects_follow_the_scene() {
             layer: None, // no layer for a lumped mass, though a boundary is named
             bodies: vec![],
             finite_strain: None,
+            mixed: false,
             initial_displacement: false,
             initial_velocity: false,
             body_force: None,
@@ -1015,9 +1026,27 @@ fn bodies_take_their_own_values_over_the_material() {
     assert_eq!(s.bodies.len(), 3);
     let (lower, upper) = (&s.bodies[0], &s.bodies[1]);
     assert_eq!(lower.group, "lower");
-    assert_eq!(lower.material, MaterialSpec { e: 400.0, nu: 0.25, rho: 2.0, model: Model::Linear });
+    assert_eq!(
+        lower.material,
+        MaterialSpec {
+            e: 400.0,
+            nu: 0.25,
+            rho: 2.0,
+            model: Model::Linear,
+            formulation: Formulation::Displacement
+        }
+    );
     assert_eq!(lower.sets, [true, false, false, false]);
-    assert_eq!(upper.material, MaterialSpec { e: 1.0, nu: 0.1, rho: 3e-8, model: Model::Linear });
+    assert_eq!(
+        upper.material,
+        MaterialSpec {
+            e: 1.0,
+            nu: 0.1,
+            rho: 3e-8,
+            model: Model::Linear,
+            formulation: Formulation::Displacement
+        }
+    );
     assert_eq!(upper.sets, [false, true, true, false]);
     assert_eq!(s.bodies[2].material, s.material);
     // The body's own mass, else mass.kind, which --mass replaces.
@@ -1047,7 +1076,10 @@ fn body_errors_name_the_key() {
         (body("E = 3"), vec!["missing key \"body[1].group\""]),
         (
             body("group = \"b\"\ndensity = 3"),
-            vec!["unknown key \"body[1].density\"", "allowed: group, E, nu, rho, mass, model"],
+            vec![
+                "unknown key \"body[1].density\"",
+                "allowed: group, E, nu, rho, mass, model, formulation",
+            ],
         ),
         (
             body("group = \"b\"\nmass = \"heavy\""),
@@ -1230,6 +1262,37 @@ fn model_errors_name_the_key() {
     assert_err(
         &minimal_with("nu = 0.25\n", "nu = 0.5\nmodel = \"neo_hookean\"\n"),
         &["material.nu = 0.5 is impossible", "neo-Hooke's lambda is infinite"],
+    );
+}
+
+#[test]
+fn the_formulation_is_the_displacement_one_unless_the_scene_names_mixed() {
+    let dir = workspace();
+    let s = parse_in(&dir, MINIMAL).unwrap();
+    assert_eq!(s.material.formulation, Formulation::Displacement);
+    let text = minimal_with("rho = 2\n", "rho = 2\nformulation = \"mixed\"\n");
+    let text = format!(
+        "{text}\n[[body]]\ngroup = \"hard\"\nformulation = \"displacement\"\n[[body]]\ngroup = \"soft\"\n"
+    );
+    let s = parse_in(&dir, &text).unwrap();
+    assert_eq!(s.material.formulation, Formulation::Mixed);
+    assert_eq!(s.bodies[0].material.formulation, Formulation::Displacement);
+    // A body that does not name one takes [material]'s.
+    assert_eq!(s.bodies[1].material.formulation, Formulation::Mixed);
+    let line = s.effects().summary();
+    assert!(line.starts_with("effects: elasticity (mixed: mean dilatation)"), "{line}");
+    assert!(line.contains("\"soft\": formulation mixed"), "{line}");
+}
+
+#[test]
+fn formulation_errors_name_the_key() {
+    assert_err(
+        &minimal_with("rho = 2\n", "rho = 2\nformulation = \"hybrid\"\n"),
+        &["material.formulation = \"hybrid\" is unknown", "\"mixed\""],
+    );
+    assert_err(
+        &with_bodies("[[body]]\ngroup = \"a\"\nmodel = \"neo_hookean\"\nformulation = \"mixed\"\n"),
+        &["body[0].formulation = \"mixed\" takes model = \"linear\""],
     );
 }
 

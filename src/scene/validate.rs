@@ -5,8 +5,8 @@
 use super::expr::{Expr, VecExpr};
 use super::model::{
     obstacle_key, steps_to_end, BodySpec, ContactPair, ContactSpec, DirichletSpec, ExactSpec,
-    Field, FrictionSpec, MassKind, MassSpec, MaterialSpec, MeshSource, Model, NeumannSpec,
-    Obstacle, OutputSpec, Scene, Shape, SolverSpec,
+    Field, Formulation, FrictionSpec, MassKind, MassSpec, MaterialSpec, MeshSource, Model,
+    NeumannSpec, Obstacle, OutputSpec, Scene, Shape, SolverSpec,
 };
 use super::raw::{
     ExprSrc, RawBody, RawBodyForce, RawContact, RawDirichlet, RawExact, RawInitial, RawMass,
@@ -149,7 +149,11 @@ fn materials(mat: RawMaterial, raw_bodies: Vec<RawBody>) -> VResult<(MaterialSpe
         Some(name) => model_of("material", name)?,
         None => Model::Linear,
     };
-    let material = material_spec("material", mat.e, mat.nu, mat.rho, model)?;
+    let formulation = match &mat.formulation {
+        Some(name) => formulation_of("material", name)?,
+        None => Formulation::Displacement,
+    };
+    let material = material_spec("material", mat.e, mat.nu, mat.rho, model, formulation)?;
     let mut bodies: Vec<BodySpec> = Vec::new();
     for (i, b) in raw_bodies.into_iter().enumerate() {
         let key = format!("body[{i}]");
@@ -167,6 +171,10 @@ fn materials(mat: RawMaterial, raw_bodies: Vec<RawBody>) -> VResult<(MaterialSpe
             match &b.model {
                 Some(name) => model_of(&key, name)?,
                 None => material.model,
+            },
+            match &b.formulation {
+                Some(name) => formulation_of(&key, name)?,
+                None => material.formulation,
             },
         )?;
         let sets = [b.e.is_some(), b.nu.is_some(), b.rho.is_some(), b.model.is_some()];
@@ -583,8 +591,22 @@ fn model_of(key: &str, name: &str) -> VResult<Model> {
     })
 }
 
+/// The volumetric discretization of `KEY.formulation`.
+fn formulation_of(key: &str, name: &str) -> VResult<Formulation> {
+    Formulation::from_name(name).ok_or_else(|| {
+        format!("{key}.formulation = \"{name}\" is unknown: use \"displacement\" or \"mixed\"")
+    })
+}
+
 /// A material checked value by value (`key` is `material` or `body[i]`).
-fn material_spec(key: &str, e: f64, nu: f64, rho: f64, model: Model) -> VResult<MaterialSpec> {
+fn material_spec(
+    key: &str,
+    e: f64,
+    nu: f64,
+    rho: f64,
+    model: Model,
+    formulation: Formulation,
+) -> VResult<MaterialSpec> {
     if !(e > 0.0 && e.is_finite()) {
         return Err(format!("{key}.E = {e} is impossible: Young's modulus must be > 0"));
     }
@@ -600,7 +622,12 @@ fn material_spec(key: &str, e: f64, nu: f64, rho: f64, model: Model) -> VResult<
     if !(rho > 0.0 && rho.is_finite()) {
         return Err(format!("{key}.rho = {rho} is impossible: the density must be > 0"));
     }
-    Ok(MaterialSpec { e, nu, rho, model })
+    if formulation == Formulation::Mixed && model.is_finite_strain() {
+        return Err(format!(
+            "{key}.formulation = \"mixed\" takes model = \"linear\" (a finite-strain mixed element is not available)"
+        ));
+    }
+    Ok(MaterialSpec { e, nu, rho, model, formulation })
 }
 
 /// The slave/master pairs: `contact.slave` with `contact.master` (one pair) or the list

@@ -1,0 +1,172 @@
+//! Nearly incompressible bodies: the mixed (mean-dilatation, Q1/P0) formulation against the
+//! displacement one.
+//!
+//! Cook's membrane is a static problem: it is assembled here from the element kernels the runs
+//! use (`fem::stiffness`) and solved exactly (banded Cholesky), so the test measures the
+//! discretization alone.
+
+use massfree::fem::{stiffness, ElementKind, Material};
+
+/// Cook's membrane: the trapezoid (0, 0), (48, 44), (48, 60), (0, 44), clamped at x = 0, a
+/// uniform vertical traction of total force `force` on the edge x = 48; plane strain, `n x n`
+/// bilinear quadrilaterals of the bilinear map of the unit square. Returns the vertical
+/// displacement of the upper right corner (48, 60).
+fn cook_tip(n: usize, e: f64, nu: f64, mixed: bool, force: f64) -> f64 {
+    let m = Material { mean_dilatation: mixed, ..Material::from_young_poisson(e, nu, 1.0) };
+    let np = n + 1;
+    // Node (i along x, j across): numbered j fastest, so the band is about 2 (n + 2).
+    let node = |i: usize, j: usize| i * np + j;
+    let xy = |i: usize, j: usize| {
+        let (s, t) = (i as f64 / n as f64, j as f64 / n as f64);
+        let (lo, hi) = (44.0 * s, 44.0 + 16.0 * s);
+        [48.0 * s, lo + t * (hi - lo), 0.0]
+    };
+    let dofs = 2 * np * np;
+    let band = 2 * (np + 2);
+    let mut k = Banded::new(dofs, band);
+    let mut ke = [0.0; 64];
+    for i in 0..n {
+        for j in 0..n {
+            let nodes = [node(i, j), node(i + 1, j), node(i + 1, j + 1), node(i, j + 1)];
+            let coords = [xy(i, j), xy(i + 1, j), xy(i + 1, j + 1), xy(i, j + 1)];
+            stiffness(ElementKind::Quad4, &coords, &m, &mut ke).expect("a valid cell");
+            for a in 0..4 {
+                for b in 0..4 {
+                    for (p, q) in [(0, 0), (0, 1), (1, 0), (1, 1)] {
+                        k.add(2 * nodes[a] + p, 2 * nodes[b] + q, ke[(2 * a + p) * 8 + 2 * b + q]);
+                    }
+                }
+            }
+        }
+    }
+    // The traction force / 16 per unit length, lumped to the edge's nodes (exact for a
+    // constant traction on straight segments).
+    let mut f = vec![0.0; dofs];
+    let h = 16.0 / n as f64;
+    for j in 0..n {
+        f[2 * node(n, j) + 1] += 0.5 * force / 16.0 * h;
+        f[2 * node(n, j + 1) + 1] += 0.5 * force / 16.0 * h;
+    }
+    // Clamped edge: identity rows and columns.
+    for j in 0..np {
+        for p in 0..2 {
+            k.fix(2 * node(0, j) + p);
+        }
+    }
+    let u = k.solve(f);
+    u[2 * node(n, n) + 1]
+}
+
+/// A symmetric banded matrix (lower band stored) and its Cholesky solve.
+struct Banded {
+    n: usize,
+    b: usize,
+    /// `l[i * (b + 1) + (i - j)]` holds entry (i, j), `i - b <= j <= i`.
+    l: Vec<f64>,
+}
+
+impl Banded {
+    fn new(n: usize, b: usize) -> Banded {
+        Banded { n, b, l: vec![0.0; n * (b + 1)] }
+    }
+
+    fn add(&mut self, i: usize, j: usize, v: f64) {
+        if j <= i {
+            assert!(i - j <= self.b, "outside the band");
+            self.l[i * (self.b + 1) + (i - j)] += v;
+        }
+    }
+
+    fn fix(&mut self, i: usize) {
+        let w = self.b + 1;
+        for d in 0..=self.b.min(i) {
+            self.l[i * w + d] = 0.0;
+        }
+        for r in i + 1..(i + self.b + 1).min(self.n) {
+            self.l[r * w + (r - i)] = 0.0;
+        }
+        self.l[i * w] = 1.0;
+    }
+
+    fn solve(mut self, mut x: Vec<f64>) -> Vec<f64> {
+        let (n, b, w) = (self.n, self.b, self.b + 1);
+        for i in 0..n {
+            for j in i.saturating_sub(b)..=i {
+                let mut s = self.l[i * w + (i - j)];
+                for k in i.saturating_sub(b).max(j.saturating_sub(b))..j {
+                    s -= self.l[i * w + (i - k)] * self.l[j * w + (j - k)];
+                }
+                if i == j {
+                    assert!(s > 0.0, "not positive definite at row {i}");
+                    self.l[i * w] = s.sqrt();
+                } else {
+                    self.l[i * w + (i - j)] = s / self.l[j * w];
+                }
+            }
+        }
+        for i in 0..n {
+            let mut s = x[i];
+            for k in i.saturating_sub(b)..i {
+                s -= self.l[i * w + (i - k)] * x[k];
+            }
+            x[i] = s / self.l[i * w];
+        }
+        for i in (0..n).rev() {
+            let mut s = x[i];
+            for r in i + 1..(i + b + 1).min(n) {
+                s -= self.l[r * w + (r - i)] * x[r];
+            }
+            x[i] = s / self.l[i * w];
+        }
+        x
+    }
+}
+
+/// The tip displacement on the meshes 4 x 4 ... 64 x 64.
+fn tips(e: f64, nu: f64, mixed: bool, force: f64) -> Vec<f64> {
+    [4usize, 8, 16, 32, 64].iter().map(|&n| cook_tip(n, e, nu, mixed, force)).collect()
+}
+
+/// The compressible membrane as the code comparison of CoFEA sets it (plane strain, E = 70,
+/// nu = 1/3, traction 6.25 on the edge of height 16): quadratic elements on very fine meshes
+/// give 32.20 (Code_Aster), 32.27 (CalculiX), 32.28 (Elmer). Both formulations converge there.
+#[test]
+fn cook_membrane_compressible_matches_the_published_values() {
+    for mixed in [false, true] {
+        let t = tips(70.0, 1.0 / 3.0, mixed, 100.0);
+        println!("mixed {mixed}: {t:?}");
+        let last = t[t.len() - 1];
+        assert!((last - 32.24).abs() < 0.01 * 32.24, "mixed {mixed}: {last} against 32.20-32.28");
+        // From below, monotonically (the displacement element is too stiff, the mixed one too).
+        assert!(t.windows(2).all(|w| w[1] > w[0]), "{t:?}");
+    }
+}
+
+/// Nearly incompressible (E = 250, nu = 0.4999, force 100): the mixed element converges (each
+/// refinement at least halves the change, the 64 x 64 mesh within 1% of the sequence's
+/// Richardson limit) and does so uniformly in lambda (nu = 0.49999, ten times lambda, changes
+/// the tip by less than 1e-3 on every mesh: the limit problem's solution is continuous as
+/// lambda grows); the displacement element locks (below 55% of the mixed tip on every mesh,
+/// and further below as lambda grows).
+#[test]
+fn cook_membrane_nearly_incompressible_converges_without_locking() {
+    let mixed = tips(250.0, 0.4999, true, 100.0);
+    let stiffer = tips(250.0, 0.49999, true, 100.0);
+    let plain = tips(250.0, 0.4999, false, 100.0);
+    let plain_stiffer = tips(250.0, 0.49999, false, 100.0);
+    println!("mixed {mixed:?}\nnu 0.49999 {stiffer:?}\ndisplacement {plain:?}\nnu 0.49999 {plain_stiffer:?}");
+    let d: Vec<f64> = mixed.windows(2).map(|w| w[1] - w[0]).collect();
+    assert!(d.iter().all(|&x| x > 0.0), "from below: {mixed:?}");
+    assert!(d.windows(2).all(|w| w[1] < 0.5 * w[0]), "converging: changes {d:?}");
+    // Richardson: the last change times r/(1 - r), r the ratio of the last two changes.
+    let r = d[d.len() - 1] / d[d.len() - 2];
+    let limit = mixed[mixed.len() - 1] + d[d.len() - 1] * r / (1.0 - r);
+    let last = mixed[mixed.len() - 1];
+    println!("Richardson limit {limit}");
+    assert!((limit - last).abs() < 0.01 * limit, "{last} against the limit {limit}");
+    for k in 0..mixed.len() {
+        assert!((mixed[k] - stiffer[k]).abs() < 1e-3 * mixed[k], "uniform in lambda");
+        assert!(plain[k] < 0.55 * mixed[k], "the displacement element locks: {plain:?}");
+        assert!(plain_stiffer[k] < plain[k], "and locks more as lambda grows");
+    }
+}
