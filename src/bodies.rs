@@ -335,6 +335,15 @@ impl Bodies {
         self.regions.iter().any(|r| r.n_cells > 0 && r.spec.model.is_finite_strain())
     }
 
+    /// The largest `lambda / mu` of the regions with cells (how nearly incompressible the
+    /// stiffest body is).
+    pub fn lambda_over_mu(&self) -> f64 {
+        (self.regions.iter())
+            .filter(|r| r.n_cells > 0)
+            .map(|r| r.material.lambda / r.material.mu)
+            .fold(0.0, f64::max)
+    }
+
     /// The finite-strain law of a cell (`None`: small strain).
     pub fn law(&self, cell: usize) -> Option<crate::fem::hyperelastic::Law> {
         let r = &self.regions[self.region_of(cell)];

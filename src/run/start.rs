@@ -96,6 +96,7 @@ pub fn step_operator(
             cfl: regime.cfl,
             contact: with_contact,
             memory_per_rank: memory_per_rank(d),
+            lambda_over_mu: d.bodies.lambda_over_mu(),
         });
     }
     // The step's own CG serves steps without contact (a contact solver rewrites K's rows).
