@@ -27,6 +27,20 @@
 //! 2D is plane strain: tensors are 3 x 3 with `F_33 = 1`, so `C_33 = 1`, `E_33 = 0` and the
 //! formulas above hold unchanged (`tr C - 3 = tr C_2 - 2`, `det C = det C_2`).
 //!
+//! **Mean dilatation** (neo-Hooke, `formulation = "mixed"`, Q1 cells): the `lambda` term is
+//! the cell's, `V = |K| lambda/2 (ln theta)^2` with the mean Jacobian
+//! `theta = 1/|K| sum_q w_q J_q`, the rest (`mu/2 (I_1 - 3) - mu/2 ln I_3`) stays point-wise.
+//! Its discrete gradient keeps the form above: with `V'_alg = (V(theta_1) - V(theta_0)) /
+//! (theta_1 - theta_0)` and `J_1,q^2 - J_0,q^2 = D_3,q : dC_q` (Simpson),
+//!
+//! ```text
+//!   S_alg,q = mu I + 2 (g_mu,q + kappa_q/2) D_3,q,   kappa_q = 2 V'_alg / (|K| (J_0,q + J_1,q))
+//!   sum_q w_q 1/2 S_vol,q : dC_q = V'_alg sum_q w_q (J_1,q - J_0,q)/|K| = V(theta_1) - V(theta_0)
+//! ```
+//! (`g_mu` the point-wise `g` with `lambda = 0`): exact energy, symmetric `S_alg`, so momentum
+//! and angular momentum are kept as before. Its tangent gains the rank-one coupling of the
+//! cell's points through `theta_1`, `d theta_1 / d u_1,b = sum_p w_p/|K| cof(F_1,p) G_b,p`.
+//!
 //! The tangent `K_ab = d f_a / d u_1,b` (unsymmetric) is
 //! `int [1/2 (G_a . S_alg G_b) I + B_a(F_m)^T DD 2 B_b(F_1)] dV`, with `B_a(F)` the
 //! nonlinear strain-displacement matrix (engineering Voigt form of `sym(F^T (du (x) G_a))`)
@@ -85,11 +99,14 @@ pub struct Law {
     pub model: Model,
     pub lambda: f64,
     pub mu: f64,
+    /// Neo-Hooke with the mean dilatation (`formulation = "mixed"`, quadrilaterals and
+    /// hexahedra): the `lambda` term takes the cell's mean Jacobian (see the module doc).
+    pub mean_dilatation: bool,
 }
 
 impl Law {
     pub fn new(model: Model, m: &Material) -> Law {
-        Law { model, lambda: m.lambda, mu: m.mu }
+        Law { model, lambda: m.lambda, mu: m.mu, mean_dilatation: m.mean_dilatation }
     }
 }
 
@@ -467,6 +484,47 @@ fn midpoint_impl<const N: usize, const D: usize, const V: usize>(
     }
     let t = table(kind, stiffness_order(kind));
     let (mut w0, mut w1) = (0.0, 0.0);
+    // Mean dilatation: the cell's volume and mean Jacobians of both states, the volumetric
+    // `V'_alg / |K|` and its derivative in theta_1; the point-wise law without lambda.
+    let mean = law.mean_dilatation && law.model == Model::NeoHookean && t.w.len() > 1;
+    let point_law = if mean { Law { lambda: 0.0, ..*law } } else { *law };
+    let (mut volume, mut th0, mut th1) = (0.0, 0.0, 0.0);
+    if mean {
+        for q in 0..t.w.len() {
+            let mut g = [[0.0f64; 3]; N];
+            g.copy_from_slice(&t.dn[q][..N]);
+            let det_j = map_gradients(D, N, coords, &mut g);
+            if det_j.is_nan() || det_j <= 0.0 {
+                return Err(Inverted { det_f: 0.0, state: 0 });
+            }
+            let w = t.w[q] * det_j;
+            let j0 = det(&deformation_gradient::<N, D>(&g, u0));
+            let j1 = det(&deformation_gradient::<N, D>(&g, u1));
+            for (state, j) in [(0, j0), (1, j1)] {
+                if j.is_nan() || j <= 0.0 {
+                    return Err(Inverted { det_f: j, state });
+                }
+            }
+            volume += w;
+            th0 += w * j0;
+            th1 += w * j1;
+        }
+        th0 /= volume;
+        th1 /= volume;
+    }
+    let (lt0, lt1) = (th0.ln(), th1.ln());
+    let xt = if mean { (th1 - th0) / th0 } else { 0.0 };
+    let vp = 0.5 * law.lambda * (lt0 + lt1) * log1p_over_x(xt) / th0;
+    let dvp =
+        0.5 * law.lambda * (log1p_over_x(xt) / th1 + (lt0 + lt1) * log1p_over_x_prime(xt) / th0)
+            / th0;
+    if mean {
+        w0 += volume * 0.5 * law.lambda * lt0 * lt0;
+        w1 += volume * 0.5 * law.lambda * lt1 * lt1;
+    }
+    // The rank-one part of the tangent: rows `A_a,i`, columns `B_b,k`.
+    let mut rank_a = [0.0f64; MAX_DOFS];
+    let mut rank_b = [0.0f64; MAX_DOFS];
     for q in 0..t.w.len() {
         let mut g = [[0.0f64; 3]; N];
         g.copy_from_slice(&t.dn[q][..N]);
@@ -487,14 +545,21 @@ fn midpoint_impl<const N: usize, const D: usize, const V: usize>(
         let fm = lin(0.5, &f0, 0.5, &f1);
         // Neo-Hooke with I_3 = J^2 (det C = (det F)^2) and its energies from the step's logs.
         let nh = (law.model == Model::NeoHookean).then(|| {
-            let (l, m) = (law.lambda, law.mu);
+            let (l, m) = (point_law.lambda, law.mu);
             let t = tangent.is_some();
-            NeoHookeStep::with_invariants(l, m, &c0, &c1, j0 * j0, j1 * j1, t)
+            let mut nh = NeoHookeStep::with_invariants(l, m, &c0, &c1, j0 * j0, j1 * j1, t);
+            if mean {
+                // kappa_q/2 joins g; its local derivative through J_1,q (dJ/dI_3 = 1/(2 J)).
+                let kappa = 2.0 * vp / (j0 + j1);
+                nh.g += 0.5 * kappa;
+                nh.dg_di1 -= 0.5 * kappa / (j0 + j1) / (2.0 * j1);
+            }
+            nh
         });
         match &nh {
             Some(nh) => {
-                w0 += w * NeoHookeStep::energy(law.lambda, law.mu, &c0, nh.l0);
-                w1 += w * NeoHookeStep::energy(law.lambda, law.mu, &c1, nh.l1);
+                w0 += w * NeoHookeStep::energy(point_law.lambda, law.mu, &c0, nh.l0);
+                w1 += w * NeoHookeStep::energy(point_law.lambda, law.mu, &c1, nh.l1);
             }
             None => {
                 let bad = |state| Inverted { det_f: f64::NAN, state };
@@ -527,9 +592,31 @@ fn midpoint_impl<const N: usize, const D: usize, const V: usize>(
             }
         }
         let Some(k) = tangent.as_deref_mut() else { continue };
+        if let (true, Some(nh)) = (mean, &nh) {
+            // d f_a = w F_m D_3 G_a d kappa_q, d kappa_q = 2 dvp/(J_0 + J_1) d theta_1, and
+            // d theta_1 / d u_1,b = sum_p w_p/|K| cof(F_1,p) G_b,p.
+            let scale = w * 2.0 * dvp / (j0 + j1);
+            let cof1 = cofactor(&f1);
+            for a in 0..N {
+                for i in 0..D {
+                    let mut v = 0.0;
+                    for p_ in 0..D {
+                        for jj in 0..D {
+                            v += fm[i][p_] * nh.d3[p_][jj] * g[a][jj];
+                        }
+                    }
+                    rank_a[a * D + i] += scale * v;
+                    let mut c = 0.0;
+                    for jj in 0..D {
+                        c += cof1[i][jj] * g[a][jj];
+                    }
+                    rank_b[a * D + i] += w / volume * c;
+                }
+            }
+        }
         // dS_alg/dC_1 : sym(e_r (x) e_s) for each Voigt pair (r, s): CC_pjrs = dds[v][p][j].
         let mut dds = [[[0.0f64; 3]; 3]; V];
-        law.midpoint_stress_derivatives(&c0, &c1, nh.as_ref(), voigt, &mut dds);
+        point_law.midpoint_stress_derivatives(&c0, &c1, nh.as_ref(), voigt, &mut dds);
         // The point's tangent as one 4-index array, then contracted with the gradients:
         //   K_ab,ik += sum_js G_a,j A[i][j][k][s] G_b,s,
         //   A[i][j][k][s] = w (2 sum_pr Fm_ip CC_pjrs F1_kr + 1/2 delta_ik S_js)
@@ -592,6 +679,13 @@ fn midpoint_impl<const N: usize, const D: usize, const V: usize>(
                         row[b * D + kk] += x;
                     }
                 }
+            }
+        }
+    }
+    if let (true, Some(k)) = (mean, tangent) {
+        for r in 0..nd {
+            for c in 0..nd {
+                k[r * nd + c] += rank_a[r] * rank_b[c];
             }
         }
     }

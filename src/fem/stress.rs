@@ -329,12 +329,30 @@ pub fn integrate_finite(
     cell: &mut [f64],
     nodal: &mut [f64],
 ) -> f64 {
-    use crate::fem::hyperelastic::{cauchy_stress, right_cauchy_green};
-    let point = |s: &Sample| {
+    use crate::fem::hyperelastic::{cauchy_stress, det, right_cauchy_green, Law, Model};
+    let deformation = |s: &Sample| {
         let mut f = s.grad;
         for (i, row) in f.iter_mut().enumerate() {
             row[i] += 1.0;
         }
+        f
+    };
+    // Mean dilatation (neo-Hooke): the point-wise law without lambda and the cell's pressure
+    // `lambda ln(theta)/theta`, theta the mean Jacobian (the element's energy, hyperelastic).
+    let mean = law.mean_dilatation && law.model == Model::NeoHookean && samples.len() > 1;
+    let (point_law, pressure) = if mean {
+        let (mut th, mut vol) = (0.0, 0.0);
+        for s in samples {
+            th += s.weight * det(&deformation(s));
+            vol += s.weight;
+        }
+        let th = th / vol;
+        (Law { lambda: 0.0, ..*law }, law.lambda * th.ln() / th)
+    } else {
+        (*law, 0.0)
+    };
+    let point = |s: &Sample| {
+        let f = deformation(s);
         let c = right_cauchy_green(&f);
         let mut e = [[0.0; 3]; 3];
         for i in 0..3 {
@@ -342,7 +360,9 @@ pub fn integrate_finite(
                 e[i][j] = 0.5 * (c[i][j] - if i == j { 1.0 } else { 0.0 });
             }
         }
-        (e, cauchy_stress(law, &f))
+        let mut sigma = cauchy_stress(&point_law, &f);
+        (0..3).for_each(|i| sigma[i][i] += pressure);
+        (e, sigma)
     };
     integrate_with(samples, n, d, point, q, cell, nodal)
 }

@@ -324,7 +324,10 @@ impl Effects {
             ("stress output", with("stress output", stress.as_deref())),
         ];
         let mut built = vec![match (self.finite_strain, self.mixed) {
-            (Some(m), _) => format!("elasticity (finite strain, {})", m.name()),
+            (Some(m), true) => {
+                format!("elasticity (finite strain, {}, mixed: mean dilatation)", m.name())
+            }
+            (Some(m), false) => format!("elasticity (finite strain, {})", m.name()),
             (None, true) => "elasticity (mixed: mean dilatation)".to_string(),
             (None, false) => "elasticity".to_string(),
         }];

@@ -1291,8 +1291,10 @@ fn formulation_errors_name_the_key() {
         &["material.formulation = \"hybrid\" is unknown", "\"mixed\""],
     );
     assert_err(
-        &with_bodies("[[body]]\ngroup = \"a\"\nmodel = \"neo_hookean\"\nformulation = \"mixed\"\n"),
-        &["body[0].formulation = \"mixed\" takes model = \"linear\""],
+        &with_bodies(
+            "[[body]]\ngroup = \"a\"\nmodel = \"saint_venant_kirchhoff\"\nformulation = \"mixed\"\n",
+        ),
+        &["body[0].formulation = \"mixed\" takes model = \"linear\" or \"neo_hookean\""],
     );
 }
 

@@ -622,9 +622,9 @@ fn material_spec(
     if !(rho > 0.0 && rho.is_finite()) {
         return Err(format!("{key}.rho = {rho} is impossible: the density must be > 0"));
     }
-    if formulation == Formulation::Mixed && model.is_finite_strain() {
+    if formulation == Formulation::Mixed && model == Model::SaintVenantKirchhoff {
         return Err(format!(
-            "{key}.formulation = \"mixed\" takes model = \"linear\" (a finite-strain mixed element is not available)"
+            "{key}.formulation = \"mixed\" takes model = \"linear\" or \"neo_hookean\" (Saint Venant-Kirchhoff has no mixed form here)"
         ));
     }
     Ok(MaterialSpec { e, nu, rho, model, formulation })
