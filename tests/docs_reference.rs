@@ -1087,3 +1087,26 @@ fn print_the_accepted_key_paths() {
         }
     }
 }
+
+/// Every shipped study and suite file (studies/*.toml) parses, with its scenes: a suite file
+/// has `[[case]]` tables, a study file does not.
+#[test]
+fn every_shipped_study_and_suite_file_parses() {
+    let mut n = 0;
+    for entry in std::fs::read_dir(repo().join("studies")).unwrap().flatten() {
+        let path = entry.path();
+        if path.extension().is_none_or(|e| e != "toml") {
+            continue;
+        }
+        let text = std::fs::read_to_string(&path).unwrap();
+        let dir = path.parent().unwrap();
+        let parsed = if text.contains("[[case]]") {
+            parse_suite_in(&text, dir)
+        } else {
+            parse_study_in(&text, dir)
+        };
+        assert!(parsed.is_ok(), "{}: {}", path.display(), parsed.unwrap_err());
+        n += 1;
+    }
+    assert!(n >= 2, "no study files found");
+}
