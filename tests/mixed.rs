@@ -527,3 +527,56 @@ fn mass_free_layer_keeps_its_advantage_when_nearly_incompressible() {
     );
     assert!(layer.energy_balance < 1e-8, "energy balance {}", layer.energy_balance);
 }
+
+/// The Q1 ball of `scenes/sphere_hex.toml` (hexahedra, `M_H^1`, radius 1, E = 100, dropped at
+/// 0.0167; coarse: h = 0.5, hc = 0.15) at `nu` with `formulation` on `ranks`.
+fn ball(
+    dir: &std::path::Path,
+    nu: f64,
+    formulation: &str,
+    ranks: usize,
+) -> massfree::report::RunSummary {
+    let base = std::fs::read_to_string(repo().join("scenes/sphere_hex.toml")).unwrap();
+    let text =
+        base.replace("\nnu = 0.3\n", &format!("\nnu = {nu}\nformulation = \"{formulation}\"\n"));
+    assert!(text.contains("formulation"), "sphere_hex.toml no longer sets nu = 0.3");
+    let scene = scene_text(dir, &format!("ball-{nu}-{formulation}.toml"), &text);
+    run_scene(ranks, &scene, &["--param", "h=0.5", "--param", "hc=0.15"])
+}
+
+/// Hertz's point contact in 3D: at a given impact energy the peak pressure grows as
+/// (E / (1 - nu^2))^(4/5), 1.167 times from nu = 0.3 to 0.4999. The mixed hexahedra keep the
+/// ball's contact patch (as many nodes as at 0.3), the displacement hexahedra lock (half the
+/// nodes, four times the pressure); energy kept; 1 and 2 ranks alike.
+#[test]
+fn nearly_incompressible_ball_of_hexahedra_keeps_its_contact_patch() {
+    let dir = scratch("incompressible-ball");
+    let reference = ball(&dir, 0.3, "displacement", 2);
+    let mixed = ball(&dir, 0.4999, "mixed", 2);
+    let locked = ball(&dir, 0.4999, "displacement", 2);
+    let one = ball(&dir, 0.4999, "mixed", 1);
+    let [r, m, l, o] =
+        [&reference, &mixed, &locked, &one].map(|s| s.contact.clone().expect("contact"));
+    eprintln!(
+        "peak pressure {} / {} / {}; active nodes {} / {} / {}",
+        r.max_pressure,
+        m.max_pressure,
+        l.max_pressure,
+        r.max_active_nodes,
+        m.max_active_nodes,
+        l.max_active_nodes
+    );
+    let hertz = (0.91f64 / (1.0 - 0.4999f64.powi(2))).powf(0.8);
+    assert!(rel_diff(m.max_pressure / r.max_pressure, hertz) < 0.1, "mixed: {}", m.max_pressure);
+    assert!(m.max_active_nodes as f64 >= 0.7 * r.max_active_nodes as f64);
+    assert!(l.max_pressure > 3.0 * m.max_pressure, "the displacement ball does not lock?");
+    for s in [&reference, &mixed, &locked] {
+        assert!(s.energy_balance < 1e-8, "energy balance {}", s.energy_balance);
+    }
+    assert!(
+        rel_diff(o.max_pressure, m.max_pressure) < 1e-8,
+        "{} against {}",
+        o.max_pressure,
+        m.max_pressure
+    );
+}
