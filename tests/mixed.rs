@@ -111,6 +111,7 @@ impl Banded {
         self.l[i * w] = 1.0;
     }
 
+    #[allow(clippy::needless_range_loop)] // index-heavy banded algebra
     fn solve(mut self, mut x: Vec<f64>) -> Vec<f64> {
         let (n, b, w) = (self.n, self.b, self.b + 1);
         for i in 0..n {
@@ -453,7 +454,7 @@ fn mixed_bodies_in_a_mortar_pair_with_friction() {
 /// pressure mode of an unstable pair does not.
 fn checkerboard(n: usize, p: &[f64]) -> f64 {
     let alternating: f64 =
-        (0..n * n).map(|k| if (k / n + k % n) % 2 == 0 { p[k] } else { -p[k] }).sum();
+        (0..n * n).map(|k| if (k / n + k % n).is_multiple_of(2) { p[k] } else { -p[k] }).sum();
     alternating.abs() / p.iter().map(|x| x.abs()).sum::<f64>()
 }
 
@@ -579,4 +580,30 @@ fn nearly_incompressible_ball_of_hexahedra_keeps_its_contact_patch() {
         o.max_pressure,
         m.max_pressure
     );
+}
+
+/// The neo-Hookean disc with the mean dilatation at nu = 0.499 dropped at 0.58 with tau = 0.01:
+/// from the extrapolated guess Newton diverges in the first contact steps (the guess runs the
+/// motion on into the plane, far into the volume constraint); those steps are solved again
+/// from their start (and the next ones start there) and the run goes through the impact
+/// (steps 1-58), keeping its energy, on 1 and 2 ranks alike.
+#[test]
+fn nearly_incompressible_finite_strain_steps_restart_from_their_start() {
+    let dir = scratch("finite-strain-restart");
+    let fast: &[(&str, &str)] = &[
+        ("\n[material]\n", "\n[material]\nmodel = \"neo_hookean\"\n"),
+        ("-0.116024", "-0.58"),
+        ("steps = 250", "steps = 70"),
+        ("every = 250", "every = 70"),
+    ];
+    let two = disc_with(&dir, 0.499, "mixed", 2, fast, &[]);
+    let one = disc_with(&dir, 0.499, "mixed", 1, fast, &[]);
+    let restarts = two.newton.as_ref().expect("finite strain").restarts;
+    eprintln!("restarts {restarts}, balance {}", two.energy_balance);
+    assert!(restarts > 0, "no step needed its restart: the case no longer tests it");
+    for s in [&two, &one] {
+        assert!(s.energy_balance < 1e-8, "energy balance {}", s.energy_balance);
+    }
+    let [a, b] = [&two, &one].map(|s| s.contact.clone().expect("contact").max_pressure);
+    assert!(rel_diff(a, b) < 1e-6, "1 against 2 ranks: {a} {b}");
 }

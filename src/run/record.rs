@@ -410,11 +410,16 @@ pub fn summary_lines(d: &Domain, layer: Option<(usize, usize)>, s: &RunSummary) 
     }
     if let Some(nw) = &s.newton {
         lines.push(format!(
-            "Newton: {:.2} iterations/step (at most {}; {} on the step's tangent for the energy alone), {} halved corrections; the largest energy error a step left {:.2e} of the energy; internal force {:.3} ms, with its tangent {:.3} ms ({:.3e} cells/s/rank)",
+            "Newton: {:.2} iterations/step (at most {}; {} on the step's tangent for the energy alone), {} halved corrections{}; the largest energy error a step left {:.2e} of the energy; internal force {:.3} ms, with its tangent {:.3} ms ({:.3e} cells/s/rank)",
             nw.iterations as f64 / nw.steps.max(1) as f64,
             nw.max_iterations,
             nw.energy_chords,
             nw.halvings,
+            if nw.restarts > 0 {
+                format!(", {} steps solved again from another first guess", nw.restarts)
+            } else {
+                String::new()
+            },
             nw.max_energy_error,
             1e3 * nw.force_seconds / nw.force_evaluations.max(1) as f64,
             1e3 * nw.tangent_seconds / nw.tangent_evaluations.max(1) as f64,

@@ -152,6 +152,9 @@ pub struct Midpoint {
     /// increments made since the start or a restart.
     du_prev: Option<Vector>,
     increments: usize,
+    /// Finite strain: steps left that start from rest (`du = 0`) after a step needed its
+    /// restart from there ([`Midpoint::step_finite_strain`]).
+    rest_guesses: usize,
     /// `M 1` without the Dirichlet rows (built on first use).
     m_ones: Option<Vector>,
     /// The body of each owned node (in DOF order): the correction keeps each body's momentum.
@@ -287,6 +290,7 @@ impl Midpoint {
             f_sum: None,
             du_prev: None,
             increments: 0,
+            rest_guesses: 0,
             m_ones: None,
             groups: Vec::new(),
             n_groups: 1,

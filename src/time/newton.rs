@@ -112,6 +112,10 @@ pub struct NewtonStats {
     /// as it was (the next iteration linearizes anew).
     #[serde(default)]
     pub cycled: usize,
+    /// Steps solved again from the other first guess (the step's start `du = 0`, or the
+    /// extrapolated increment) after Newton failed from the first.
+    #[serde(default)]
+    pub restarts: usize,
 }
 
 impl NewtonStats {
