@@ -460,6 +460,45 @@ pub fn midpoint_force(
     }
 }
 
+/// One quadrature point of a cell between two states: the physical gradients `G_a`, the
+/// weight `w_q det J_q`, and `F` and `J = det F` of both states.
+struct QuadraturePoint<const N: usize> {
+    g: [[f64; 3]; N],
+    w: f64,
+    f0: Tensor,
+    f1: Tensor,
+    j0: f64,
+    j1: f64,
+}
+
+impl<const N: usize> QuadraturePoint<N> {
+    /// `Err` if the reference cell or either state is inverted there.
+    #[inline(always)]
+    fn new<const D: usize>(
+        t: &super::kernels::Table,
+        q: usize,
+        coords: &[[f64; 3]],
+        u0: &[f64],
+        u1: &[f64],
+    ) -> Result<Self, Inverted> {
+        let mut g = [[0.0f64; 3]; N];
+        g.copy_from_slice(&t.dn[q][..N]);
+        let det_j = map_gradients(D, N, coords, &mut g);
+        if det_j.is_nan() || det_j <= 0.0 {
+            return Err(Inverted { det_f: 0.0, state: 0 });
+        }
+        let f0 = deformation_gradient::<N, D>(&g, u0);
+        let f1 = deformation_gradient::<N, D>(&g, u1);
+        let (j0, j1) = (det(&f0), det(&f1));
+        for (state, j) in [(0, j0), (1, j1)] {
+            if j.is_nan() || j <= 0.0 {
+                return Err(Inverted { det_f: j, state });
+            }
+        }
+        Ok(QuadraturePoint { g, w: t.w[q] * det_j, f0, f1, j0, j1 })
+    }
+}
+
 #[inline(always)]
 fn midpoint_impl<const N: usize, const D: usize, const V: usize>(
     kind: ElementKind,
@@ -491,20 +530,8 @@ fn midpoint_impl<const N: usize, const D: usize, const V: usize>(
     let (mut volume, mut th0, mut th1) = (0.0, 0.0, 0.0);
     if mean {
         for q in 0..t.w.len() {
-            let mut g = [[0.0f64; 3]; N];
-            g.copy_from_slice(&t.dn[q][..N]);
-            let det_j = map_gradients(D, N, coords, &mut g);
-            if det_j.is_nan() || det_j <= 0.0 {
-                return Err(Inverted { det_f: 0.0, state: 0 });
-            }
-            let w = t.w[q] * det_j;
-            let j0 = det(&deformation_gradient::<N, D>(&g, u0));
-            let j1 = det(&deformation_gradient::<N, D>(&g, u1));
-            for (state, j) in [(0, j0), (1, j1)] {
-                if j.is_nan() || j <= 0.0 {
-                    return Err(Inverted { det_f: j, state });
-                }
-            }
+            let p = QuadraturePoint::<N>::new::<D>(t, q, coords, u0, u1)?;
+            let (w, j0, j1) = (p.w, p.j0, p.j1);
             volume += w;
             th0 += w * j0;
             th1 += w * j1;
@@ -526,21 +553,8 @@ fn midpoint_impl<const N: usize, const D: usize, const V: usize>(
     let mut rank_a = [0.0f64; MAX_DOFS];
     let mut rank_b = [0.0f64; MAX_DOFS];
     for q in 0..t.w.len() {
-        let mut g = [[0.0f64; 3]; N];
-        g.copy_from_slice(&t.dn[q][..N]);
-        let det_j = map_gradients(D, N, coords, &mut g);
-        if det_j.is_nan() || det_j <= 0.0 {
-            return Err(Inverted { det_f: 0.0, state: 0 });
-        }
-        let w = t.w[q] * det_j;
-        let f0 = deformation_gradient::<N, D>(&g, u0);
-        let f1 = deformation_gradient::<N, D>(&g, u1);
-        let (j0, j1) = (det(&f0), det(&f1));
-        for (state, j) in [(0, j0), (1, j1)] {
-            if j.is_nan() || j <= 0.0 {
-                return Err(Inverted { det_f: j, state });
-            }
-        }
+        let QuadraturePoint { g, w, f0, f1, j0, j1 } =
+            QuadraturePoint::<N>::new::<D>(t, q, coords, u0, u1)?;
         let (c0, c1) = (right_cauchy_green(&f0), right_cauchy_green(&f1));
         let fm = lin(0.5, &f0, 0.5, &f1);
         // Neo-Hooke with I_3 = J^2 (det C = (det F)^2) and its energies from the step's logs.
