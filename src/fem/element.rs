@@ -59,12 +59,12 @@ impl ElementKind {
             ElementKind::Hex8 => 8,
         }
     }
-    /// Topological dimension.
     /// Triangles and tetrahedra (constant strain in the linear elements).
     pub fn is_simplex(self) -> bool {
         matches!(self, ElementKind::Tri3 | ElementKind::Tet4)
     }
 
+    /// Topological dimension.
     pub fn dim(self) -> usize {
         match self {
             ElementKind::Point1 => 0,

@@ -424,3 +424,68 @@ fn q1_cell_value_is_the_jacobian_weighted_mean_on_distorted_cells() {
         }
     }
 }
+
+/// The finite-strain stress output with the mean dilatation (neo-Hooke, `formulation =
+/// "mixed"`): a homogeneous deformation has its own Jacobian as the cell's mean, so the stress
+/// is the point-wise law's; under a non-homogeneous one the mixed pressure differs from the
+/// point-wise law without lambda by one constant over the cell (the cell's pressure
+/// `lambda ln(theta)/theta`), at every point and node.
+#[test]
+fn finite_strain_mixed_stress_has_the_cell_pressure() {
+    use crate::fem::hyperelastic::{Law, Model};
+    let m = Material::from_young_poisson(200.0, 0.45, 1.0);
+    let plain = Law::new(Model::NeoHookean, &m);
+    let mixed = Law::new(Model::NeoHookean, &Material { mean_dilatation: true, ..m });
+    let no_lambda = Law { lambda: 0.0, ..plain };
+    for (name, kind, coords) in cells().into_iter().filter(|c| !c.1.is_simplex()) {
+        let (n, d) = (kind.n_nodes(), kind.dim());
+        // Homogeneous: u = (F - I) X with a finite stretch and shear.
+        let f = [[1.2, 0.3, 0.1], [-0.1, 0.9, 0.2], [0.05, 0.1, 1.1]];
+        let u: Vec<f64> = coords
+            .iter()
+            .flat_map(|x| (0..d).map(move |i| (0..d).map(|j| f[i][j] * x[j]).sum::<f64>() - x[i]))
+            .collect();
+        let mut s = [Sample::default(); MAX_SAMPLES];
+        let k = samples(kind, &coords, &u, &mut s).unwrap();
+        let (mut a, mut b) = ([0.0; 6], [0.0; 6]);
+        let mut nodal = [0.0; MAX_NODES * 6];
+        integrate_finite(&s[..k], n, d, &plain, Quantity::Stress, &mut a, &mut nodal);
+        integrate_finite(&s[..k], n, d, &mixed, Quantity::Stress, &mut b, &mut nodal);
+        for c in 0..6 {
+            assert!(
+                close(a[c], b[c], m.lambda),
+                "{name}: homogeneous stress[{c}] {} vs {}",
+                a[c],
+                b[c]
+            );
+        }
+        // Non-homogeneous: a bilinear (trilinear) field on top.
+        let u: Vec<f64> =
+            u.iter().enumerate().map(|(r, v)| v + 0.05 * ((r * 7 % 5) as f64 - 2.0)).collect();
+        let k = samples(kind, &coords, &u, &mut s).unwrap();
+        let mut shift = Vec::new();
+        for law in [&mixed, &no_lambda] {
+            let (mut cell, mut nodal) = ([0.0; 6], [0.0; MAX_NODES * 6]);
+            integrate_finite(&s[..k], n, d, law, Quantity::Pressure, &mut cell, &mut nodal);
+            let mut lumped = [0.0; MAX_NODES];
+            lumped_weights(&s[..k], n, &mut lumped);
+            shift.push((0..n).map(|a| nodal[a] / lumped[a]).collect::<Vec<f64>>());
+        }
+        let diff: Vec<f64> = (0..n).map(|a| shift[0][a] - shift[1][a]).collect();
+        for a in 1..n {
+            assert!(
+                close(diff[a], diff[0], m.lambda),
+                "{name}: the cell pressure varies: {diff:?}"
+            );
+        }
+        assert!(diff[0].abs() > 1e-3 * m.lambda, "{name}: no cell pressure: {diff:?}");
+        // The plain law's pressure is not one constant away from the point-wise mu part.
+        let (mut cell, mut nodal) = ([0.0; 6], [0.0; MAX_NODES * 6]);
+        integrate_finite(&s[..k], n, d, &plain, Quantity::Pressure, &mut cell, &mut nodal);
+        let mut lumped = [0.0; MAX_NODES];
+        lumped_weights(&s[..k], n, &mut lumped);
+        let plain_diff: Vec<f64> = (0..n).map(|a| nodal[a] / lumped[a] - shift[1][a]).collect();
+        let spread = plain_diff.iter().fold(0.0f64, |x, v| x.max((v - plain_diff[0]).abs()));
+        assert!(spread > 1e-6 * m.lambda, "{name}: the field is too tame to tell: {plain_diff:?}");
+    }
+}
