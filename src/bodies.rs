@@ -125,7 +125,7 @@ impl Bodies {
         if scene.bodies.is_empty() {
             let mut n = vec![(0..mesh.cells.len()).filter(|&c| own(c)).count() as u64];
             sum(&mut n);
-            mixed_on_tensor_cells(&regions, mesh, own, &|_| 0, sum).map_err(fail)?;
+            mixed_bodies_supported(&regions, mesh, own, &|_| 0, sum).map_err(fail)?;
             regions[0].n_cells = n[0] as usize;
             let kind = scene.mass.kind;
             let layer = (kind.is_modified() && !groups.is_empty()).then_some((kind, groups));
@@ -193,7 +193,7 @@ impl Bodies {
             }
         }
         sum(&mut counts);
-        mixed_on_tensor_cells(&regions, mesh, own, &|c| cell_region[c] as usize, sum)
+        mixed_bodies_supported(&regions, mesh, own, &|c| cell_region[c] as usize, sum)
             .map_err(fail)?;
         for (reg, &n) in regions.iter_mut().zip(&counts) {
             reg.n_cells = n as usize;
@@ -413,28 +413,42 @@ impl Bodies {
     }
 }
 
-/// The mixed (mean-dilatation) formulation is built for quadrilaterals and hexahedra: a region
-/// with it must have no triangles or tetrahedra on any rank. Collective (`sum` adds over the
-/// ranks).
-fn mixed_on_tensor_cells(
+/// The mixed formulation on triangles and tetrahedra is the averaged nodal pressure
+/// (`assembly::nodal_pressure`), built for small strain: a finite-strain body with it, or
+/// such cells in a finite-strain run (whose Newton loop integrates a linear body cell by
+/// cell), is an error naming the body. Collective (`sum` adds over the ranks).
+fn mixed_bodies_supported(
     regions: &[Region],
     mesh: &Mesh,
     own: &dyn Fn(usize) -> bool,
     region_of: &dyn Fn(usize) -> usize,
     sum: &dyn Fn(&mut Vec<u64>),
 ) -> std::result::Result<(), String> {
-    let mut simplices = vec![0u64; regions.len()];
+    // Per region: its mixed simplices, then its cells.
+    let n = regions.len();
+    let mut counts = vec![0u64; 2 * n];
     for (c, cell) in mesh.cells.iter().enumerate() {
-        let r = region_of(c);
-        if own(c) && regions[r].material.mean_dilatation && cell.kind.is_simplex() {
-            simplices[r] += 1;
+        if own(c) {
+            let r = region_of(c);
+            counts[n + r] += 1;
+            if regions[r].material.mean_dilatation && cell.kind.is_simplex() {
+                counts[r] += 1;
+            }
         }
     }
-    sum(&mut simplices);
-    match simplices.iter().position(|&n| n > 0) {
-        Some(r) => Err(format!(
-            "{}: formulation = \"mixed\" needs quadrilaterals or hexahedra, and {} of its cells are triangles or tetrahedra",
-            regions[r].name, simplices[r]
+    sum(&mut counts);
+    let Some(r) = (0..n).find(|&r| counts[r] > 0) else { return Ok(()) };
+    let finite = |r: usize| regions[r].spec.model.is_finite_strain();
+    if finite(r) {
+        return Err(format!(
+            "{}: formulation = \"mixed\" on triangles or tetrahedra (the averaged nodal pressure) is built for model = \"linear\", and {} of its cells are triangles or tetrahedra: mesh it with quadrilaterals or hexahedra",
+            regions[r].name, counts[r]
+        ));
+    }
+    match (0..n).find(|&q| counts[n + q] > 0 && finite(q)) {
+        Some(q) => Err(format!(
+            "{}: formulation = \"mixed\" on triangles or tetrahedra is built for small-strain runs, and {} is finite-strain: mesh it with quadrilaterals or hexahedra",
+            regions[r].name, regions[q].name
         )),
         None => Ok(()),
     }

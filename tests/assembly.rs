@@ -2,6 +2,7 @@
 //! integrated loads; assembled matrices have the exact preallocation; the stiffness kills
 //! rigid motions and the mass matrix carries the body's mass.
 
+use massfree::assembly::nodal_pressure::{self, NodalDilatation};
 use massfree::assembly::{
     assemble_matrix, assemble_matrix_blocked, interpolate, new_vector, Loads,
 };
@@ -146,5 +147,62 @@ fn assembly_on_one_rank() {
         close(&y1, &y2, "(A + c M) x");
         let info = k2.nonzero_info().unwrap();
         assert_eq!((info.mallocs, info.allocated), (0.0, info.used), "{kind:?}: K's pattern kept");
+    }
+
+    // The averaged nodal pressure on the beam of triangles (mixed, nu = 0.4999): the nodal
+    // dilatation of an affine field is its divergence at every node (the patch test), its
+    // stiffness with the cells' mu part has no force on the interior nodes of an affine field
+    // (constant stress), kills rigid motions, is symmetric and positive definite there, and
+    // its volumetric energy is lambda/2 |Omega| (div u)^2 (each node's share V_a).
+    let tri = mesh_geo(&root.join("meshes/beam_tri.geo"), &[("h".into(), 0.5)], 2, false, &cache)
+        .unwrap();
+    let tri = read_msh(&tri).unwrap();
+    let tpart = Partition::new(&tri, 0, 1).unwrap();
+    let rubber =
+        Material { mean_dilatation: true, ..Material::from_young_poisson(2.0, 0.4999, 1.0) };
+    let nodal = NodalDilatation::build(&tri, &tpart, &|_| rubber).unwrap().expect("nodal cells");
+    let affine = ["0.3*x - 0.2*y + 1", "0.1*x + 0.5*y - 2"];
+    let u = interpolate(&tri, &tpart, &vexpr(&affine), 0.0).unwrap();
+    let theta = nodal.dilatation(&u).unwrap();
+    theta
+        .with_local_slice(|t| assert!(t.iter().all(|t| (t - 0.8).abs() < 1e-13), "{t:?}"))
+        .unwrap();
+    let cells = assemble_matrix(&tri, &tpart, |c, xy, out| {
+        let kind = tri.cells[c].kind;
+        kernels::stiffness(kind, xy, &nodal_pressure::element_material(kind, &rubber), out)
+    })
+    .unwrap();
+    let mut a = nodal.stiffness().unwrap();
+    let volumetric = a.duplicate(true).unwrap();
+    a.axpy(1.0, &cells, Pattern::Different).unwrap();
+    assert!(a.is_symmetric(1e-12).unwrap());
+    assert_eq!(a.column_block_size().unwrap(), 2, "the DOF blocks are kept for GAMG");
+    let mut f = new_vector(&tpart).unwrap();
+    a.mult(&u, &mut f).unwrap();
+    let interior: Vec<bool> = (0..tri.coords.len())
+        .map(|v| {
+            let [x, y, _] = tri.coords[v];
+            x > 1e-9 && x < 10.0 - 1e-9 && y > 1e-9 && y < 1.0 - 1e-9
+        })
+        .collect();
+    let scale = rubber.lambda * 0.8 * 0.5;
+    f.with_local_slice(|f| {
+        for (v, inner) in interior.iter().enumerate() {
+            for c in 0..2 {
+                let x = f[tpart.dof(v, c)];
+                assert!(!inner || x.abs() < 1e-9 * scale, "node {v}: force {x}");
+            }
+        }
+    })
+    .unwrap();
+    let mut vu = new_vector(&tpart).unwrap();
+    volumetric.mult(&u, &mut vu).unwrap();
+    let energy = 0.5 * vu.dot(&u).unwrap();
+    let exact = 0.5 * rubber.lambda * 10.0 * 0.8f64.powi(2);
+    assert!((energy - exact).abs() < 1e-10 * exact, "{energy} against {exact}");
+    for rigid in [["1", "0"], ["0", "1"], ["-y", "x"]] {
+        let r = interpolate(&tri, &tpart, &vexpr(&rigid), 0.0).unwrap();
+        a.mult(&r, &mut f).unwrap();
+        assert!(f.norm2().unwrap() < 1e-10 * rubber.lambda * r.norm2().unwrap(), "{rigid:?}");
     }
 }

@@ -5,7 +5,7 @@
 //! use (`fem::stiffness`) and solved exactly (banded Cholesky), so the test measures the
 //! discretization alone.
 
-use massfree::fem::{gauss, physical_gradients, stiffness, ElementKind, Material};
+use massfree::fem::{divergence_row, gauss, physical_gradients, stiffness, ElementKind, Material};
 use massfree::report::RunSummary;
 
 /// Cook's membrane: the trapezoid (0, 0), (48, 44), (48, 60), (0, 44), clamped at x = 0, a
@@ -16,33 +16,74 @@ fn cook_tip(n: usize, e: f64, nu: f64, mixed: bool, force: f64) -> f64 {
     cook(n, e, nu, mixed, force).0
 }
 
-/// [`cook_tip`] and each cell's mean pressure `-(lambda + 2 mu/3) theta_bar` (cell `i * n + j`,
-/// `i` along x): the mixed element's constant pressure, the displacement element's cell mean.
-fn cook(n: usize, e: f64, nu: f64, mixed: bool, force: f64) -> (f64, Vec<f64>) {
-    let m = Material { mean_dilatation: mixed, ..Material::from_young_poisson(e, nu, 1.0) };
+/// Node (i along x, j across) of Cook's `n x n` grid, numbered j fastest (the band is about
+/// 2 (n + 2) DOFs), and its position.
+fn cook_node(n: usize, i: usize, j: usize) -> (usize, [f64; 3]) {
+    let (s, t) = (i as f64 / n as f64, j as f64 / n as f64);
+    let (lo, hi) = (44.0 * s, 44.0 + 16.0 * s);
+    (i * (n + 1) + j, [48.0 * s, lo + t * (hi - lo), 0.0])
+}
+
+/// The corners of grid cell (i, j), counterclockwise from (i, j).
+fn cook_corners(i: usize, j: usize) -> [(usize, usize); 4] {
+    [(i, j), (i + 1, j), (i + 1, j + 1), (i, j + 1)]
+}
+
+/// Cook's membrane solved on the grid's quadrilaterals (`ElementKind::Quad4`) or on its
+/// triangles (`Tri3`, each cell cut along the diagonal from (i, j)); with `mixed` the
+/// quadrilaterals take the mean dilatation and the triangles the averaged nodal pressure (its
+/// own implementation here: `G^T diag(lambda / V_a) G` with `(G u)_a = sum_K |K|/3 div u_K`,
+/// `V_a = sum_K |K|/3`). Returns the displacements (node * 2 + component).
+fn cook_solve(n: usize, kind: ElementKind, m: &Material, force: f64) -> Vec<f64> {
     let np = n + 1;
-    // Node (i along x, j across): numbered j fastest, so the band is about 2 (n + 2).
-    let node = |i: usize, j: usize| i * np + j;
-    let xy = |i: usize, j: usize| {
-        let (s, t) = (i as f64 / n as f64, j as f64 / n as f64);
-        let (lo, hi) = (44.0 * s, 44.0 + 16.0 * s);
-        [48.0 * s, lo + t * (hi - lo), 0.0]
-    };
     let dofs = 2 * np * np;
-    let band = 2 * (np + 2);
+    let nodal = kind == ElementKind::Tri3 && m.mean_dilatation;
+    // The nodal pressure couples nodes two cells apart.
+    let band = if nodal { 2 * (2 * np + 3) } else { 2 * (np + 2) };
     let mut k = Banded::new(dofs, band);
+    let cells: Vec<Vec<(usize, usize)>> = (0..n * n)
+        .flat_map(|c| {
+            let q = cook_corners(c / n, c % n);
+            match kind {
+                ElementKind::Quad4 => vec![q.to_vec()],
+                _ => vec![vec![q[0], q[1], q[2]], vec![q[0], q[2], q[3]]],
+            }
+        })
+        .collect();
+    let cell_material = if nodal { Material { lambda: 0.0, ..*m } } else { *m };
+    // Per node: its patch's volume and divergence row (DOF, value).
+    let mut volume = vec![0.0; np * np];
+    let mut rows: Vec<std::collections::BTreeMap<usize, f64>> = vec![Default::default(); np * np];
     let mut ke = [0.0; 64];
-    for i in 0..n {
-        for j in 0..n {
-            let nodes = [node(i, j), node(i + 1, j), node(i + 1, j + 1), node(i, j + 1)];
-            let coords = [xy(i, j), xy(i + 1, j), xy(i + 1, j + 1), xy(i, j + 1)];
-            stiffness(ElementKind::Quad4, &coords, &m, &mut ke).expect("a valid cell");
-            for a in 0..4 {
-                for b in 0..4 {
-                    for (p, q) in [(0, 0), (0, 1), (1, 0), (1, 1)] {
-                        k.add(2 * nodes[a] + p, 2 * nodes[b] + q, ke[(2 * a + p) * 8 + 2 * b + q]);
+    for cell in &cells {
+        let (nodes, coords): (Vec<usize>, Vec<[f64; 3]>) =
+            cell.iter().map(|&(i, j)| cook_node(n, i, j)).unzip();
+        let nd = 2 * nodes.len();
+        stiffness(kind, &coords, &cell_material, &mut ke[..nd * nd]).expect("a valid cell");
+        for a in 0..nodes.len() {
+            for b in 0..nodes.len() {
+                for (p, q) in [(0, 0), (0, 1), (1, 0), (1, 1)] {
+                    k.add(2 * nodes[a] + p, 2 * nodes[b] + q, ke[(2 * a + p) * nd + 2 * b + q]);
+                }
+            }
+        }
+        if nodal {
+            let mut b = [[0.0; 3]; 3];
+            let vol = divergence_row(kind, &coords, &mut b).expect("a valid cell");
+            for &a in &nodes {
+                volume[a] += vol / 3.0;
+                for (c, bc) in nodes.iter().zip(&b) {
+                    for (p, x) in bc[..2].iter().enumerate() {
+                        *rows[a].entry(2 * c + p).or_default() += x / 3.0;
                     }
                 }
+            }
+        }
+    }
+    for (row, v) in rows.iter().zip(&volume) {
+        for (&i, &gi) in row {
+            for (&j, &gj) in row {
+                k.add(i, j, m.lambda / v * gi * gj);
             }
         }
     }
@@ -51,34 +92,39 @@ fn cook(n: usize, e: f64, nu: f64, mixed: bool, force: f64) -> (f64, Vec<f64>) {
     let mut f = vec![0.0; dofs];
     let h = 16.0 / n as f64;
     for j in 0..n {
-        f[2 * node(n, j) + 1] += 0.5 * force / 16.0 * h;
-        f[2 * node(n, j + 1) + 1] += 0.5 * force / 16.0 * h;
+        f[2 * cook_node(n, n, j).0 + 1] += 0.5 * force / 16.0 * h;
+        f[2 * cook_node(n, n, j + 1).0 + 1] += 0.5 * force / 16.0 * h;
     }
     // Clamped edge: identity rows and columns.
     for j in 0..np {
         for p in 0..2 {
-            k.fix(2 * node(0, j) + p);
+            k.fix(2 * cook_node(n, 0, j).0 + p);
         }
     }
-    let u = k.solve(f);
+    k.solve(f)
+}
+
+/// [`cook_tip`] and each cell's mean pressure `-(lambda + 2 mu/3) theta_bar` (cell `i * n + j`,
+/// `i` along x): the mixed element's constant pressure, the displacement element's cell mean.
+fn cook(n: usize, e: f64, nu: f64, mixed: bool, force: f64) -> (f64, Vec<f64>) {
+    let m = Material { mean_dilatation: mixed, ..Material::from_young_poisson(e, nu, 1.0) };
+    let u = cook_solve(n, ElementKind::Quad4, &m, force);
     let mut pressure = Vec::with_capacity(n * n);
-    for i in 0..n {
-        for j in 0..n {
-            let nodes = [node(i, j), node(i + 1, j), node(i + 1, j + 1), node(i, j + 1)];
-            let coords = [xy(i, j), xy(i + 1, j), xy(i + 1, j + 1), xy(i, j + 1)];
-            let (mut theta, mut volume) = (0.0, 0.0);
-            for (xi, w) in gauss(ElementKind::Quad4, 2) {
-                let mut g = [[0.0; 3]; 4];
-                let det = physical_gradients(ElementKind::Quad4, &coords, xi, &mut g);
-                volume += w * det;
-                for a in 0..4 {
-                    theta += w * det * (g[a][0] * u[2 * nodes[a]] + g[a][1] * u[2 * nodes[a] + 1]);
-                }
+    for c in 0..n * n {
+        let (nodes, coords): (Vec<usize>, Vec<[f64; 3]>) =
+            cook_corners(c / n, c % n).iter().map(|&(i, j)| cook_node(n, i, j)).unzip();
+        let (mut theta, mut volume) = (0.0, 0.0);
+        for (xi, w) in gauss(ElementKind::Quad4, 2) {
+            let mut g = [[0.0; 3]; 4];
+            let det = physical_gradients(ElementKind::Quad4, &coords, xi, &mut g);
+            volume += w * det;
+            for a in 0..4 {
+                theta += w * det * (g[a][0] * u[2 * nodes[a]] + g[a][1] * u[2 * nodes[a] + 1]);
             }
-            pressure.push(-(m.lambda + 2.0 * m.mu / 3.0) * theta / volume);
         }
+        pressure.push(-(m.lambda + 2.0 * m.mu / 3.0) * theta / volume);
     }
-    (u[2 * node(n, n) + 1], pressure)
+    (u[2 * cook_node(n, n, n).0 + 1], pressure)
 }
 
 /// A symmetric banded matrix (lower band stored) and its Cholesky solve.
@@ -196,6 +242,48 @@ fn cook_membrane_nearly_incompressible_converges_without_locking() {
     }
 }
 
+/// Triangles (each cell cut along one diagonal, as gmsh's structured meshes; the pattern that
+/// locks most), E = 250, nu = 0.4999, force 100. The displacement triangles lock: on 64 x 64
+/// cells the tip is a third of the limit's, thirty times as far from it as the averaged nodal
+/// pressure's. That one converges to the quadrilaterals' limit (the mean dilatation's
+/// Richardson limit, an independent element), its distance falling by a third or more with
+/// each refinement (measured 0.59, 0.42, 0.38, 0.40), 2.2% on the finest mesh; its own
+/// Richardson limit is the quadrilaterals' within 1% (measured 0.24%). It is not fully uniform
+/// in lambda on coarse meshes (nu = 0.49999 moves the tip by 1.3% on 8 x 8, 0.17% on
+/// 64 x 64): asserted within 2% and falling over the finer meshes.
+#[test]
+fn cook_membrane_triangles_with_the_nodal_pressure_converge_without_locking() {
+    let tips = |nu: f64, mixed: bool| -> Vec<f64> {
+        let m = Material { mean_dilatation: mixed, ..Material::from_young_poisson(250.0, nu, 1.0) };
+        [4usize, 8, 16, 32, 64]
+            .iter()
+            .map(|&n| cook_solve(n, ElementKind::Tri3, &m, 100.0)[2 * cook_node(n, n, n).0 + 1])
+            .collect()
+    };
+    let richardson = |t: &[f64]| {
+        let (a, b, c) = (t[t.len() - 3], t[t.len() - 2], t[t.len() - 1]);
+        let r = (c - b) / (b - a);
+        c + (c - b) * r / (1.0 - r)
+    };
+    let quads: Vec<f64> =
+        [16usize, 32, 64].iter().map(|&n| cook_tip(n, 250.0, 0.4999, true, 100.0)).collect();
+    let limit = richardson(&quads);
+    let (nodal, stiffer, plain) = (tips(0.4999, true), tips(0.49999, true), tips(0.4999, false));
+    println!("nodal {nodal:?}\nnu 0.49999 {stiffer:?}\ndisplacement {plain:?}\nlimit {limit}");
+    let dist: Vec<f64> = nodal.iter().map(|t| (t - limit).abs()).collect();
+    assert!(dist.windows(2).all(|w| w[1] < 0.67 * w[0]), "not converging: {nodal:?}");
+    let last = nodal.len() - 1;
+    assert!(dist[last] < 0.025 * limit, "{nodal:?} against {limit}");
+    assert!((richardson(&nodal) - limit).abs() < 0.01 * limit, "{nodal:?} against {limit}");
+    let lambda: Vec<f64> = nodal.iter().zip(&stiffer).map(|(a, b)| rel_diff(*a, *b)).collect();
+    assert!(lambda.iter().all(|&d| d < 0.02), "lambda moves the tip: {lambda:?}");
+    assert!(lambda[2..].windows(2).all(|w| w[1] < w[0]), "{lambda:?}");
+    for k in 0..nodal.len() {
+        assert!(plain[k] < 0.7 * nodal[k], "the displacement triangles lock: {plain:?}");
+    }
+    assert!((plain[last] - limit).abs() > 10.0 * dist[last], "{plain:?}");
+}
+
 mod common;
 use common::*;
 
@@ -205,13 +293,18 @@ use common::*;
 /// `(sigma_xy, sigma_yy)` do not depend on lambda: a locking-free element converges at rates
 /// and errors independent of lambda. `mu = 1000/13` (the beam's), `E = 2 mu (1 + nu)`, `rho = 1`,
 /// plane strain.
-fn incompressible_beam(dir: &std::path::Path, nu: f64, formulation: &str) -> std::path::PathBuf {
+fn incompressible_beam(
+    dir: &std::path::Path,
+    geo: &str,
+    nu: f64,
+    formulation: &str,
+) -> std::path::PathBuf {
     let mu = 1000.0 / 13.0;
     let e = 2.0 * mu * (1.0 + nu);
     let text = format!(
         r#"name = "incompressible_beam"
 [mesh]
-geo = "../meshes/beam_quad.geo"
+geo = "../meshes/{geo}"
 params = {{ h = 0.25 }}
 [material]
 E = {e}
@@ -249,7 +342,7 @@ gradient = [
 error_steps = [250]
 "#
     );
-    scene_text(dir, &format!("beam-{nu}-{formulation}.toml"), &text)
+    scene_text(dir, &format!("beam-{geo}-{nu}-{formulation}.toml"), &text)
 }
 
 /// Observed rates log2(e_h / e_{h/2}).
@@ -257,10 +350,15 @@ fn rates(e: &[f64]) -> Vec<f64> {
     e.windows(2).map(|w| (w[0] / w[1]).log2()).collect()
 }
 
-/// The manufactured beam on h = 1/4, 1/8, 1/16 (2 ranks), errors at t = 0.25 (250 steps of
-/// 1e-3: the midpoint rule's O(tau^2) far below the space error): L2 and H1 errors.
-fn beam_errors(dir: &std::path::Path, nu: f64, formulation: &str) -> (Vec<f64>, Vec<f64>) {
-    let scene = incompressible_beam(dir, nu, formulation);
+/// The manufactured beam (`geo`) on h = 1/4, 1/8, 1/16 (2 ranks), errors at t = 0.25 (250
+/// steps of 1e-3: the midpoint rule's O(tau^2) far below the space error): L2 and H1 errors.
+fn beam_errors(
+    dir: &std::path::Path,
+    geo: &str,
+    nu: f64,
+    formulation: &str,
+) -> (Vec<f64>, Vec<f64>) {
+    let scene = incompressible_beam(dir, geo, nu, formulation);
     let (mut l2, mut h1) = (vec![], vec![]);
     for h in ["0.25", "0.125", "0.0625"] {
         let s =
@@ -269,32 +367,54 @@ fn beam_errors(dir: &std::path::Path, nu: f64, formulation: &str) -> (Vec<f64>, 
         h1.push(s.errors[0].h1_semi);
     }
     eprintln!(
-        "nu {nu} {formulation}: L2 {l2:?} rates {:?}; H1 {h1:?} rates {:?}",
+        "{geo} nu {nu} {formulation}: L2 {l2:?} rates {:?}; H1 {h1:?} rates {:?}",
         rates(&l2),
         rates(&h1)
     );
     (l2, h1)
 }
 
-/// Theory: O(h^2) in L2 and O(h) in H1 for Q1 with the mean dilatation, with constants
-/// bounded independently of lambda (the data are the same for both `nu`, lambda grows 4300
-/// times): the errors agree within 10% on every mesh, where the displacement element's grow
-/// more than tenfold (locking).
-#[test]
-fn manufactured_rates_do_not_depend_on_lambda() {
+/// Theory: O(h^2) in L2 and O(h) in H1 for a locking-free element, with constants bounded
+/// independently of lambda (the data are the same for both `nu`, lambda grows 4300 times).
+/// Asserted: both converge at the optimal rates or faster (the last rates within 0.2 of them);
+/// the errors at the two `nu` agree within `coarse` on every mesh, their difference falls
+/// with every refinement, and within 10% on the finest; the displacement element's errors
+/// are more than tenfold (locking).
+fn assert_rates_do_not_depend_on_lambda(geo: &str, coarse: f64) {
     let dir = scratch("incompressible-beam");
-    let (l2_c, h1_c) = beam_errors(&dir, 0.3, "mixed");
-    let (l2_i, h1_i) = beam_errors(&dir, 0.4999, "mixed");
-    let (l2_d, _) = beam_errors(&dir, 0.4999, "displacement");
+    let (l2_c, h1_c) = beam_errors(&dir, geo, 0.3, "mixed");
+    let (l2_i, h1_i) = beam_errors(&dir, geo, 0.4999, "mixed");
+    let (l2_d, _) = beam_errors(&dir, geo, 0.4999, "displacement");
     for (l2, h1) in [(&l2_c, &h1_c), (&l2_i, &h1_i)] {
-        assert!(rates(l2).iter().all(|r| (r - 2.0).abs() < 0.15), "L2 rates {:?}", rates(l2));
-        assert!(rates(h1).iter().all(|r| (r - 1.0).abs() < 0.15), "H1 rates {:?}", rates(h1));
+        for (r, p) in [(rates(l2), 2.0), (rates(h1), 1.0)] {
+            assert!(r.iter().all(|r| *r > p - 0.15), "rates {r:?} below {p}");
+            assert!((r[r.len() - 1] - p).abs() < 0.2, "rates {r:?} against {p}");
+        }
+    }
+    for (c, i) in [(&l2_c, &l2_i), (&h1_c, &h1_i)] {
+        let d: Vec<f64> = c.iter().zip(i).map(|(c, i)| rel_diff(*c, *i)).collect();
+        assert!(d.iter().all(|&x| x < coarse), "errors depend on lambda: {c:?} {i:?}");
+        assert!(d.windows(2).all(|w| w[1] <= w[0] || w[1] < 0.01), "{d:?} does not fall");
+        assert!(d[d.len() - 1] < 0.1, "errors depend on lambda: {c:?} {i:?}");
     }
     for k in 0..l2_c.len() {
-        assert!(rel_diff(l2_c[k], l2_i[k]) < 0.1, "L2 errors depend on lambda: {l2_c:?} {l2_i:?}");
-        assert!(rel_diff(h1_c[k], h1_i[k]) < 0.1, "H1 errors depend on lambda: {h1_c:?} {h1_i:?}");
         assert!(l2_d[k] > 10.0 * l2_i[k], "the displacement element does not lock? {l2_d:?}");
     }
+}
+
+/// Quadrilaterals: the mean dilatation (Q1/P0).
+#[test]
+fn manufactured_rates_do_not_depend_on_lambda() {
+    assert_rates_do_not_depend_on_lambda("beam_quad.geo", 0.1);
+}
+
+/// Triangles (structured, two per square): the averaged nodal pressure. Its errors at
+/// nu = 0.4999 start 40% above the compressible ones on the coarsest mesh (four cells through
+/// the beam's thickness; 14% on the next, 0.5% on the finest) and converge faster to the same
+/// values (L2 rates 2.27, 2.18): the pressure's averaging patch is two cells wide.
+#[test]
+fn manufactured_rates_on_triangles_do_not_depend_on_lambda() {
+    assert_rates_do_not_depend_on_lambda("beam_tri.geo", 0.5);
 }
 
 /// The contact patch of a body at nu = 0.3 (displacement element, `reference`), at nu = 0.4999
@@ -380,6 +500,80 @@ fn nearly_incompressible_disc_keeps_its_contact_patch() {
         m.max_pressure
     );
     assert!(rel_diff(one.energy_final, mixed.energy_final) < 1e-8);
+}
+
+/// A shipped scene (`scenes/<base>`) at `nu` with `formulation` on `ranks` (`args` added to
+/// the run): its summary.
+fn variant(
+    dir: &std::path::Path,
+    base: &str,
+    nu: f64,
+    formulation: &str,
+    ranks: usize,
+    args: &[&str],
+) -> RunSummary {
+    let text = std::fs::read_to_string(repo().join("scenes").join(base))
+        .unwrap()
+        .replace("\"../../meshes/", "\"../meshes/")
+        .replace("\nnu = 0.3\n", &format!("\nnu = {nu}\nformulation = \"{formulation}\"\n"));
+    assert!(text.contains("formulation"), "{base} no longer sets nu = 0.3");
+    let stem = base.replace(['/', '.'], "-");
+    let scene = scene_text(dir, &format!("{stem}-{nu}-{formulation}.toml"), &text);
+    run_scene(ranks, &scene, args)
+}
+
+/// Triangles and tetrahedra take the averaged nodal pressure. The suite's disc of triangles
+/// (`M_H^0`, dropped at 0.116) and the ball of tetrahedra (`M_H^0`, h = 0.3, hc = 0.06)
+/// at nu = 0.4999 against the same element at nu = 0.3 (the linear tetrahedron's displacement
+/// form is itself stiff in bending at 0.3): Hertz's growth of the peak pressure within 10%
+/// (line contact 1.15, point contact 1.167), the same contact patch, energy kept; the
+/// displacement simplices lock (one node, 5 and 30 times the pressure). 1, 2 and 3 ranks give
+/// the same disc, 1 and 2 the same ball.
+#[test]
+fn nearly_incompressible_simplices_keep_their_contact_patch() {
+    let dir = scratch("incompressible-simplices");
+    let disc = "suite/disc_impact_tri.toml";
+    let reference = variant(&dir, disc, 0.3, "mixed", 2, &[]);
+    let mixed = variant(&dir, disc, 0.4999, "mixed", 2, &[]);
+    let locked = variant(&dir, disc, 0.4999, "displacement", 2, &[]);
+    let line = (0.91f64 / (1.0 - 0.4999f64.powi(2))).powf(0.75);
+    assert_contact_patch(&reference, &mixed, &locked, line);
+    for ranks in [1, 3] {
+        let other = variant(&dir, disc, 0.4999, "mixed", ranks, &[]);
+        let (o, m) = (other.contact.expect("contact"), mixed.contact.clone().expect("contact"));
+        assert!(rel_diff(o.max_pressure, m.max_pressure) < 1e-8, "{ranks} ranks");
+        assert!(rel_diff(other.energy_final, mixed.energy_final) < 1e-8, "{ranks} ranks");
+    }
+    let coarse = ["--param", "h=0.3", "--param", "hc=0.06"];
+    let reference = variant(&dir, "sphere.toml", 0.3, "mixed", 2, &coarse);
+    let mixed = variant(&dir, "sphere.toml", 0.4999, "mixed", 2, &coarse);
+    let locked = variant(&dir, "sphere.toml", 0.4999, "displacement", 2, &coarse);
+    let point = (0.91f64 / (1.0 - 0.4999f64.powi(2))).powf(0.8);
+    assert_contact_patch(&reference, &mixed, &locked, point);
+    let one = variant(&dir, "sphere.toml", 0.4999, "mixed", 1, &coarse);
+    let (o, m) = (one.contact.expect("contact"), mixed.contact.expect("contact"));
+    assert!(rel_diff(o.max_pressure, m.max_pressure) < 1e-8, "1 against 2 ranks");
+}
+
+/// The averaged nodal pressure is small strain: a neo-Hookean mixed body of triangles is a
+/// one-line error naming the body and the remedy, on 2 ranks, before any step.
+#[test]
+fn mixed_simplices_at_finite_strain_are_an_error() {
+    let dir = scratch("mixed-simplices-error");
+    let text = std::fs::read_to_string(repo().join("scenes/suite/disc_impact_tri.toml"))
+        .unwrap()
+        .replace("\"../../meshes/", "\"../meshes/")
+        .replace("\nnu = 0.3\n", "\nnu = 0.49\nformulation = \"mixed\"\nmodel = \"neo_hookean\"\n");
+    let scene = scene_text(&dir, "neo-hooke-triangles.toml", &text);
+    let out = massfree(2, &["run", &scene.display().to_string(), "--quiet", "--overwrite"]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success(), "{err}");
+    let line = err.lines().find(|l| l.contains("formulation")).unwrap_or_default();
+    assert!(
+        line.contains("triangles or tetrahedra") && line.contains("quadrilaterals or hexahedra"),
+        "{err}"
+    );
+    assert!(!err.contains("panicked"), "{err}");
 }
 
 /// The neo-Hookean disc with the mean dilatation at nu = 0.49 (lambda/mu = 49), dropped at

@@ -4,6 +4,7 @@
 //! of the solver goes through here, with exact preallocation from the partition.
 
 pub mod finite_strain;
+pub mod nodal_pressure;
 pub mod rows;
 
 use mpi::topology::SimpleCommunicator;

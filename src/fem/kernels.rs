@@ -33,9 +33,11 @@ pub struct Material {
     pub lambda: f64,
     pub mu: f64,
     pub rho: f64,
-    /// The mean-dilatation (Q1/P0) form of quadrilaterals and hexahedra: the volumetric strain
-    /// of the `lambda` term is its cell average, the constant pressure `p = lambda theta_bar`
-    /// condensed cell by cell (`formulation = "mixed"`; [`stiffness`]).
+    /// `formulation = "mixed"`. On quadrilaterals and hexahedra the mean-dilatation (Q1/P0)
+    /// form: the volumetric strain of the `lambda` term is its cell average, the constant
+    /// pressure `p = lambda theta_bar` condensed cell by cell ([`stiffness`]). On triangles and
+    /// tetrahedra the averaged nodal pressure, assembled over node patches
+    /// (`assembly::nodal_pressure`; the cell kernel leaves them as they are).
     pub mean_dilatation: bool,
 }
 
@@ -272,6 +274,36 @@ fn stiffness_impl<const N: usize, const D: usize, const Q: usize>(
         }
     }
     Ok(())
+}
+
+/// The divergence row of a cell, `b[a][i] = int_K dN_a/dx_i dx` (so that
+/// `int_K div u dx = sum_a b_a . u_a`), into `out[..n]`; returns the measure `|K|`. With the
+/// stiffness rule (exact on affine simplices, where `b_a = |K| grad N_a`). The averaged nodal
+/// pressure's volumetric constraint is assembled from it (`assembly::nodal_pressure`).
+///
+/// Errors: `Error::Mesh("inverted or degenerate <kind> ...")` if det J <= 0 (or NaN).
+pub fn divergence_row(kind: ElementKind, coords: &[[f64; 3]], out: &mut [[f64; 3]]) -> Result<f64> {
+    let (n, d) = (kind.n_nodes(), kind.dim());
+    check_len("divergence_row coords", kind, coords.len(), n);
+    check_len("divergence_row out", kind, out.len(), n);
+    let t = table(kind, stiffness_order(kind));
+    out[..n].iter_mut().for_each(|b| *b = [0.0; 3]);
+    let mut volume = 0.0;
+    for q in 0..t.w.len() {
+        let mut g = t.dn[q];
+        let det = map_gradients(d, n, coords, &mut g);
+        if det.is_nan() || det <= 0.0 {
+            return Err(inverted(kind, det, q));
+        }
+        let w = t.w[q] * det;
+        volume += w;
+        for a in 0..n {
+            for i in 0..d {
+                out[a][i] += w * g[a][i];
+            }
+        }
+    }
+    Ok(volume)
 }
 
 // ---------------------------------------------------------------------------------------------

@@ -10,8 +10,8 @@ pub mod stress;
 
 pub use element::ElementKind;
 pub use kernels::{
-    body_force, boundary_weights, error_sq, mass, mass_lumped, mass_lumped_diag, measure,
-    min_det_jacobian, stiffness, traction, Material, MAX_DOFS, MAX_NODES,
+    body_force, boundary_weights, divergence_row, error_sq, mass, mass_lumped, mass_lumped_diag,
+    measure, min_det_jacobian, stiffness, traction, Material, MAX_DOFS, MAX_NODES,
 };
 pub use quadrature::gauss;
 pub use shape::{physical_gradients, shape, shape_grad_ref, surface_measure};

@@ -289,26 +289,40 @@ pub fn integrate(
     nodal: &mut [f64],
 ) -> f64 {
     // Mean dilatation: the pressure part takes the cell's mean volumetric strain.
-    let shift = if mat.mean_dilatation && samples.len() > 1 {
+    if mat.mean_dilatation && samples.len() > 1 {
         let (mut th, mut vol) = (0.0, 0.0);
         for s in samples {
             th += s.weight * trace(&s.eps);
             vol += s.weight;
         }
-        Some(th / vol)
-    } else {
-        None
-    };
+        return integrate_dilatation(samples, n, d, mat, th / vol, q, cell, nodal);
+    }
+    integrate_with(samples, n, d, |s| (s.eps, hooke(&s.eps, mat)), q, cell, nodal)
+}
+
+/// [`integrate`] with the pressure part of the stress taken at the dilatation `theta`:
+/// `sigma = 2 mu eps + lambda theta I` (the mixed formulations: the cell's mean dilatation on
+/// quadrilaterals and hexahedra, the mean of its nodes' averaged dilatations on triangles and
+/// tetrahedra, `assembly::nodal_pressure`).
+#[allow(clippy::too_many_arguments)] // integrate's arguments and the dilatation
+pub fn integrate_dilatation(
+    samples: &[Sample],
+    n: usize,
+    d: usize,
+    mat: &Material,
+    theta: f64,
+    q: Quantity,
+    cell: &mut [f64],
+    nodal: &mut [f64],
+) -> f64 {
     integrate_with(
         samples,
         n,
         d,
         |s| {
             let mut sigma = hooke(&s.eps, mat);
-            if let Some(mean) = shift {
-                let p = mat.lambda * (mean - trace(&s.eps));
-                (0..3).for_each(|i| sigma[i][i] += p);
-            }
+            let p = mat.lambda * (theta - trace(&s.eps));
+            (0..3).for_each(|i| sigma[i][i] += p);
             (s.eps, sigma)
         },
         q,

@@ -489,3 +489,36 @@ fn finite_strain_mixed_stress_has_the_cell_pressure() {
         assert!(spread > 1e-6 * m.lambda, "{name}: the field is too tame to tell: {plain_diff:?}");
     }
 }
+
+/// The mixed formulations' pressure part: with the field's own dilatation the stress is
+/// Hooke's; with another dilatation `theta` only the pressure moves, by `-lambda (theta -
+/// tr eps)` (the deviatoric stress is the field's).
+#[test]
+fn a_given_dilatation_moves_only_the_pressure() {
+    let mat = Material { mean_dilatation: true, ..Material::from_young_poisson(2.0, 0.4999, 1.0) };
+    for (name, kind, coords) in cells() {
+        let d = kind.dim();
+        let u = linear_u(&coords, d);
+        let tr: f64 = (0..3).map(|i| sym_g(d)[i][i]).sum();
+        let mut s = [Sample::default(); MAX_SAMPLES];
+        let k = samples(kind, &coords, &u, &mut s).unwrap();
+        let n = kind.n_nodes();
+        let (mut c0, mut c1, mut nv) = ([0.0; 6], [0.0; 6], [0.0; MAX_NODES * 6]);
+        let plain = Material { mean_dilatation: false, ..mat };
+        integrate(&s[..k], n, d, &plain, Quantity::Stress, &mut c0, &mut nv);
+        integrate_dilatation(&s[..k], n, d, &mat, tr, Quantity::Stress, &mut c1, &mut nv);
+        let scale = mat.lambda * 0.05;
+        assert!((0..6).all(|i| close(c0[i], c1[i], scale)), "{name}: {c0:?} {c1:?}");
+        for theta in [0.0, 0.01] {
+            let (mut p, mut dev) = ([0.0; 1], [0.0; 1]);
+            integrate_dilatation(&s[..k], n, d, &mat, theta, Quantity::Pressure, &mut p, &mut nv);
+            let shift = -mat.lambda * (theta - tr);
+            let (mut p0, mut dev0) = ([0.0; 1], [0.0; 1]);
+            integrate(&s[..k], n, d, &plain, Quantity::Pressure, &mut p0, &mut nv);
+            assert!(close(p[0], p0[0] + shift, scale), "{name}: pressure {} {}", p[0], p0[0]);
+            integrate_dilatation(&s[..k], n, d, &mat, theta, Quantity::VonMises, &mut dev, &mut nv);
+            integrate(&s[..k], n, d, &plain, Quantity::VonMises, &mut dev0, &mut nv);
+            assert!(close(dev[0], dev0[0], scale), "{name}: von Mises {} {}", dev[0], dev0[0]);
+        }
+    }
+}

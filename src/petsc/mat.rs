@@ -76,6 +76,49 @@ impl Matrix {
         Ok(out)
     }
 
+    /// A rectangular AIJ matrix: `local_rows` of `global_rows` rows (row block size 1) by
+    /// `local_cols` of `global_cols` columns in blocks of `col_block_size`, exactly
+    /// preallocated as [`Matrix::new_aij`] (e.g. a node-by-DOF operator).
+    pub fn new_aij_rect(
+        (local_rows, global_rows): (usize, usize),
+        (local_cols, global_cols, col_block_size): (usize, usize, usize),
+        d_nnz: &[i32],
+        o_nnz: &[i32],
+    ) -> Result<Matrix> {
+        ensure_live()?;
+        check_len("Matrix::new_aij_rect d_nnz", local_rows, d_nnz.len())?;
+        check_len("Matrix::new_aij_rect o_nnz", local_rows, o_nnz.len())?;
+        let (m_l, m_g) = (to_int(local_rows, "Matrix rows")?, to_int(global_rows, "Matrix rows")?);
+        let (n_l, n_g) = (to_int(local_cols, "Matrix cols")?, to_int(global_cols, "Matrix cols")?);
+        let cbs = to_int(col_block_size.max(1), "Matrix column block size")?;
+        let mut m: ffi::Mat = ptr::null_mut();
+        // SAFETY: PETSc is live; `m` is an out-pointer.
+        chk!(ffi::MatCreate(init::Petsc::comm_world(), &mut m))?;
+        let mut out = Matrix { m, range: (0, 0), size: (0, 0) };
+        // SAFETY: `m` is a fresh Mat; sizes are consistent ints.
+        chk!(ffi::MatSetSizes(m, m_l, n_l, m_g, n_g))?;
+        // SAFETY: MATAIJ is a NUL-terminated type name.
+        chk!(ffi::MatSetType(m, ffi::MATAIJ.as_ptr().cast()))?;
+        // SAFETY: valid Mat, before preallocation as PETSc requires.
+        chk!(ffi::MatSetBlockSizes(m, 1, cbs))?;
+        let seq_nnz: Vec<i32> = d_nnz.iter().zip(o_nnz).map(|(d, o)| d + o).collect();
+        // SAFETY: arrays hold `local_rows` entries; each call is a no-op on the other type.
+        chk!(ffi::MatSeqAIJSetPreallocation(m, 0, seq_nnz.as_ptr()))?;
+        // SAFETY: as above.
+        chk!(ffi::MatMPIAIJSetPreallocation(m, 0, d_nnz.as_ptr(), 0, o_nnz.as_ptr()))?;
+        out.set_option(ffi::MatOption_MAT_NEW_NONZERO_ALLOCATION_ERR, true)?;
+        out.read_layout()?;
+        Ok(out)
+    }
+
+    /// The options [`Matrix::new_aij`] sets, again on a matrix that PETSc rebuilt (an `axpy`
+    /// with [`Pattern::Different`] replaces the storage): zeroed rows keep their pattern,
+    /// and new nonzeros are errors.
+    pub fn keep_pattern(&mut self) -> Result<()> {
+        self.set_option(ffi::MatOption_MAT_NEW_NONZERO_ALLOCATION_ERR, true)?;
+        self.set_option(ffi::MatOption_MAT_KEEP_NONZERO_PATTERN, true)
+    }
+
     /// A square sequential AIJ matrix private to this rank (`MPI_COMM_SELF`), from its rows
     /// in CSR form (`row_start` has `n + 1` entries; PETSc copies the arrays and assembles).
     pub fn new_seq_csr(row_start: &[i32], cols: &[i32], vals: &[f64]) -> Result<Matrix> {
@@ -190,6 +233,15 @@ impl Matrix {
         // SAFETY: valid handle; out-pointers are locals.
         chk!(ffi::MatGetBlockSizes(self.m, &mut rbs, &mut cbs))?;
         Ok(to_usize(rbs).max(1))
+    }
+
+    /// The column block size (`MatGetBlockSizes`): a rectangular matrix's DOFs per node of
+    /// its columns (a square DOF matrix's equals [`Matrix::block_size`]).
+    pub fn column_block_size(&self) -> Result<usize> {
+        let (mut rbs, mut cbs) = (0, 0);
+        // SAFETY: valid handle; out-pointers are locals.
+        chk!(ffi::MatGetBlockSizes(self.m, &mut rbs, &mut cbs))?;
+        Ok(to_usize(cbs).max(1))
     }
 
     /// Whether the storage is (non-symmetric) block AIJ: `seqbaij` or `mpibaij`.
@@ -368,7 +420,7 @@ impl Matrix {
             chk!(ffi::MatProductSetFromOptions(c.m))?;
             // (Its rows keep P's node blocks, which GAMG aggregates by: without them the
             // friction test's step took 4 times the iterations.)
-            let bs = p.block_size()? as i32;
+            let bs = p.column_block_size()? as i32;
             chk!(ffi::MatSetBlockSizes(c.m, bs, bs))?;
             chk!(ffi::MatProductSymbolic(c.m))?;
             chk!(ffi::MatProductNumeric(c.m))?;

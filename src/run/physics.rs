@@ -7,7 +7,7 @@ use std::rc::Rc;
 
 use super::domain::Domain;
 use super::options::AppOptions;
-use crate::assembly::{self, Loads};
+use crate::assembly::{self, nodal_pressure, Loads};
 use crate::console::Console;
 use crate::contact::mortar::InterfaceMode;
 use crate::contact::{self, ContactBoundary, ContactSolver, Obstacles};
@@ -16,7 +16,7 @@ use crate::fem::kernels;
 use crate::mass::{build_local_layer, mass_matrix, MassFreeLayer, MassMatrix};
 use crate::mesh::Mesh;
 use crate::partition::Partition;
-use crate::petsc::{Matrix, NullSpace, Vector};
+use crate::petsc::{Matrix, NullSpace, Pattern, Vector};
 use crate::scene::expr::VecExpr;
 use crate::time::{Dirichlet, Forces, Midpoint};
 
@@ -39,13 +39,25 @@ impl<'a> Physics<'a> {
     /// Collective.
     pub fn assemble(d: &Domain<'a>, app: &AppOptions, console: &Console) -> Result<Physics<'a>> {
         let (mesh, part, bodies) = (&d.mesh, &d.part, &d.bodies);
+        // A mixed body's simplices: each cell's mu part here, lambda's on the nodes.
         let stiffness = |c: usize, xy: &[[f64; 3]], out: &mut [f64]| {
-            kernels::stiffness(mesh.cells[c].kind, xy, bodies.material(c), out)
+            let kind = mesh.cells[c].kind;
+            let mat = nodal_pressure::element_material(kind, bodies.material(c));
+            kernels::stiffness(kind, xy, &mat, out)
                 .map_err(|e| Error::Mesh(format!("{e} (gmsh element tag {})", mesh.cells[c].tag)))
         };
-        // A is used in products only: block AIJ, 30% less memory in 3D (K is AIJ).
         let t_a = std::time::Instant::now();
-        let a = assembly::assemble_matrix_blocked(mesh, part, stiffness)?;
+        let a = match nodal_pressure::volumetric_stiffness(mesh, part, &|c| *bodies.material(c))? {
+            // A is used in products only: block AIJ, 30% less memory in 3D (K is AIJ).
+            None => assembly::assemble_matrix_blocked(mesh, part, stiffness)?,
+            // The nodal part couples nodes two cells apart: AIJ with that wider pattern.
+            Some(mut volumetric) => {
+                let cells = assembly::assemble_matrix(mesh, part, stiffness)?;
+                volumetric.axpy(1.0, &cells, Pattern::Different)?;
+                volumetric.keep_pattern()?;
+                volumetric
+            }
+        };
         let stiffness_seconds = t_a.elapsed().as_secs_f64();
         // The summed rows (as large as A) are freed: give them back before M and K.
         crate::phase::release_free_memory();

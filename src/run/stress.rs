@@ -29,10 +29,12 @@ use mpi::topology::SimpleCommunicator;
 use mpi::traits::*;
 
 use crate::assembly;
+use crate::assembly::nodal_pressure::{self, NodalDilatation};
 use crate::bodies::Bodies;
 use crate::error::{Error, Result};
 use crate::fem::stress::{
-    integrate, integrate_finite, lumped_weights, samples, Quantity, Sample, MAX_SAMPLES,
+    integrate, integrate_dilatation, integrate_finite, lumped_weights, samples, Quantity, Sample,
+    MAX_SAMPLES,
 };
 use crate::fem::MAX_NODES;
 use crate::io::{natural_range, Location};
@@ -216,6 +218,7 @@ impl StressOutput {
         world: &SimpleCommunicator,
         bodies: &Bodies,
         u_local: &[f64],
+        theta_local: Option<&[f64]>,
         slot: &[usize],
         wanted: &[(Quantity, Location)],
     ) -> Result<Vec<Vec<f64>>> {
@@ -257,9 +260,18 @@ impl StressOutput {
             let law = bodies.law(c);
             for job in &mut jobs {
                 let nc = job.q.components();
-                match &law {
-                    Some(law) => integrate_finite(&s[..k], n, dim, law, job.q, &mut cv, &mut nv),
-                    None => integrate(&s[..k], n, dim, mat, job.q, &mut cv, &mut nv),
+                match (&law, theta_local) {
+                    (Some(law), _) => {
+                        integrate_finite(&s[..k], n, dim, law, job.q, &mut cv, &mut nv)
+                    }
+                    // The averaged nodal pressure: the mean of the cell's nodal dilatations.
+                    (None, Some(theta)) if nodal_pressure::is_nodal(kind, mat) => {
+                        let nodes = mesh.cells[c].nodes();
+                        let mean = nodes.iter().map(|&v| theta[slot[v] * dim]).sum::<f64>()
+                            / nodes.len() as f64;
+                        integrate_dilatation(&s[..k], n, dim, mat, mean, job.q, &mut cv, &mut nv)
+                    }
+                    (None, _) => integrate(&s[..k], n, dim, mat, job.q, &mut cv, &mut nv),
                 };
                 if let Some(cell) = job.cell.as_mut() {
                     cell[i * nc..(i + 1) * nc].copy_from_slice(&cv[..nc]);
@@ -311,11 +323,13 @@ pub struct StressFields<'a> {
     mesh: Rc<Mesh>,
     part: Rc<Partition>,
     output: Option<StressOutput>,
+    /// The averaged nodal dilatation (mixed bodies' simplices), built with the output.
+    nodal: Option<NodalDilatation>,
 }
 
 impl<'a> StressFields<'a> {
     pub fn new(world: &'a SimpleCommunicator, mesh: Rc<Mesh>, part: Rc<Partition>) -> Self {
-        StressFields { world, mesh, part, output: None }
+        StressFields { world, mesh, part, output: None, nodal: None }
     }
 
     /// This rank's natural blocks of the stress-type fields `wanted` (in that order), from the
@@ -328,6 +342,27 @@ impl<'a> StressFields<'a> {
         wanted: &[(Quantity, Location)],
     ) -> Result<Vec<Vec<f64>>> {
         let t0 = Instant::now();
+        if self.output.is_none() {
+            self.nodal = NodalDilatation::build(&self.mesh, &self.part, &|c| *bodies.material(c))?;
+        }
+        // The nodal dilatations in the displacement's layout (first component), fetched alike.
+        let theta = match &self.nodal {
+            Some(nodal) => {
+                let theta = nodal.dilatation(u)?;
+                let mut spread = u.duplicate()?;
+                let dim = self.part.dim;
+                theta.with_local_slice(|t| {
+                    spread.with_local_slice_mut(|s| {
+                        s.fill(0.0);
+                        for (i, &x) in t.iter().enumerate() {
+                            s[i * dim] = x;
+                        }
+                    })
+                })??;
+                Some(views.local_values(&spread)?.0)
+            }
+            None => None,
+        };
         let (vals, view) = views.local_values(u)?;
         let fetch = t0.elapsed().as_secs_f64();
         if self.output.is_none() {
@@ -336,7 +371,7 @@ impl<'a> StressFields<'a> {
         }
         let stress = self.output.as_mut().expect("stress output");
         stress.seconds += fetch;
-        stress.compute(self.world, bodies, &vals, &view.slot, wanted)
+        stress.compute(self.world, bodies, &vals, theta.as_deref(), &view.slot, wanted)
     }
 
     /// Wall time of the stress work so far on this rank (zero before the first stress field).

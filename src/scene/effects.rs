@@ -328,7 +328,9 @@ impl Effects {
                 format!("elasticity (finite strain, {}, mixed: mean dilatation)", m.name())
             }
             (Some(m), false) => format!("elasticity (finite strain, {})", m.name()),
-            (None, true) => "elasticity (mixed: mean dilatation)".to_string(),
+            (None, true) => {
+                "elasticity (mixed: mean dilatation, nodal pressure on simplices)".to_string()
+            }
             (None, false) => "elasticity".to_string(),
         }];
         if !self.bodies.is_empty() {

@@ -1280,7 +1280,12 @@ fn the_formulation_is_the_displacement_one_unless_the_scene_names_mixed() {
     // A body that does not name one takes [material]'s.
     assert_eq!(s.bodies[1].material.formulation, Formulation::Mixed);
     let line = s.effects().summary();
-    assert!(line.starts_with("effects: elasticity (mixed: mean dilatation)"), "{line}");
+    assert!(
+        line.starts_with(
+            "effects: elasticity (mixed: mean dilatation, nodal pressure on simplices)"
+        ),
+        "{line}"
+    );
     assert!(line.contains("\"soft\": formulation mixed"), "{line}");
 }
 
