@@ -44,6 +44,17 @@ pub fn step_operator(
         why.push_str("; friction makes the contact rows unsymmetric: GMRES");
     }
     let finite_strain = d.bodies.finite_strain();
+    // What the choices by run length and by `lambda/mu` weigh (collective: the free memory).
+    let facts = RunFacts {
+        dofs: d.part.n_global_dofs(),
+        dim: d.part.dim,
+        ranks: d.size,
+        steps: d.n_steps,
+        cfl: regime.cfl,
+        contact: with_contact,
+        memory_per_rank: memory_per_rank(d),
+        lambda_over_mu: d.bodies.lambda_over_mu(),
+    };
     if finite_strain {
         // Newton's tangent (`time::newton`) is unsymmetric and changes every iteration: GMRES
         // through PETSc's KSP on K in AIJ, without the linear step's own CG or the choice by
@@ -73,6 +84,16 @@ pub fn step_operator(
             defaults.pc_type = "sor".into();
             why.push_str(" with SOR");
         }
+        // Nearly incompressible: each tangent factored (`time::choice`).
+        if crate::time::choice::finite_strain_factors(&facts) {
+            defaults.ksp_type = "preonly".into();
+            defaults.pc_type = "lu".into();
+            defaults.factor_solver = Some("mumps".into());
+            why = format!(
+                "CFL {:.3}, lambda/mu {:.0}: finite strain, nearly incompressible: each Newton tangent factored (LU, MUMPS)",
+                regime.cfl, facts.lambda_over_mu
+            );
+        }
     }
     if let Some(k) = &solver.ksp_type {
         defaults.ksp_type = k.clone();
@@ -88,16 +109,7 @@ pub fn step_operator(
     // scene or the command line names the solver (friction's GMRES stays).
     let named = solver.ksp_type.is_some() || solver.pc_type.is_some() || app.step_solver_named;
     if !named && defaults.symmetric && app.choice_by_run && !finite_strain {
-        defaults.run = Some(RunFacts {
-            dofs: d.part.n_global_dofs(),
-            dim: d.part.dim,
-            ranks: d.size,
-            steps: d.n_steps,
-            cfl: regime.cfl,
-            contact: with_contact,
-            memory_per_rank: memory_per_rank(d),
-            lambda_over_mu: d.bodies.lambda_over_mu(),
-        });
+        defaults.run = Some(facts);
     }
     // The step's own CG serves steps without contact (a contact solver rewrites K's rows).
     defaults.reuse = if with_contact || finite_strain { None } else { app.step_reuse };

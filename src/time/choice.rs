@@ -50,6 +50,22 @@ pub const NEARLY_INCOMPRESSIBLE: f64 = 48.0;
 /// iterative solver's estimated steps (with contact it is redone at active-set changes).
 pub const INCOMPRESSIBLE_FACTOR_STEPS: f64 = 10.0;
 
+/// From this `lambda / mu` on (nu = 0.4995) a finite-strain run factors each Newton tangent
+/// (MUMPS' LU) instead of GMRES + SOR. Measured with the mean dilatation, the neo-Hookean disc
+/// dropped at 0.58 with `tau` = 0.0025 (406 DOFs, 1 rank): at nu = 0.4999 GMRES took 790
+/// iterations and 44.5 ms a step, LU 11.4 ms; at 0.499 GMRES was still the faster (3.42
+/// against 4.73 ms). On the Q1 ball at 0.4999 (5205 DOFs) GMRES with GAMG stopped at 10000
+/// iterations in the first contact steps and SOR took 2600 iterations a step; LU ran through.
+pub const FINITE_STRAIN_FACTOR_RATIO: f64 = 1000.0;
+
+/// Whether a finite-strain run factors its Newton tangents: nearly incompressible beyond
+/// [`FINITE_STRAIN_FACTOR_RATIO`], and the LU factor (twice the Cholesky estimate) fits in
+/// [`MEMORY_SHARE`] of the memory a rank may still use.
+pub fn finite_strain_factors(f: &RunFacts) -> bool {
+    let bytes = 2.0 * estimate(f, 0.0).factor_bytes_per_rank;
+    f.lambda_over_mu >= FINITE_STRAIN_FACTOR_RATIO && bytes <= MEMORY_SHARE * f.memory_per_rank
+}
+
 /// The step solver chosen.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Solver {
@@ -221,6 +237,23 @@ pub fn choose(f: &RunFacts, matmult: f64) -> (Solver, Estimate, String) {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn finite_strain_factors_only_nearly_incompressible_runs_that_fit() {
+        let disc = |lambda_over_mu: f64, memory_per_rank: f64| RunFacts {
+            dofs: 406,
+            dim: 2,
+            ranks: 1,
+            steps: 1000,
+            cfl: 100.0,
+            contact: true,
+            memory_per_rank,
+            lambda_over_mu,
+        };
+        assert!(finite_strain_factors(&disc(4999.0, 1e9)));
+        assert!(!finite_strain_factors(&disc(499.0, 1e9)), "GMRES + SOR is faster at 0.499");
+        assert!(!finite_strain_factors(&disc(4999.0, 1e3)), "the factor must fit");
+    }
 
     /// The 3D block of the benchmark: 265923 DOFs, CFL 32.8, one product 6.5 ms (1 rank).
     fn block(steps: usize) -> RunFacts {
