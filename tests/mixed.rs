@@ -556,14 +556,14 @@ fn nearly_incompressible_simplices_keep_their_contact_patch() {
 }
 
 /// The neo-Hookean disc (mean dilatation, `M_H^1`) dropped at 0.58, squeezed by 6% of its
-/// height, as `nu` -> 1/2 (E fixed; `tau` = 0.0025, 300 steps: the rebound and free
-/// flight). The nearly incompressible solution converges to the incompressible limit at the
-/// rate `mu / lambda`: from `nu` = 0.49 to 0.499 to 0.4999 (lambda ten times each) the
-/// changes of the largest compression and of the rebound velocity fall by at least three
-/// (measured 55 and 11); the compressible disc (`nu` = 0.3) is squeezed further (softer in
-/// bulk). The displacement element locks: at 0.4999 its compression is short of the limit's by
-/// more than 10% (measured 21%; its contact lasts 40% fewer steps). Energy kept (LU, chosen from
-/// `lambda/mu` 1000, balances to 1e-12); 1 and 2 ranks alike at 0.4999.
+/// height, as `nu` -> 1/2 (E fixed; `tau` = 0.0025, 260 steps: the contact ends by step 230,
+/// then free flight). The nearly incompressible solution converges to the incompressible
+/// limit at the rate `mu / lambda`: from `nu` = 0.49 to 0.499 to 0.4999 (lambda ten times
+/// each) the changes of the largest compression and of the rebound velocity fall by at least
+/// three (measured 55 and 11). The displacement element locks: at 0.4999 its compression is
+/// short of the limit's by more than 10% (measured 21%; its contact lasts 40% fewer steps).
+/// Energy kept (LU, chosen from `lambda/mu` 1000, balances to 1e-12); 1 and 2 ranks alike at
+/// 0.4999.
 #[test]
 fn a_finite_strain_rubber_disc_converges_as_nu_approaches_one_half() {
     let dir = scratch("rubber-disc-limit");
@@ -571,7 +571,7 @@ fn a_finite_strain_rubber_disc_converges_as_nu_approaches_one_half() {
         ("\n[material]\n", "\n[material]\nmodel = \"neo_hookean\"\n"),
         ("-0.116024", "-0.58"),
         ("tau = 0.01", "tau = 0.0025"),
-        ("steps = 250", "steps = 300"),
+        ("steps = 250", "steps = 260"),
         ("every = 250", "every = 2"),
     ];
     // The run's summary, its largest compression (1 - least height / 2) and rebound velocity.
@@ -610,8 +610,6 @@ fn a_finite_strain_rubber_disc_converges_as_nu_approaches_one_half() {
     {
         assert!(b < a / 3.0, "{what}: changes {a:e} then {b:e}: not converging as mu/lambda");
     }
-    let compressible = run(0.3, "mixed", 1);
-    assert!(compressible.1 > mixed[2].1, "the compressible disc is squeezed further");
     let locked = run(0.4999, "displacement", 1);
     assert!(locked.1 < 0.9 * mixed[2].1, "the displacement disc does not lock? {}", locked.1);
     let two = run(0.4999, "mixed", 2);
