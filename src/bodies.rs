@@ -414,9 +414,10 @@ impl Bodies {
 }
 
 /// The mixed formulation on triangles and tetrahedra is the averaged nodal pressure
-/// (`assembly::nodal_pressure`), built for small strain: a finite-strain body with it, or
-/// such cells in a finite-strain run (whose Newton loop integrates a linear body cell by
-/// cell), is an error naming the body. Collective (`sum` adds over the ranks).
+/// (`assembly::nodal_pressure`): a linear body's is the small-strain operator `G^T D G`, a
+/// neo-Hookean body's the nodes' volumes at finite strain. A linear body with it in a
+/// finite-strain run (whose Newton loop integrates linear bodies cell by cell) is an error
+/// naming both bodies. Collective (`sum` adds over the ranks).
 fn mixed_bodies_supported(
     regions: &[Region],
     mesh: &Mesh,
@@ -437,17 +438,11 @@ fn mixed_bodies_supported(
         }
     }
     sum(&mut counts);
-    let Some(r) = (0..n).find(|&r| counts[r] > 0) else { return Ok(()) };
     let finite = |r: usize| regions[r].spec.model.is_finite_strain();
-    if finite(r) {
-        return Err(format!(
-            "{}: formulation = \"mixed\" on triangles or tetrahedra (the averaged nodal pressure) is built for model = \"linear\", and {} of its cells are triangles or tetrahedra: mesh it with quadrilaterals or hexahedra",
-            regions[r].name, counts[r]
-        ));
-    }
+    let Some(r) = (0..n).find(|&r| counts[r] > 0 && !finite(r)) else { return Ok(()) };
     match (0..n).find(|&q| counts[n + q] > 0 && finite(q)) {
         Some(q) => Err(format!(
-            "{}: formulation = \"mixed\" on triangles or tetrahedra is built for small-strain runs, and {} is finite-strain: mesh it with quadrilaterals or hexahedra",
+            "{}: formulation = \"mixed\" on triangles or tetrahedra of a linear body is built for small-strain runs, and {} is finite-strain: make it model = \"neo_hookean\" too, or mesh it with quadrilaterals or hexahedra",
             regions[r].name, regions[q].name
         )),
         None => Ok(()),

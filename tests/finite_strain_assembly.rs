@@ -1,11 +1,14 @@
 //! The assembled tangent of finite-strain bodies against central differences of the assembled
-//! internal force, at random states of every element kind with both models (one rank, PETSc
-//! initialized once in the single test).
+//! internal force, at random states of every element kind with both models, and with the
+//! mixed neo-Hookean forms (the cell's mean dilatation on quadrilaterals and hexahedra, the
+//! averaged nodal pressure on triangles and tetrahedra, whose tangent couples nodes two cells
+//! apart); one rank, PETSc initialized once in the single test.
 
 use std::path::Path;
 
 use massfree::assembly::finite_strain::{Evaluation, InternalForce};
-use massfree::assembly::{new_matrix, new_vector};
+use massfree::assembly::nodal_pressure::volumetric_stiffness;
+use massfree::assembly::{assemble_matrix, new_matrix, new_vector};
 use massfree::bodies::Bodies;
 use massfree::mesh::gmsh::mesh_geo;
 use massfree::mesh::msh::read_msh;
@@ -53,11 +56,16 @@ fn the_assembled_tangent_is_the_derivative_of_the_assembled_force() {
         let mesh = read_msh(&msh).unwrap();
         let part = std::rc::Rc::new(Partition::new(&mesh, 0, 1).unwrap());
         let mesh = std::rc::Rc::new(mesh);
-        for model in ["neo_hookean", "saint_venant_kirchhoff"] {
+        for (model, formulation, nu) in [
+            ("neo_hookean", "displacement", 0.3),
+            ("saint_venant_kirchhoff", "displacement", 0.3),
+            ("neo_hookean", "mixed", 0.45),
+        ] {
             let text = format!(
-                "[mesh]\nmsh = \"{}\"\n[material]\nE = 100\nnu = 0.3\nrho = 1\nmodel = \"{model}\"\n[time]\ntau = 0.1\nsteps = 1\n",
+                "[mesh]\nmsh = \"{}\"\n[material]\nE = 100\nnu = {nu}\nrho = 1\nmodel = \"{model}\"\nformulation = \"{formulation}\"\n[time]\ntau = 0.1\nsteps = 1\n",
                 msh.display()
             );
+            let model = format!("{model} {formulation}");
             let scene = massfree::scene::parse(&text, "t.toml", root).unwrap();
             let bodies = Bodies::resolve(&scene, &mesh).unwrap();
             let layout = new_vector(&part).unwrap();
@@ -69,7 +77,25 @@ fn the_assembled_tangent_is_the_derivative_of_the_assembled_force() {
             let u1 = random_vector(&layout, 0.02, &mut rng);
             let dir = random_vector(&layout, 1.0, &mut rng);
             f.set_start(&u0).unwrap();
-            let mut k = new_matrix(&mesh, &part).unwrap();
+            // The step operator's pattern: the cells', and the nodal pressure's if any.
+            let pattern = || {
+                let material = |c: usize| *bodies.material(c);
+                let cells = assemble_matrix(&mesh, &part, |c, xy, out| {
+                    massfree::fem::kernels::stiffness(mesh.cells[c].kind, xy, &material(c), out)
+                        .map_err(|e| massfree::error::Error::Mesh(e.to_string()))
+                })
+                .unwrap();
+                match volumetric_stiffness(&mesh, &part, &material).unwrap() {
+                    Some(mut k) => {
+                        k.axpy(1.0, &cells, Pattern::Different).unwrap();
+                        k.keep_pattern().unwrap();
+                        k.zero_entries().unwrap();
+                        k
+                    }
+                    None => new_matrix(&mesh, &part).unwrap(),
+                }
+            };
+            let mut k = pattern();
             let mut f1 = layout.duplicate().unwrap();
             // The tangent at another state first: the one checked is a refill of the kept
             // storage (the recorded slots replayed, the values written into the matrix's
@@ -84,7 +110,7 @@ fn the_assembled_tangent_is_the_derivative_of_the_assembled_force() {
             let mut first =
                 InternalForce::new(&world, mesh.clone(), part.clone(), &bodies, &layout).unwrap();
             first.set_start(&u0).unwrap();
-            let mut k_first = new_matrix(&mesh, &part).unwrap();
+            let mut k_first = pattern();
             let mut f_first = layout.duplicate().unwrap();
             first.evaluate(&u1, &mut f_first, Some(&mut k_first)).unwrap();
             k_first.axpy(-1.0, &k, Pattern::Same).unwrap();

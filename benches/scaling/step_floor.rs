@@ -292,6 +292,8 @@ pub fn section(
                         cfl,
                         contact: false,
                         memory_per_rank: 12e9,
+                        // The shipped beam and cube: nu = 0.3.
+                        lambda_over_mu: 1.5,
                     };
                     format!("{:?}", massfree::time::choice::choose(&f, mm).0)
                 });

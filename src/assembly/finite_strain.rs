@@ -13,12 +13,15 @@ use std::rc::Rc;
 
 use mpi::topology::SimpleCommunicator;
 
+use super::nodal_pressure::{is_nodal, NodalVolumes};
 use super::rows::RowSums;
 use super::{cell_coords, MAX_EDOFS};
 use crate::bodies::Bodies;
 use crate::comm::{first_failure, sum_over_ranks};
 use crate::error::{Error, Result};
-use crate::fem::hyperelastic::{midpoint_force, unit_strain_force, Law};
+use crate::fem::hyperelastic::{
+    midpoint_force, midpoint_force_nodal, simplex_jacobians, unit_strain_force, Law, NodalPressure,
+};
 use crate::fem::{kernels, Material};
 use crate::mesh::Mesh;
 use crate::partition::Partition;
@@ -30,6 +33,8 @@ enum CellLaw {
     /// Small strain: the cell's `A_K`.
     Small(Material),
     Finite(Law),
+    /// A mixed neo-Hookean simplex: its volumetric part is its nodes' (`NodalVolumes`).
+    Nodal(Law),
 }
 
 /// The internal force of a run's bodies (see the module doc).
@@ -47,6 +52,8 @@ pub struct InternalForce {
     u0: Vec<f64>,
     /// The tangent's row sums, kept between evaluations.
     rows: Option<super::rows::RowStorage>,
+    /// The averaged nodal pressure of mixed neo-Hookean simplices, if the run has such cells.
+    nodal: Option<NodalVolumes>,
     /// The 2-norm of the nodes' forces under a unit strain
     /// (`fem::hyperelastic::unit_strain_force`): round-off in the internal force is about
     /// `eps` times it.
@@ -100,6 +107,9 @@ impl InternalForce {
                 let r = bodies.region_of(c);
                 let region = &bodies.regions[r];
                 let law = match region.spec.model.is_finite_strain() {
+                    true if is_nodal(mesh.cells[c].kind, &region.material) => {
+                        CellLaw::Nodal(Law::new(region.spec.model, &region.material))
+                    }
                     true => CellLaw::Finite(Law::new(region.spec.model, &region.material)),
                     false => CellLaw::Small(region.material),
                 };
@@ -133,6 +143,7 @@ impl InternalForce {
         sum.zero()?;
         gather.reverse_add(&local, &mut sum)?;
         let unit_force = sum.norm2()?;
+        let nodal = NodalVolumes::new(&mesh, &part, &|c| *bodies.material(c), &nodes)?;
         Ok(InternalForce {
             mesh,
             part,
@@ -143,6 +154,7 @@ impl InternalForce {
             local,
             u0: vec![0.0; k],
             rows: None,
+            nodal,
             unit_force,
         })
     }
@@ -151,6 +163,69 @@ impl InternalForce {
     fn gathered(&mut self, x: &Vector) -> Result<Vec<f64>> {
         self.gather.forward(x, &mut self.local)?;
         self.local.with_local_slice(|s| s.to_vec())
+    }
+
+    /// The number of local slots.
+    fn slot_count(&self) -> usize {
+        self.u0.len() / self.part.dim
+    }
+
+    /// A cell's coordinates and its nodes' `u_0` and `u_1` (`u1` at the local slots); the
+    /// number of its nodes.
+    fn cell_states(
+        &self,
+        c: usize,
+        u1: &[f64],
+        xy: &mut [[f64; 3]; 8],
+        e0: &mut [f64],
+        e1: &mut [f64],
+    ) -> usize {
+        let dim = self.part.dim;
+        let cell = &self.mesh.cells[c];
+        let n = cell_coords(&self.mesh, cell, xy);
+        for (a, &v) in cell.nodes().iter().enumerate() {
+            let s = self.slot[v] * dim;
+            e0[a * dim..(a + 1) * dim].copy_from_slice(&self.u0[s..s + dim]);
+            e1[a * dim..(a + 1) * dim].copy_from_slice(&u1[s..s + dim]);
+        }
+        n
+    }
+
+    /// This rank's shares of the nodal volumes of both states at the local slots,
+    /// `sum_{K ∋ a} |K_0| J_K / (d + 1)` over its mixed neo-Hookean simplices, or the first
+    /// inverted cell's message.
+    fn nodal_volumes(&self, u1: &[f64]) -> (Vec<f64>, Vec<f64>, Option<String>) {
+        let dim = self.part.dim;
+        let ns = self.slot_count();
+        let (mut a0, mut a1) = (vec![0.0; ns], vec![0.0; ns]);
+        let mut xy = [[0.0; 3]; 8];
+        let (mut e0, mut e1) = ([0.0; MAX_EDOFS], [0.0; MAX_EDOFS]);
+        for (k, &c) in self.part.local_cells.iter().enumerate() {
+            let CellLaw::Nodal(_) = self.laws[k].0 else { continue };
+            let cell = &self.mesh.cells[c];
+            let n = self.cell_states(c, u1, &mut xy, &mut e0, &mut e1);
+            match simplex_jacobians(cell.kind, &xy[..n], &e0[..n * dim], &e1[..n * dim]) {
+                Ok((w, j0, j1)) => {
+                    for &v in cell.nodes().iter() {
+                        a0[self.slot[v]] += w * j0 / n as f64;
+                        a1[self.slot[v]] += w * j1 / n as f64;
+                    }
+                }
+                Err(inv) => return (a0, a1, Some(self.inverted(self.laws[k].1, inv, cell.tag))),
+            }
+        }
+        (a0, a1, None)
+    }
+
+    /// The message of an inverted cell of body `region`.
+    fn inverted(&self, region: u16, inv: crate::fem::hyperelastic::Inverted, tag: u64) -> String {
+        format!(
+            "{} inverts at {} (det F = {:e}, gmsh element tag {})",
+            self.body_names[region as usize],
+            if inv.state == 0 { "the step's start" } else { "the step's end" },
+            inv.det_f,
+            tag
+        )
     }
 
     /// Sets the step's start `u_0`. Collective.
@@ -188,44 +263,64 @@ impl InternalForce {
         let mut fe = [0.0; MAX_EDOFS];
         let mut ke = vec![0.0; MAX_EDOFS * MAX_EDOFS];
         let mut failed = None;
+        // The averaged nodal pressure: the nodes' volumes of both states first (every rank's
+        // cells), then their pressures back at the cells.
+        let mut pressure = Vec::new();
+        if self.nodal.is_some() {
+            let (a0, a1, bad) = self.nodal_volumes(&u1);
+            if let Some(m) = first_failure(&world, bad) {
+                return Ok(Evaluation::Inverted(m));
+            }
+            if let Some(nodal) = self.nodal.as_mut() {
+                let state = nodal.pressures(&a0, &a1, sums.is_some())?;
+                w0 += state.w0;
+                w1 += state.w1;
+                pressure = state.pressure;
+            }
+        }
+        let mut dforce = [0.0; MAX_EDOFS];
+        let mut dvolume = [0.0; MAX_EDOFS];
+        let mut dofs = Vec::with_capacity(MAX_EDOFS);
         for (k, &c) in self.part.local_cells.iter().enumerate() {
             let cell = &self.mesh.cells[c];
-            let n = cell_coords(&self.mesh, cell, &mut xy);
+            let n = self.cell_states(c, &u1, &mut xy, &mut e0, &mut e1);
             let nodes = cell.nodes();
             let nd = n * dim;
-            for (a, &v) in nodes.iter().enumerate() {
-                let s = self.slot[v] * dim;
-                e0[a * dim..(a + 1) * dim].copy_from_slice(&self.u0[s..s + dim]);
-                e1[a * dim..(a + 1) * dim].copy_from_slice(&u1[s..s + dim]);
-            }
             let (law, region) = self.laws[k];
             let want_k = sums.is_some();
             match law {
-                CellLaw::Finite(law) => {
+                CellLaw::Finite(law) | CellLaw::Nodal(law) => {
                     let kt = want_k.then_some(&mut ke[..nd * nd]);
-                    match midpoint_force(
-                        cell.kind,
-                        &xy[..n],
-                        &law,
-                        &e0[..nd],
-                        &e1[..nd],
-                        &mut fe[..nd],
-                        kt,
-                    ) {
+                    let (c0, c1, f) = (&e0[..nd], &e1[..nd], &mut fe[..nd]);
+                    let nodal = matches!(self.laws[k].0, CellLaw::Nodal(_));
+                    let step = match nodal {
+                        // The cell's share of its nodes' pressures (`NodalVolumes`).
+                        true => {
+                            let p = nodes.iter().map(|&v| pressure[self.slot[v]]).sum::<f64>()
+                                / n as f64;
+                            let np = NodalPressure {
+                                pressure: p,
+                                dforce: &mut dforce[..nd],
+                                dvolume: &mut dvolume[..nd],
+                            };
+                            midpoint_force_nodal(cell.kind, &xy[..n], &law, c0, c1, np, f, kt)
+                        }
+                        false => midpoint_force(cell.kind, &xy[..n], &law, c0, c1, f, kt),
+                    };
+                    match step {
                         Ok(w) => {
                             w0 += w.w0;
                             w1 += w.w1;
                         }
                         Err(inv) => {
-                            failed = Some(format!(
-                                "{} inverts at {} (det F = {:e}, gmsh element tag {})",
-                                self.body_names[region as usize],
-                                if inv.state == 0 { "the step's start" } else { "the step's end" },
-                                inv.det_f,
-                                cell.tag
-                            ));
+                            failed = Some(self.inverted(region, inv, cell.tag));
                             break;
                         }
+                    }
+                    if nodal && want_k {
+                        super::node_dofs(&self.part, &nodes, &mut dofs);
+                        let nodal = self.nodal.as_mut().expect("nodal");
+                        nodal.add_rows(&self.part, &nodes, &dofs, &dforce[..nd], &dvolume[..nd])?;
                     }
                 }
                 CellLaw::Small(m) => {
@@ -265,7 +360,14 @@ impl InternalForce {
         force.zero()?;
         self.gather.reverse_add(&self.local, force)?;
         if let (Some(sums), Some(k)) = (sums, tangent) {
+            // The nodal part's entries lie outside the cells' pattern: cleared first.
+            if self.nodal.is_some() {
+                k.zero_entries()?;
+            }
             self.rows = Some(sums.fill_keeping(&world, k)?);
+            if let Some(nodal) = self.nodal.as_mut() {
+                nodal.add_tangent(k)?;
+            }
         }
         Ok(Evaluation::Energies { w0: sum_over_ranks(&world, w0), w1: sum_over_ranks(&world, w1) })
     }

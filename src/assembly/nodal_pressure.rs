@@ -154,6 +154,24 @@ impl NodalDilatation {
         d.ptap(&self.g)
     }
 
+    /// The nodes' pressures at finite strain, `L_a / V_a ln(theta_a) / theta_a` with
+    /// `theta_a = v_a / V_a` (zero at nodes of no such cell), from the current nodal volumes
+    /// `v_a` (a node vector). Collective.
+    pub fn finite_pressure(&self, current: &Vector) -> Result<Vector> {
+        let mut p = self.volume.duplicate()?;
+        let vol = self.volume.with_local_slice(|s| s.to_vec())?;
+        let lv = self.lambda_volume.with_local_slice(|s| s.to_vec())?;
+        current.with_local_slice(|v| {
+            p.with_local_slice_mut(|ps| {
+                for i in 0..vol.len() {
+                    let th = if vol[i] > 0.0 { v[i] / vol[i] } else { 1.0 };
+                    ps[i] = if vol[i] > 0.0 { lv[i] / vol[i] * th.ln() / th } else { 0.0 };
+                }
+            })
+        })??;
+        Ok(p)
+    }
+
     /// The nodal dilatations `theta_a = (G u)_a / V_a` (zero at nodes of no such cell), a
     /// node vector. Collective.
     pub fn dilatation(&self, u: &Vector) -> Result<Vector> {
@@ -181,5 +199,157 @@ pub fn volumetric_stiffness(
     match NodalDilatation::build(mesh, part, material)? {
         Some(n) => Ok(Some(n.stiffness()?)),
         None => Ok(None),
+    }
+}
+
+/// The averaged nodal pressure of neo-Hookean simplices at finite strain
+/// (`fem::hyperelastic::NodalPressure`): the stored energy's volumetric part
+/// `sum_a L_a/2 (ln theta_a)^2`, `theta_a = v_a / V_a`, with the current nodal volumes
+/// `v_a = sum_{K ∋ a} |K_0| J_K / (d + 1)` summed by the owners from every rank's cells,
+/// the nodes' algorithmic pressures handed back to the cells, and the tangent's coupling
+/// through them, `sum_a dp_a/dv_1,a R_a (x) B_a` with `R_a = sum_{K ∋ a} d f_K/d p_K / (d + 1)`
+/// and `B_a = d v_1,a / d u_1`: PETSc's distributed `R^T diag(dp/dv) B`, in the pattern of
+/// the small-strain `G^T D G` (nodes two cells apart), which the step operator already has.
+pub struct NodalVolumes {
+    /// `V_a`, `L_a` and the pattern of `G`.
+    reference: NodalDilatation,
+    /// The current volumes of both states and the pressures' derivatives (node vectors).
+    v0: Vector,
+    v1: Vector,
+    dp: Vector,
+    /// Node values at the internal force's local slots, and the scatter between the two.
+    gather: crate::petsc::Scatter,
+    local: Vector,
+    /// The tangent's factors `R` and `B` (node rows, DOF columns) and `R^T diag(dp) B`.
+    r: Matrix,
+    b: Matrix,
+    product: Option<Matrix>,
+    dim: usize,
+}
+
+/// What [`NodalVolumes::pressures`] found: the nodes' pressures at the local slots and this
+/// rank's share of the volumetric energies of both states.
+pub struct NodalState {
+    pub pressure: Vec<f64>,
+    pub w0: f64,
+    pub w1: f64,
+}
+
+impl NodalVolumes {
+    /// For the nodes `slots` (the internal force's local slots, mesh node numbers in slot
+    /// order); `None` on every rank when no cell's volumetric part is nodal. Collective.
+    pub fn new(
+        mesh: &Mesh,
+        part: &Partition,
+        material: &dyn Fn(usize) -> Material,
+        slots: &[usize],
+    ) -> Result<Option<NodalVolumes>> {
+        let Some(reference) = NodalDilatation::build(mesh, part, material)? else {
+            return Ok(None);
+        };
+        let dim = part.dim;
+        let world = mpi::topology::SimpleCommunicator::world();
+        let k = slots.len();
+        let mut offset = 0usize;
+        world.scan_into(&k, &mut offset, mpi::collective::SystemOperation::sum());
+        let total = crate::comm::sum_over_ranks(&world, k as f64) as usize;
+        let local = Vector::new_mpi(k, total, 1)?;
+        let from: Vec<i32> = slots.iter().map(|&v| (part.dof(v, 0) / dim) as i32).collect();
+        let to: Vec<i32> = (offset - k..offset).map(|i| i as i32).collect();
+        let gather = crate::petsc::Scatter::new(&reference.volume, &from, &local, &to)?;
+        let (r, b) = (reference.g.duplicate(false)?, reference.g.duplicate(false)?);
+        let dup = || reference.volume.duplicate();
+        Ok(Some(NodalVolumes {
+            v0: dup()?,
+            v1: dup()?,
+            dp: dup()?,
+            gather,
+            local,
+            r,
+            b,
+            product: None,
+            dim,
+            reference,
+        }))
+    }
+
+    /// From the local slots' volume sums of both states (`sum_{K ∋ a} |K_0| J_K / (d + 1)`
+    /// over this rank's cells): the nodes' algorithmic pressures
+    /// (`fem::hyperelastic::volumetric_pressure` of `L_a / V_a` in `v_a / V_a`, per unit
+    /// current volume) at the local slots, and the energies. With `tangent`, the factors
+    /// `R` and `B` are zeroed for [`NodalVolumes::add_rows`]. Collective.
+    pub fn pressures(&mut self, a0: &[f64], a1: &[f64], tangent: bool) -> Result<NodalState> {
+        for (sums, v) in [(a0, &mut self.v0), (a1, &mut self.v1)] {
+            self.local.with_local_slice_mut(|s| s.copy_from_slice(sums))?;
+            v.zero()?;
+            self.gather.reverse_add(&self.local, v)?;
+        }
+        let (mut w0, mut w1) = (0.0, 0.0);
+        let mut p = self.reference.volume.duplicate()?;
+        {
+            let vol = self.reference.volume.with_local_slice(|s| s.to_vec())?;
+            let lv = self.reference.lambda_volume.with_local_slice(|s| s.to_vec())?;
+            let v0 = self.v0.with_local_slice(|s| s.to_vec())?;
+            let v1 = self.v1.with_local_slice(|s| s.to_vec())?;
+            let mut dp = vec![0.0; vol.len()];
+            let pv = p.with_local_slice_mut(|ps| {
+                for i in 0..vol.len() {
+                    if vol[i] <= 0.0 {
+                        ps[i] = 0.0;
+                        continue;
+                    }
+                    let (th0, th1) = (v0[i] / vol[i], v1[i] / vol[i]);
+                    let (l0, l1) = (th0.ln(), th1.ln());
+                    w0 += 0.5 * lv[i] * l0 * l0;
+                    w1 += 0.5 * lv[i] * l1 * l1;
+                    let (pa, dpa) =
+                        crate::fem::hyperelastic::volumetric_pressure(lv[i] / vol[i], th0, th1);
+                    ps[i] = pa;
+                    dp[i] = dpa / vol[i];
+                }
+            });
+            pv?;
+            self.dp.with_local_slice_mut(|s| s.copy_from_slice(&dp))?;
+        }
+        self.gather.forward(&p, &mut self.local)?;
+        let pressure = self.local.with_local_slice(|s| s.to_vec())?;
+        if tangent {
+            self.r.zero_entries()?;
+            self.b.zero_entries()?;
+        }
+        Ok(NodalState { pressure, w0, w1 })
+    }
+
+    /// A cell's rows of `R` and `B`: `dforce / (d + 1)` and `dvolume / (d + 1)` at each of
+    /// its nodes' rows (`dofs` its DOFs in the layout).
+    pub fn add_rows(
+        &mut self,
+        part: &Partition,
+        nodes: &[usize],
+        dofs: &[i32],
+        dforce: &[f64],
+        dvolume: &[f64],
+    ) -> Result<()> {
+        let share = 1.0 / nodes.len() as f64;
+        let rv: Vec<f64> = dforce.iter().map(|x| share * x).collect();
+        let bv: Vec<f64> = dvolume.iter().map(|x| share * x).collect();
+        for &a in nodes {
+            let row = [(part.dof(a, 0) / self.dim) as i32];
+            self.r.set_values(&row, dofs, &rv, true)?;
+            self.b.set_values(&row, dofs, &bv, true)?;
+        }
+        Ok(())
+    }
+
+    /// `tangent += R^T diag(dp/dv_1) B` (within `tangent`'s pattern). Collective.
+    pub fn add_tangent(&mut self, tangent: &mut Matrix) -> Result<()> {
+        self.r.assemble()?;
+        self.b.assemble()?;
+        self.r.scale_rows(&self.dp)?;
+        match self.product.as_mut() {
+            Some(c) => c.product_again()?,
+            None => self.product = Some(self.r.transpose_times(&self.b, self.dim)?),
+        }
+        tangent.axpy(1.0, self.product.as_ref().expect("product"), crate::petsc::Pattern::Subset)
     }
 }

@@ -231,6 +231,19 @@ fn log1p_over_x_prime(x: f64) -> f64 {
     }
 }
 
+/// The discrete gradient of `U(theta) = k/2 (ln theta)^2` between `theta_0` and `theta_1`,
+/// `p = (U(theta_1) - U(theta_0)) / (theta_1 - theta_0) = k/2 (ln theta_0 + ln theta_1)
+/// ln(1 + x)/x / theta_0` (`x = (theta_1 - theta_0)/theta_0`, no cancellation; `U'(theta_0)`
+/// at `x = 0`), and its derivative in `theta_1`.
+pub fn volumetric_pressure(k: f64, theta0: f64, theta1: f64) -> (f64, f64) {
+    let x = (theta1 - theta0) / theta0;
+    let (l0, l1) = (theta0.ln(), theta1.ln());
+    let phi = log1p_over_x(x);
+    let p = 0.5 * k * (l0 + l1) * phi / theta0;
+    let dp = 0.5 * k * (phi / theta1 + (l0 + l1) * log1p_over_x_prime(x) / theta0) / theta0;
+    (p, dp)
+}
+
 impl Law {
     /// The strain energy density `W(C)` (per reference volume); `None` if `det C <= 0`.
     pub fn energy(&self, c: &Tensor) -> Option<f64> {
@@ -449,11 +462,90 @@ pub fn midpoint_force(
     force: &mut [f64],
     tangent: Option<&mut [f64]>,
 ) -> Result<ElementStep, Inverted> {
+    dispatch(kind, coords, law, u0, u1, force, tangent, None)
+}
+
+/// The volumetric part of a neo-Hookean simplex whose pressure is the averaged nodal one
+/// (`formulation = "mixed"` on triangles and tetrahedra; `assembly::nodal_pressure`): the
+/// stored energy `sum_a L_a/2 (ln theta_a)^2`, `theta_a = v_a / V_a` with the nodal volumes
+/// `v_a = sum_{K ∋ a} |K_0| J_K / (d + 1)`, is the nodes', not the cell's. Its discrete
+/// gradient `p_a = (U_a(v_1) - U_a(v_0)) / (v_1 - v_0)` comes in as the cell's mean
+/// `p_K = sum_{a ∈ K} p_a / (d + 1)`, and the cell adds `S_vol = kappa D_3`,
+/// `kappa = 2 p_K / (J_0 + J_1)`: `1/2 S_vol : dC = p_K (J_1 - J_0)` per unit reference volume,
+/// so that `sum_K |K_0| p_K (J_1 - J_0) = sum_a p_a (v_1 - v_0) = sum_a U_a(v_1) - U_a(v_0)`
+/// (exact energy; `S_alg` stays symmetric, so momentum and angular momentum are kept).
+pub struct NodalPressure<'a> {
+    /// `p_K`, the mean algorithmic pressure of the cell's nodes.
+    pub pressure: f64,
+    /// With the tangent: `d force / d p_K` (`n d` long, overwritten) ...
+    pub dforce: &'a mut [f64],
+    /// ... and `d (|K_0| J_1) / d u_1` (`n d` long, overwritten): where the nodal volumes
+    /// move, `d v_1,a / d u_1 = sum_{K ∋ a} dvolume_K / (d + 1)`.
+    pub dvolume: &'a mut [f64],
+}
+
+/// [`midpoint_force`] of a simplex with the averaged nodal pressure ([`NodalPressure`]): the
+/// point-wise law without `lambda`, plus `p_K`'s share. Energies without the nodal part.
+#[allow(clippy::too_many_arguments)] // midpoint_force's arguments and the nodal pressure
+pub fn midpoint_force_nodal(
+    kind: ElementKind,
+    coords: &[[f64; 3]],
+    law: &Law,
+    u0: &[f64],
+    u1: &[f64],
+    nodal: NodalPressure,
+    force: &mut [f64],
+    tangent: Option<&mut [f64]>,
+) -> Result<ElementStep, Inverted> {
+    assert!(
+        kind.is_simplex() && law.model == Model::NeoHookean,
+        "nodal pressure: neo-Hookean simplices"
+    );
+    dispatch(kind, coords, law, u0, u1, force, tangent, Some(nodal))
+}
+
+/// `|K_0|` and `J` of both states of a simplex (one point: `F` is constant).
+pub fn simplex_jacobians(
+    kind: ElementKind,
+    coords: &[[f64; 3]],
+    u0: &[f64],
+    u1: &[f64],
+) -> Result<(f64, f64, f64), Inverted> {
+    fn one<const N: usize, const D: usize>(
+        kind: ElementKind,
+        coords: &[[f64; 3]],
+        u0: &[f64],
+        u1: &[f64],
+    ) -> Result<(f64, f64, f64), Inverted> {
+        let t = table(kind, stiffness_order(kind));
+        debug_assert_eq!(t.w.len(), 1, "one point on simplices");
+        let p = QuadraturePoint::<N>::new::<D>(t, 0, coords, u0, u1)?;
+        Ok((p.w, p.j0, p.j1))
+    }
     match kind {
-        ElementKind::Tri3 => midpoint_impl::<3, 2, 3>(kind, coords, law, u0, u1, force, tangent),
-        ElementKind::Quad4 => midpoint_impl::<4, 2, 3>(kind, coords, law, u0, u1, force, tangent),
-        ElementKind::Tet4 => midpoint_impl::<4, 3, 6>(kind, coords, law, u0, u1, force, tangent),
-        ElementKind::Hex8 => midpoint_impl::<8, 3, 6>(kind, coords, law, u0, u1, force, tangent),
+        ElementKind::Tri3 => one::<3, 2>(kind, coords, u0, u1),
+        ElementKind::Tet4 => one::<4, 3>(kind, coords, u0, u1),
+        _ => panic!("simplex_jacobians of {}: not a simplex", kind.name()),
+    }
+}
+
+#[allow(clippy::too_many_arguments)]
+fn dispatch(
+    kind: ElementKind,
+    coords: &[[f64; 3]],
+    law: &Law,
+    u0: &[f64],
+    u1: &[f64],
+    force: &mut [f64],
+    tangent: Option<&mut [f64]>,
+    nodal: Option<NodalPressure>,
+) -> Result<ElementStep, Inverted> {
+    let (c, l, a, b) = (coords, law, u0, u1);
+    match kind {
+        ElementKind::Tri3 => midpoint_impl::<3, 2, 3>(kind, c, l, a, b, force, tangent, nodal),
+        ElementKind::Quad4 => midpoint_impl::<4, 2, 3>(kind, c, l, a, b, force, tangent, nodal),
+        ElementKind::Tet4 => midpoint_impl::<4, 3, 6>(kind, c, l, a, b, force, tangent, nodal),
+        ElementKind::Hex8 => midpoint_impl::<8, 3, 6>(kind, c, l, a, b, force, tangent, nodal),
         ElementKind::Point1 | ElementKind::Line2 => {
             panic!("hyperelastic kernels for {}: not a cell of a 2D or 3D mesh", kind.name())
         }
@@ -500,6 +592,7 @@ impl<const N: usize> QuadraturePoint<N> {
 }
 
 #[inline(always)]
+#[allow(clippy::too_many_arguments)]
 fn midpoint_impl<const N: usize, const D: usize, const V: usize>(
     kind: ElementKind,
     coords: &[[f64; 3]],
@@ -508,6 +601,7 @@ fn midpoint_impl<const N: usize, const D: usize, const V: usize>(
     u1: &[f64],
     force: &mut [f64],
     mut tangent: Option<&mut [f64]>,
+    mut nodal: Option<NodalPressure>,
 ) -> Result<ElementStep, Inverted> {
     let nd = N * D;
     check_len("hyperelastic coords", kind, coords.len(), N);
@@ -526,7 +620,11 @@ fn midpoint_impl<const N: usize, const D: usize, const V: usize>(
     // Mean dilatation: the cell's volume and mean Jacobians of both states, the volumetric
     // `V'_alg / |K|` and its derivative in theta_1; the point-wise law without lambda.
     let mean = law.mean_dilatation && law.model == Model::NeoHookean && t.w.len() > 1;
-    let point_law = if mean { Law { lambda: 0.0, ..*law } } else { *law };
+    let point_law = if mean || nodal.is_some() { Law { lambda: 0.0, ..*law } } else { *law };
+    if let (Some(np), true) = (nodal.as_mut(), tangent.is_some()) {
+        np.dforce[..nd].fill(0.0);
+        np.dvolume[..nd].fill(0.0);
+    }
     let (mut volume, mut th0, mut th1) = (0.0, 0.0, 0.0);
     if mean {
         for q in 0..t.w.len() {
@@ -562,9 +660,14 @@ fn midpoint_impl<const N: usize, const D: usize, const V: usize>(
             let (l, m) = (point_law.lambda, law.mu);
             let t = tangent.is_some();
             let mut nh = NeoHookeStep::with_invariants(l, m, &c0, &c1, j0 * j0, j1 * j1, t);
-            if mean {
+            // The cell's pressure per unit volume: its own (mean dilatation) or its nodes'.
+            let own = match &nodal {
+                Some(np) => Some(np.pressure),
+                None => mean.then_some(vp),
+            };
+            if let Some(p) = own {
                 // kappa_q/2 joins g; its local derivative through J_1,q (dJ/dI_3 = 1/(2 J)).
-                let kappa = 2.0 * vp / (j0 + j1);
+                let kappa = 2.0 * p / (j0 + j1);
                 nh.g += 0.5 * kappa;
                 nh.dg_di1 -= 0.5 * kappa / (j0 + j1) / (2.0 * j1);
             }
@@ -606,10 +709,11 @@ fn midpoint_impl<const N: usize, const D: usize, const V: usize>(
             }
         }
         let Some(k) = tangent.as_deref_mut() else { continue };
-        if let (true, Some(nh)) = (mean, &nh) {
-            // d f_a = w F_m D_3 G_a d kappa_q, d kappa_q = 2 dvp/(J_0 + J_1) d theta_1, and
-            // d theta_1 / d u_1,b = sum_p w_p/|K| cof(F_1,p) G_b,p.
-            let scale = w * 2.0 * dvp / (j0 + j1);
+        if let (true, Some(nh)) = (mean || nodal.is_some(), &nh) {
+            // d f_a = w F_m D_3 G_a d kappa_q, d kappa_q = 2/(J_0 + J_1) d p, with the cell's
+            // d p = dvp d theta_1, d theta_1 / d u_1,b = sum_p w_p/|K| cof(F_1,p) G_b,p, or
+            // the nodes' pressure (d p and d v_1 handed out).
+            let scale = w * 2.0 / (j0 + j1);
             let cof1 = cofactor(&f1);
             for a in 0..N {
                 for i in 0..D {
@@ -619,12 +723,20 @@ fn midpoint_impl<const N: usize, const D: usize, const V: usize>(
                             v += fm[i][p_] * nh.d3[p_][jj] * g[a][jj];
                         }
                     }
-                    rank_a[a * D + i] += scale * v;
                     let mut c = 0.0;
                     for jj in 0..D {
                         c += cof1[i][jj] * g[a][jj];
                     }
-                    rank_b[a * D + i] += w / volume * c;
+                    match nodal.as_mut() {
+                        Some(np) => {
+                            np.dforce[a * D + i] += scale * v;
+                            np.dvolume[a * D + i] += w * c;
+                        }
+                        None => {
+                            rank_a[a * D + i] += scale * dvp * v;
+                            rank_b[a * D + i] += w / volume * c;
+                        }
+                    }
                 }
             }
         }

@@ -343,6 +343,23 @@ pub fn integrate_finite(
     cell: &mut [f64],
     nodal: &mut [f64],
 ) -> f64 {
+    integrate_finite_pressure(samples, n, d, law, None, q, cell, nodal)
+}
+
+/// [`integrate_finite`] with, if `given`, the pressure part of the stress given: the
+/// point-wise law without `lambda` plus `given I` (the averaged nodal pressure of mixed
+/// neo-Hookean simplices: the mean of the cell's nodes' `L_a/V_a ln(theta_a)/theta_a`).
+#[allow(clippy::too_many_arguments)] // integrate_finite's arguments and the pressure
+pub fn integrate_finite_pressure(
+    samples: &[Sample],
+    n: usize,
+    d: usize,
+    law: &crate::fem::hyperelastic::Law,
+    given: Option<f64>,
+    q: Quantity,
+    cell: &mut [f64],
+    nodal: &mut [f64],
+) -> f64 {
     use crate::fem::hyperelastic::{cauchy_stress, det, right_cauchy_green, Law, Model};
     let deformation = |s: &Sample| {
         let mut f = s.grad;
@@ -354,7 +371,9 @@ pub fn integrate_finite(
     // Mean dilatation (neo-Hooke): the point-wise law without lambda and the cell's pressure
     // `lambda ln(theta)/theta`, theta the mean Jacobian (the element's energy, hyperelastic).
     let mean = law.mean_dilatation && law.model == Model::NeoHookean && samples.len() > 1;
-    let (point_law, pressure) = if mean {
+    let (point_law, pressure) = if let Some(p) = given {
+        (Law { lambda: 0.0, ..*law }, p)
+    } else if mean {
         let (mut th, mut vol) = (0.0, 0.0);
         for s in samples {
             th += s.weight * det(&deformation(s));

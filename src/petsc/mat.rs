@@ -438,6 +438,45 @@ impl Matrix {
         Matrix::from_raw(c)
     }
 
+    /// `A^T B` as a new matrix (`A` = self; PETSc's `MatProduct` of type `AtB`), with DOF
+    /// blocks of `block_size`; [`Matrix::product_again`] recomputes it from the same two
+    /// matrices' new values.
+    pub fn transpose_times(&self, b: &Matrix, block_size: usize) -> Result<Matrix> {
+        let mut c: ffi::Mat = ptr::null_mut();
+        // SAFETY: valid assembled handles; `c` is an out-pointer, then the product matrix,
+        // set up in PETSc's documented order (type, fill, options, symbolic, numeric).
+        chk!(ffi::MatProductCreate(self.m, b.m, ptr::null_mut(), &mut c))?;
+        let mut c = Matrix { m: c, range: (0, 0), size: (0, 0) }; // freed on an error
+        chk!(ffi::MatProductSetType(c.m, ffi::MatProductType_MATPRODUCT_AtB))?;
+        chk!(ffi::MatProductSetFill(c.m, ffi::PETSC_DEFAULT as f64))?;
+        chk!(ffi::MatProductSetFromOptions(c.m))?;
+        let bs = to_int(block_size.max(1), "Matrix block size")?;
+        chk!(ffi::MatSetBlockSizes(c.m, bs, bs))?;
+        chk!(ffi::MatProductSymbolic(c.m))?;
+        chk!(ffi::MatProductNumeric(c.m))?;
+        c.read_layout()?;
+        Ok(c)
+    }
+
+    /// A product of [`Matrix::transpose_times`] recomputed from its factors' current values
+    /// (their patterns unchanged; PETSc's `MatProductNumeric`).
+    pub fn product_again(&mut self) -> Result<()> {
+        // SAFETY: `self` is a product matrix whose factors PETSc still references.
+        chk!(ffi::MatProductNumeric(self.m))
+    }
+
+    /// Every stored entry set to zero, the pattern kept (`MatZeroEntries`).
+    pub fn zero_entries(&mut self) -> Result<()> {
+        // SAFETY: valid handle.
+        chk!(ffi::MatZeroEntries(self.m))
+    }
+
+    /// Row `i` scaled by `d_i` (`MatDiagonalScale(A, d, NULL)`).
+    pub fn scale_rows(&mut self, d: &Vector) -> Result<()> {
+        // SAFETY: valid handles; `d` has the row layout (PETSc checks it).
+        chk!(ffi::MatDiagonalScale(self.m, d.raw(), ptr::null_mut()))
+    }
+
     /// `c = P^T A P` again, in place: `c` came from [`Matrix::ptap`] of a matrix with this
     /// one's nonzero pattern and the same `P` (PETSc's `MatPtAP` with `MAT_REUSE_MATRIX`: the
     /// numeric part only; values written into `c` since are overwritten).

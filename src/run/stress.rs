@@ -33,8 +33,8 @@ use crate::assembly::nodal_pressure::{self, NodalDilatation};
 use crate::bodies::Bodies;
 use crate::error::{Error, Result};
 use crate::fem::stress::{
-    integrate, integrate_dilatation, integrate_finite, lumped_weights, samples, Quantity, Sample,
-    MAX_SAMPLES,
+    integrate, integrate_dilatation, integrate_finite, integrate_finite_pressure, lumped_weights,
+    samples, Quantity, Sample, MAX_SAMPLES,
 };
 use crate::fem::MAX_NODES;
 use crate::io::{natural_range, Location};
@@ -141,6 +141,20 @@ fn gather(
     n
 }
 
+/// A node vector in the layout of `like` (a displacement), at each node's first component.
+fn spread(nodes: &Vector, like: &Vector, dim: usize) -> Result<Vector> {
+    let mut out = like.duplicate()?;
+    nodes.with_local_slice(|t| {
+        out.with_local_slice_mut(|s| {
+            s.fill(0.0);
+            for (i, &x) in t.iter().enumerate() {
+                s[i * dim] = x;
+            }
+        })
+    })??;
+    Ok(out)
+}
+
 impl StressOutput {
     /// Set up for this rank's cells: the natural cell indices, the nodal denominators (one
     /// assembly). `nodes` are the nodes of this rank's cells in the order of the local view
@@ -212,13 +226,17 @@ impl StressOutput {
     /// This rank's natural blocks of the `wanted` fields (quantity and cell values or nodal
     /// projection), in that order, components interlaced, from the displacement at the nodes
     /// of this rank's cells (`u_local`, node v at `slot[v]`). One pass over this rank's cells
-    /// computes every quantity wanted. Collective (every rank must want the same fields).
+    /// computes every quantity wanted. `theta_local` and `pressure_local`: the nodes' averaged
+    /// dilatations (linear mixed simplices) and pressures (neo-Hookean ones) at the slots.
+    /// Collective (every rank must want the same fields).
+    #[allow(clippy::too_many_arguments)] // the local values of u, theta and the pressure
     pub fn compute(
         &mut self,
         world: &SimpleCommunicator,
         bodies: &Bodies,
         u_local: &[f64],
         theta_local: Option<&[f64]>,
+        pressure: Option<&[f64]>,
         slot: &[usize],
         wanted: &[(Quantity, Location)],
     ) -> Result<Vec<Vec<f64>>> {
@@ -260,7 +278,16 @@ impl StressOutput {
             let law = bodies.law(c);
             for job in &mut jobs {
                 let nc = job.q.components();
+                let nodal = nodal_pressure::is_nodal(kind, mat);
                 match (&law, theta_local) {
+                    (Some(law), _) if nodal && pressure.is_some() => {
+                        let p = pressure.expect("nodal pressures");
+                        let nodes = mesh.cells[c].nodes();
+                        let mean = nodes.iter().map(|&v| p[slot[v] * dim]).sum::<f64>()
+                            / nodes.len() as f64;
+                        let (q, given) = (job.q, Some(mean));
+                        integrate_finite_pressure(&s[..k], n, dim, law, given, q, &mut cv, &mut nv)
+                    }
                     (Some(law), _) => {
                         integrate_finite(&s[..k], n, dim, law, job.q, &mut cv, &mut nv)
                     }
@@ -349,19 +376,19 @@ impl<'a> StressFields<'a> {
         let theta = match &self.nodal {
             Some(nodal) => {
                 let theta = nodal.dilatation(u)?;
-                let mut spread = u.duplicate()?;
-                let dim = self.part.dim;
-                theta.with_local_slice(|t| {
-                    spread.with_local_slice_mut(|s| {
-                        s.fill(0.0);
-                        for (i, &x) in t.iter().enumerate() {
-                            s[i * dim] = x;
-                        }
-                    })
-                })??;
-                Some(views.local_values(&spread)?.0)
+                Some(views.local_values(&spread(&theta, u, self.part.dim)?)?.0)
             }
             None => None,
+        };
+        // Mixed neo-Hookean simplices: their nodes' pressures from the current volumes.
+        let pressure = match &self.nodal {
+            Some(nodal) if bodies.finite_strain() => {
+                let (vals, view) = views.local_values(u)?;
+                let slot = view.slot.clone();
+                let p = self.finite_pressure(nodal, bodies, &vals, &slot)?;
+                Some(views.local_values(&spread(&p, u, self.part.dim)?)?.0)
+            }
+            _ => None,
         };
         let (vals, view) = views.local_values(u)?;
         let fetch = t0.elapsed().as_secs_f64();
@@ -371,7 +398,44 @@ impl<'a> StressFields<'a> {
         }
         let stress = self.output.as_mut().expect("stress output");
         stress.seconds += fetch;
-        stress.compute(self.world, bodies, &vals, theta.as_deref(), &view.slot, wanted)
+        let (theta, pressure) = (theta.as_deref(), pressure.as_deref());
+        stress.compute(self.world, bodies, &vals, theta, pressure, &view.slot, wanted)
+    }
+
+    /// The nodes' pressures of mixed neo-Hookean simplices
+    /// (`NodalDilatation::finite_pressure`) spread over the displacement's layout (first
+    /// component): each rank adds its cells' `|K_0| J_K / (d + 1)` to their nodes' current
+    /// volumes (`u_local` at the local slots). Collective.
+    fn finite_pressure(
+        &self,
+        nodal: &NodalDilatation,
+        bodies: &Bodies,
+        u_local: &[f64],
+        slot: &[usize],
+    ) -> Result<Vector> {
+        let (mesh, part) = (&self.mesh, &self.part);
+        let dim = part.dim;
+        let mut current = nodal.volume.duplicate()?;
+        current.zero()?;
+        let mut xy = [[0.0; 3]; MAX_NODES];
+        let mut ue = [0.0; assembly::MAX_EDOFS];
+        for &c in &part.local_cells {
+            let kind = mesh.cells[c].kind;
+            if !(nodal_pressure::is_nodal(kind, bodies.material(c)) && bodies.law(c).is_some()) {
+                continue;
+            }
+            let n = gather(mesh, c, dim, u_local, slot, &mut xy, &mut ue);
+            let u = &ue[..n * dim];
+            // An inverted cell stopped the run's step already: here it counts as it is.
+            let (w, j, _) = crate::fem::hyperelastic::simplex_jacobians(kind, &xy[..n], u, u)
+                .unwrap_or((0.0, 0.0, 0.0));
+            for v in mesh.cells[c].nodes() {
+                let row = [(part.dof(v, 0) / dim) as i32];
+                current.set_values(&row, &[w * j / n as f64], true)?;
+            }
+        }
+        current.assemble()?;
+        nodal.finite_pressure(&current)
     }
 
     /// Wall time of the stress work so far on this rank (zero before the first stress field).

@@ -325,7 +325,8 @@ impl Effects {
         ];
         let mut built = vec![match (self.finite_strain, self.mixed) {
             (Some(m), true) => {
-                format!("elasticity (finite strain, {}, mixed: mean dilatation)", m.name())
+                let mixed = "mixed: mean dilatation, nodal pressure on simplices";
+                format!("elasticity (finite strain, {}, {mixed})", m.name())
             }
             (Some(m), false) => format!("elasticity (finite strain, {})", m.name()),
             (None, true) => {
