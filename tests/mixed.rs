@@ -945,3 +945,35 @@ fn an_affine_deformation_gives_the_exact_stress_with_the_nodal_pressure_at_finit
     let worst = nodal.iter().fold(0.0f64, |m, x| m.max((x - pressure).abs()));
     assert!(worst < 1e-10 * p.abs(), "nodal pressure off by {worst:e} of {pressure:e}");
 }
+
+/// Coulomb friction on a nearly incompressible body: the mixed disc (`nu` = 0.4999, the mean
+/// dilatation) hits the plane sliding (velocity 0.05 along it, 0.116 into it; `--friction
+/// 0.3`). Under the normal load its contact zone spreads sideways, so a node slipping one way
+/// slips back whichever way it is pushed; such a node sticks (the active-set loop's rule)
+/// instead of turning its slip direction for ever (before: "the slip directions did not
+/// settle" at step 1). Asserted: the run ends; the energy balance books the dissipation to
+/// the solver tolerance (1e-8, solves to 1e-12); the dissipation is positive; the friction
+/// impulse lies in Coulomb's cone, `|J_t| <= mu J_n`; 1 and 2 ranks agree to 1e-8.
+#[test]
+fn nearly_incompressible_bodies_take_coulomb_friction() {
+    let dir = scratch("incompressible-friction");
+    let sliding: &[(&str, &str)] =
+        &[("velocity = [\"0\", \"-0.116024\"]", "velocity = [\"0.05\", \"-0.116024\"]")];
+    let args = ["--friction", "0.3", "--", "-step_ksp_rtol", "1e-12"];
+    let runs: Vec<RunSummary> =
+        [1, 2].iter().map(|&n| disc_with(&dir, 0.4999, "mixed", n, sliding, &args)).collect();
+    for s in &runs {
+        let c = s.contact.as_ref().expect("contact");
+        assert!(s.energy_balance < 1e-8, "energy balance {}", s.energy_balance);
+        assert!(c.friction_dissipation > 0.0, "dissipation {}", c.friction_dissipation);
+        let (jt, jn) = (c.friction_impulse[0].abs(), c.impulse[1]);
+        assert!(
+            jt > 0.0 && jt <= 0.3 * jn * (1.0 + 1e-9),
+            "|J_t| {jt} against mu J_n {}",
+            0.3 * jn
+        );
+    }
+    let (a, b) = (runs[0].contact.as_ref().unwrap(), runs[1].contact.as_ref().unwrap());
+    assert!(rel_diff(a.friction_impulse[0], b.friction_impulse[0]) < 1e-8, "1 against 2 ranks");
+    assert!(rel_diff(a.friction_dissipation, b.friction_dissipation) < 1e-8, "1 against 2 ranks");
+}

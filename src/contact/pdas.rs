@@ -337,12 +337,24 @@ impl ContactSolver for ActiveSet<'_> {
                         } else {
                             let dir = if len > 0.0 { z.map(|x| x / len) } else { dirs[p].0 };
                             let ratio = if len > 0.0 { (bound / len).min(1.0) } else { 0.0 };
-                            if states[p] == NodeState::Slip && distance(&dir, &dirs[p].0) > DIR_TOL
-                            {
+                            let was = dirs[p].0;
+                            let slipping = states[p] == NodeState::Slip;
+                            let dot = (0..3).map(|i| dir[i] * was[i]).sum::<f64>();
+                            if slipping && dot < 0.0 {
+                                // Its slip came out against the direction it slipped along: it
+                                // slips back whichever way it is pushed, and the two directions
+                                // alternate (nearly incompressible bodies, whose contact zone
+                                // spreads sideways under the normal load). Its slip passes
+                                // through zero: it sticks (the stick test then decides).
                                 settled = false;
+                                NodeState::Stick
+                            } else {
+                                if slipping && distance(&dir, &was) > DIR_TOL {
+                                    settled = false;
+                                }
+                                next_dirs[p] = (dir, ratio);
+                                NodeState::Slip
                             }
-                            next_dirs[p] = (dir, ratio);
-                            NodeState::Slip
                         }
                     }
                 };
