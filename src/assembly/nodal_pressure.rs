@@ -213,9 +213,11 @@ pub fn volumetric_stiffness(
 pub struct NodalVolumes {
     /// `V_a`, `L_a` and the pattern of `G`.
     reference: NodalDilatation,
-    /// The current volumes of both states and the pressures' derivatives (node vectors).
+    /// The current volumes of both states, the pressures and their derivatives (node
+    /// vectors, made once).
     v0: Vector,
     v1: Vector,
+    p: Vector,
     dp: Vector,
     /// Node values at the internal force's local slots, and the scatter between the two.
     gather: crate::petsc::Scatter,
@@ -262,6 +264,7 @@ impl NodalVolumes {
         Ok(Some(NodalVolumes {
             v0: dup()?,
             v1: dup()?,
+            p: dup()?,
             dp: dup()?,
             gather,
             local,
@@ -285,14 +288,13 @@ impl NodalVolumes {
             self.gather.reverse_add(&self.local, v)?;
         }
         let (mut w0, mut w1) = (0.0, 0.0);
-        let mut p = self.reference.volume.duplicate()?;
         {
             let vol = self.reference.volume.with_local_slice(|s| s.to_vec())?;
             let lv = self.reference.lambda_volume.with_local_slice(|s| s.to_vec())?;
             let v0 = self.v0.with_local_slice(|s| s.to_vec())?;
             let v1 = self.v1.with_local_slice(|s| s.to_vec())?;
             let mut dp = vec![0.0; vol.len()];
-            let pv = p.with_local_slice_mut(|ps| {
+            let pv = self.p.with_local_slice_mut(|ps| {
                 for i in 0..vol.len() {
                     if vol[i] <= 0.0 {
                         ps[i] = 0.0;
@@ -311,7 +313,7 @@ impl NodalVolumes {
             pv?;
             self.dp.with_local_slice_mut(|s| s.copy_from_slice(&dp))?;
         }
-        self.gather.forward(&p, &mut self.local)?;
+        self.gather.forward(&self.p, &mut self.local)?;
         let pressure = self.local.with_local_slice(|s| s.to_vec())?;
         if tangent {
             self.r.zero_entries()?;
