@@ -373,12 +373,13 @@ impl<'a> StressFields<'a> {
             self.nodal = NodalDilatation::build(&self.mesh, &self.part, &|c| *bodies.material(c))?;
         }
         // The nodal dilatations in the displacement's layout (first component), fetched alike.
+        // (Small strain only: a finite-strain run's mixed simplices are neo-Hookean.)
         let theta = match &self.nodal {
-            Some(nodal) => {
+            Some(nodal) if !bodies.finite_strain() => {
                 let theta = nodal.dilatation(u)?;
                 Some(views.local_values(&spread(&theta, u, self.part.dim)?)?.0)
             }
-            None => None,
+            _ => None,
         };
         // Mixed neo-Hookean simplices: their nodes' pressures from the current volumes.
         let pressure = match &self.nodal {
@@ -402,9 +403,8 @@ impl<'a> StressFields<'a> {
         stress.compute(self.world, bodies, &vals, theta, pressure, &view.slot, wanted)
     }
 
-    /// The nodes' pressures of mixed neo-Hookean simplices
-    /// (`NodalDilatation::finite_pressure`) spread over the displacement's layout (first
-    /// component): each rank adds its cells' `|K_0| J_K / (d + 1)` to their nodes' current
+    /// The nodes' pressures of mixed neo-Hookean simplices (`NodalDilatation::finite_pressure`,
+    /// a node vector): each rank adds its cells' `|K_0| J_K / (d + 1)` to their nodes' current
     /// volumes (`u_local` at the local slots). Collective.
     fn finite_pressure(
         &self,
