@@ -28,6 +28,13 @@ pub fn triangle_rule_deg5() -> [([f64; 3], f64); 7] {
     ]
 }
 
+/// 3-point rule of degree 2 on a triangle (Strang and Fix), as (barycentric coordinates,
+/// weight) with weights summing to 1: `(2/3, 1/6, 1/6)` and permutations, `w = 1/3`.
+pub fn triangle_rule_deg2() -> [([f64; 3], f64); 3] {
+    let (a, b, w) = (2.0 / 3.0, 1.0 / 6.0, 1.0 / 3.0);
+    [([a, b, b], w), ([b, a, b], w), ([b, b, a], w)]
+}
+
 // ------------------------------------------------------------------------------------------
 // Shape functions
 // ------------------------------------------------------------------------------------------

@@ -62,11 +62,11 @@
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
 use super::dual::{dual_basis_3d, invert_small, DualBasis};
-use super::facet::{triangle_rule_deg5, Facet3};
+use super::facet::Facet3;
 use super::geom::*;
 use super::linearize::{lin2_cross, Lin, Lin2, Vec2Lin};
 use super::segment::{
-    check_pair_3d, invert_on_plane, is_convex_ccw, polygon_area, AuxPlane, PairIntegrals,
+    check_pair_3d, clip_rule, invert_on_plane, is_convex_ccw, polygon_area, AuxPlane, PairIntegrals,
 };
 
 // ------------------------------------------------------------------------------------------
@@ -678,7 +678,7 @@ pub fn mortar_pair_lin_3d(
     };
 
     let dual_lin = dual_basis_lin_3d(slave, sid)?;
-    let rule = triangle_rule_deg5();
+    let rule = clip_rule(slave, master);
     let mut out = PairIntegrals::zero(ns, nm);
     out.slave_measure = s_area;
     let mut dm: [[Lin; 4]; 4] = Default::default();

@@ -2,7 +2,7 @@
 //! in 2D, auxiliary-plane clipping in 3D.
 
 use super::dual::DualBasis;
-use super::facet::{shape_line2, triangle_rule_deg5, Facet2, Facet3};
+use super::facet::{shape_line2, triangle_rule_deg2, triangle_rule_deg5, Facet2, Facet3};
 use super::geom::*;
 use crate::fem::quadrature::gauss_legendre;
 
@@ -302,12 +302,52 @@ impl AuxPlane {
 }
 
 /// Inverts "facet map, then projection onto the plane": finds `xi` with
-/// `P(x(xi)) = q`, `P` = `AuxPlane::coords`, by Newton with the 2x2 Jacobian
-/// `[P x_xi, P x_eta]` (exact after one step for tri3, whose map is affine). Starts at the
-/// facet centre. Converged when `|P(x(xi)) - q| <= 1e-13 h` or the step is below 1e-14.
-/// Err if the Jacobian is singular (facet seen edge-on), Newton does not converge in 50 steps,
-/// or the result lies more than 1e-6 outside the reference element.
+/// `P(x(xi)) = q`, `P` = `AuxPlane::coords` ([`PlaneInverse`]: in closed form on a tri3, by
+/// Newton on a quad4). Err if the facet is seen edge-on, Newton does not converge, or the
+/// result lies more than 1e-6 outside the reference element.
 pub fn invert_on_plane(facet: &Facet3, plane: &AuxPlane, q: Vec2) -> Result<Vec2, GeomError> {
+    PlaneInverse::new(facet, plane)?.apply(facet, plane, q)
+}
+
+/// The inverse of "facet map, then projection onto `plane`" for one facet, set up once for
+/// all the quadrature points of a pair.
+///
+/// A tri3's map is affine, `P(x(xi)) = P(x_1) + J_P xi`, `J_P = [[t_1 . e1, t_2 . e1],
+/// [t_1 . e2, t_2 . e2]]`, `t_k = x_(k+1) - x_1`: `xi = J_P^{-1} (q - P(x_1))`. A quad4's is
+/// bilinear: Newton with the 2x2 Jacobian `[P x_xi, P x_eta]` from the facet centre, converged
+/// when `|P(x(xi)) - q| <= 1e-13 h` or the step is below 1e-14 (at most 50 steps).
+pub enum PlaneInverse {
+    Affine { q0: Vec2, inv: [[f64; 2]; 2] },
+    Newton,
+}
+
+impl PlaneInverse {
+    /// Err if a tri3 is seen edge-on (singular `J_P`).
+    pub fn new(facet: &Facet3, plane: &AuxPlane) -> Result<PlaneInverse, GeomError> {
+        let Facet3::Tri3(x) = facet else { return Ok(PlaneInverse::Newton) };
+        let (t1, t2) = (sub3(x[1], x[0]), sub3(x[2], x[0]));
+        let (a, b) = (dot3(t1, plane.e1), dot3(t2, plane.e1));
+        let (c, d) = (dot3(t1, plane.e2), dot3(t2, plane.e2));
+        let det = a * d - b * c;
+        if !(det.abs() > 1e-14 * norm3(t1) * norm3(t2)) {
+            return fail("facet is edge-on to the auxiliary plane (singular projected Jacobian)");
+        }
+        let inv = [[d / det, -b / det], [-c / det, a / det]];
+        Ok(PlaneInverse::Affine { q0: plane.coords(x[0]), inv })
+    }
+
+    /// `xi` with `P(x(xi)) = q`, checked to lie in the reference element (to 1e-6).
+    pub fn apply(&self, facet: &Facet3, plane: &AuxPlane, q: Vec2) -> Result<Vec2, GeomError> {
+        let PlaneInverse::Affine { q0, inv } = self else {
+            return invert_by_newton(facet, plane, q);
+        };
+        let r = sub2(q, *q0);
+        let xi = [inv[0][0] * r[0] + inv[0][1] * r[1], inv[1][0] * r[0] + inv[1][1] * r[1]];
+        check_in_reference(facet, xi)
+    }
+}
+
+fn invert_by_newton(facet: &Facet3, plane: &AuxPlane, q: Vec2) -> Result<Vec2, GeomError> {
     let h = facet.size();
     let mut xi = facet.centre_param();
     for _ in 0..50 {
@@ -329,6 +369,17 @@ pub fn invert_on_plane(facet: &Facet3, plane: &AuxPlane, q: Vec2) -> Result<Vec2
         }
     }
     fail("Newton inversion of the projected facet map did not converge in 50 steps")
+}
+
+/// The rule integrating a pair over each triangle of its clip polygon, as (barycentric
+/// coordinates, weight): degree 2 where both facets are tri3 (every map is affine, so
+/// `psi_j phi_l`, `psi_j n_j . (x_m - x_s)` and `phi_j phi_l` are quadratic in the plane
+/// coordinates and the rule is exact), degree 5 where a quad4's bilinear map enters.
+pub fn clip_rule(slave: &Facet3, master: &Facet3) -> Vec<([f64; 3], f64)> {
+    match (slave, master) {
+        (Facet3::Tri3(_), Facet3::Tri3(_)) => triangle_rule_deg2().to_vec(),
+        _ => triangle_rule_deg5().to_vec(),
+    }
 }
 
 pub(crate) fn check_in_reference(facet: &Facet3, xi: Vec2) -> Result<Vec2, GeomError> {
@@ -448,8 +499,8 @@ pub(crate) fn check_pair_3d(
 /// 2. Sutherland-Hodgman clip of the master polygon by the slave polygon; `Ok(None)` if the
 ///    clip polygon has fewer than 3 vertices or area below `1e-12` of the slave's.
 /// 3. The clip polygon is split into triangles `(c, p_i, p_(i+1))`, `c` its vertex centroid,
-///    each integrated with the 7-point degree-5 rule. Each point `q` maps back to
-///    `xi_s = invert_on_plane(slave, q)` and `xi_m = invert_on_plane(master, q)` (projection
+///    each integrated with [`clip_rule`] (3 points between two tri3, else 7). Each point `q`
+///    maps back to `xi_s` on the slave and `xi_m` on the master ([`PlaneInverse`], projection
 ///    along `n0`), and `M_jl += w psi_j(xi_s) phi_l(xi_m)`, `N_j += w psi_j`,
 ///    `g_j += w psi_j n_j . (x_m(xi_m) - x_s(xi_s))`.
 ///
@@ -493,7 +544,9 @@ pub fn mortar_pair_3d(
     }
     let inv_n = 1.0 / poly.len() as f64;
     let c = poly.iter().fold([0.0; 2], |acc, &p| add2(acc, scale2(inv_n, p)));
-    let rule = triangle_rule_deg5();
+    let rule = clip_rule(slave, master);
+    let (slave_inverse, master_inverse) =
+        (PlaneInverse::new(slave, &plane)?, PlaneInverse::new(master, &plane)?);
     let mut out = PairIntegrals::zero(ns, nm);
     out.slave_measure = s_area;
     for i in 0..poly.len() {
@@ -504,8 +557,8 @@ pub fn mortar_pair_3d(
         }
         for (l, w) in rule.iter() {
             let q = add2(add2(scale2(l[0], c), scale2(l[1], p1)), scale2(l[2], p2));
-            let xs = invert_on_plane(slave, &plane, q)?;
-            let xm = invert_on_plane(master, &plane, q)?;
+            let xs = slave_inverse.apply(slave, &plane, q)?;
+            let xm = master_inverse.apply(master, &plane, q)?;
             let phi = slave.shape(xs);
             let psi = dual.psi(&phi);
             let gap = sub3(master.position(xm), slave.position(xs));

@@ -58,6 +58,75 @@ fn triangle_rule_is_exact_to_degree_5() {
     }
 }
 
+#[test]
+fn three_point_rule_is_exact_to_degree_2_only() {
+    let fact = |n: u32| (1..=n).map(|k| k as f64).product::<f64>();
+    let q = |a: i32, b: i32| -> f64 {
+        triangle_rule_deg2().iter().map(|(l, w)| 0.5 * w * l[1].powi(a) * l[2].powi(b)).sum()
+    };
+    for a in 0..=2u32 {
+        for b in 0..=(2 - a) {
+            let exact = fact(a) * fact(b) / fact(a + b + 2);
+            assert_close(q(a as i32, b as i32), exact, 1e-16, &format!("xi^{a} eta^{b}"));
+        }
+    }
+    // Not degree 3: int xi^3 = 1/20.
+    assert!((q(3, 0) - 1.0 / 20.0).abs() > 1e-4);
+}
+
+/// Two triangles: every map of the pair is affine, so the three-point rule on each clip
+/// triangle integrates `M`, `N`, the gaps and the primal integrals exactly. Against the
+/// seven-point rule on the slave facet itself (the master covers it, tilted, with nodal normals
+/// that differ from node to node).
+#[test]
+fn a_pair_of_triangles_is_integrated_exactly_with_three_points() {
+    let slave = Facet3::Tri3([tilt([0.0, 0.0, 0.0]), tilt([1.0, 0.1, 0.0]), tilt([0.3, 0.9, 0.0])]);
+    let m = [[-0.6, -0.5, 0.05], [0.4, 1.9, 0.25], [1.8, -0.4, -0.1]];
+    let master = Facet3::Tri3([tilt(m[0]), tilt(m[1]), tilt(m[2])]);
+    let n0 = scale3(1.0 / slave.jacobian([0.0; 2]), slave.normal([0.0; 2]));
+    let nrm: Vec<Vec3> = [[0.1, 0.0, 0.0], [0.0, -0.15, 0.05], [-0.05, 0.1, 0.0]]
+        .iter()
+        .map(|&d| {
+            let n = add3(n0, sub3(tilt(d), tilt([0.0; 3])));
+            scale3(1.0 / norm3(n), n)
+        })
+        .collect();
+    let ds = dual_basis_3d(&slave).unwrap();
+    let p = mortar_pair_3d(&slave, &nrm, &ds, &master).unwrap().expect("overlap");
+    let plane = AuxPlane::of_slave(&slave).unwrap();
+    let area = polygon_area(&slave.nodes().iter().map(|&x| plane.coords(x)).collect::<Vec<_>>());
+    let mut want = PairIntegrals::zero(3, 3);
+    for (l, w) in triangle_rule_deg5().iter() {
+        let xs = [l[1], l[2]];
+        let q = plane.coords(slave.position(xs));
+        let xm = invert_on_plane(&master, &plane, q).unwrap();
+        let gap = sub3(master.position(xm), slave.position(xs));
+        let mut gn = [0.0; 4];
+        for (g, n) in gn.iter_mut().zip(&nrm) {
+            *g = dot3(*n, gap);
+        }
+        let phi = slave.shape(xs);
+        want.add_point(w * area, &ds.psi(&phi), &master.shape(xm), &gn);
+        want.add_primal(w * area, &phi, &master.shape(xm), &gn);
+    }
+    let close = |a: &[f64], b: &[f64], what: &str| {
+        for (x, y) in a.iter().zip(b) {
+            assert_close(*x, *y, 1e-14, what);
+        }
+    };
+    for j in 0..3 {
+        close(&p.m[j], &want.m[j], "M");
+        close(&p.phi_m[j], &want.phi_m[j], "primal M");
+        close(&p.phi_gap[j], &want.phi_gap[j], "primal gap");
+        close(&p.phi_phi[j], &want.phi_phi[j], "primal D");
+    }
+    close(&p.psi_integral, &want.psi_integral, "N");
+    close(&p.weighted_gap, &want.weighted_gap, "gaps");
+    close(&p.phi_integral, &want.phi_integral, "primal N");
+    assert_close(p.overlap_measure, area, 1e-14, "overlap");
+    assert!(p.weighted_gap.iter().take(3).any(|g| g.abs() > 1e-2), "a gap that varies");
+}
+
 // ---------------- shape functions and facets ----------------
 
 #[test]
