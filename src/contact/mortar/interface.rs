@@ -8,11 +8,13 @@
 //! that the weighted gap after an increment `du` is, to first order,
 //! `g_q - n_q . (D_qq du_q - sum_l M_ql du_l)`.
 //!
-//! Distributed by the slave side: each rank integrates the slave facets whose cell it owns
-//! against the master facets its bucket search finds, and the ranks sum their parts
-//! (O(slave nodes) replicated data, the contact nodes' share, like the obstacle contact's).
-//! Today every rank holds the whole mesh, so the master facets are at hand; with a
-//! distributed mesh a rank fetches the master facets within its slave facets' boxes.
+//! Distributed by the slave side: each rank integrates its share of the slave facets
+//! ([`spread_facets`]: by a hash of their node tags, where every rank holds the pair's facets;
+//! else the facets whose cell it owns) against the master facets its bucket search finds, and
+//! the ranks sum their parts (O(slave nodes) replicated data, the contact nodes' share, like the
+//! obstacle contact's). Every rank holds the pair's facets and nodes today, so the master facets
+//! are at hand; with a pair side spread over more than the surface a rank fetches the master
+//! facets within its slave facets' boxes.
 
 use std::collections::HashMap;
 
@@ -39,6 +41,48 @@ pub struct SurfaceFacet {
     pub nodes: Vec<usize>,
     pub cell: usize,
     pub pairs: u64,
+    /// The rank that integrates the facet ([`SurfaceFacet::is_mine`]; `usize::MAX`: its
+    /// cell's owner).
+    pub worker: usize,
+}
+
+impl SurfaceFacet {
+    /// Whether this rank integrates the facet (and differentiates its integrals): the rank
+    /// its `worker` names, else the owner of its cell.
+    pub fn is_mine(&self, part: &Partition) -> bool {
+        match self.worker {
+            usize::MAX => part.cell_rank[self.cell] as usize == part.rank,
+            w => w == part.rank,
+        }
+    }
+}
+
+/// Spreads the slave facets' integration over the ranks: each facet to the rank its nodes'
+/// gmsh tags hash to, the same on every rank (a contact zone lies on one rank's side of the
+/// partition, whose rank would otherwise do all of its mortar work while the others wait: on
+/// the oblique balls one rank owned every slave facet). Only where every rank holds the same
+/// slave facets (checked: their number and tags agree), else left with their cells' owners.
+/// Collective.
+pub fn spread_facets(world: &SimpleCommunicator, mesh: &Mesh, facets: &mut [SurfaceFacet]) {
+    let key = |f: &SurfaceFacet| -> u64 {
+        let mut tags: Vec<u64> = f.nodes.iter().map(|&v| mesh.node_tags[v]).collect();
+        tags.sort_unstable();
+        // FNV-1a over the sorted tags: the same facet, the same key, on every rank.
+        tags.iter().fold(0xcbf2_9ce4_8422_2325u64, |h, &t| (h ^ t).wrapping_mul(0x100_0000_01b3))
+    };
+    let keys: Vec<u64> = facets.iter().map(key).collect();
+    let sum = keys.iter().fold(0u64, |a, &k| a.wrapping_add(k >> 11));
+    let mine = [facets.len() as f64, sum as f64];
+    let (mut lo, mut hi) = ([0.0; 2], [0.0; 2]);
+    world.all_reduce_into(&mine[..], &mut lo[..], SystemOperation::min());
+    world.all_reduce_into(&mine[..], &mut hi[..], SystemOperation::max());
+    if lo != hi {
+        return;
+    }
+    let size = world.size() as u64;
+    for (f, k) in facets.iter_mut().zip(keys) {
+        f.worker = (k % size) as usize;
+    }
 }
 
 /// The facets of a contact boundary group, oriented outwards (gmsh does not promise an
@@ -65,7 +109,7 @@ pub fn oriented_facets(mesh: &Mesh, group: &str) -> Result<Vec<SurfaceFacet>> {
                 nodes[1..].reverse();
             }
         }
-        out.push(SurfaceFacet { nodes, cell, pairs: 1 });
+        out.push(SurfaceFacet { nodes, cell, pairs: 1, worker: usize::MAX });
     }
     Ok(out)
 }
@@ -145,8 +189,7 @@ impl MortarInterface {
             slave.iter().enumerate().map(|(k, &v)| (v, k as u32)).collect();
         let m_of: HashMap<usize, u32> =
             master.iter().enumerate().map(|(k, &v)| (v, k as u32)).collect();
-        let mine: Vec<&SurfaceFacet> =
-            slave_facets.iter().filter(|f| part.cell_rank[f.cell] as usize == part.rank).collect();
+        let mine: Vec<&SurfaceFacet> = slave_facets.iter().filter(|f| f.is_mine(part)).collect();
         let pos = |f: &SurfaceFacet| -> Vec<[f64; 3]> { f.nodes.iter().map(|&v| x(v)).collect() };
         let ns = slave.len();
 

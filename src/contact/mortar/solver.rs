@@ -915,8 +915,9 @@ pub fn pair_solver<'w>(
         }
         Ok(out)
     };
-    let sf = sides(|p| &p.slave)?;
+    let mut sf = sides(|p| &p.slave)?;
     let mf = sides(|p| &p.master)?;
+    super::interface::spread_facets(world, &mesh, &mut sf);
     let size = |f: &SurfaceFacet| {
         let x0 = mesh.coords[f.nodes[0]];
         f.nodes

@@ -103,13 +103,12 @@ impl MortarActiveSet<'_> {
         Ok(())
     }
 
-    /// This rank's slave facets with a node among `nodes` (mesh indices).
+    /// The slave facets this rank integrates with a node among `nodes` (mesh indices).
     pub(super) fn owned_facets_around(&self, nodes: &HashSet<usize>) -> Vec<usize> {
         (0..self.pair.slave.len())
             .filter(|&i| {
                 let f = &self.pair.slave[i];
-                self.pair.part.cell_rank[f.cell] as usize == self.pair.part.rank
-                    && f.nodes.iter().any(|v| nodes.contains(v))
+                f.is_mine(&self.pair.part) && f.nodes.iter().any(|v| nodes.contains(v))
             })
             .collect()
     }
