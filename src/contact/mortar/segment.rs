@@ -2,7 +2,9 @@
 //! in 2D, auxiliary-plane clipping in 3D.
 
 use super::dual::DualBasis;
-use super::facet::{shape_line2, triangle_rule_deg2, triangle_rule_deg5, Facet2, Facet3};
+use super::facet::{
+    dshape_quad4, shape_line2, shape_quad4, triangle_rule_deg2, triangle_rule_deg5, Facet2, Facet3,
+};
 use super::geom::*;
 use crate::fem::quadrature::gauss_legendre;
 
@@ -306,25 +308,37 @@ impl AuxPlane {
 /// Newton on a quad4). Err if the facet is seen edge-on, Newton does not converge, or the
 /// result lies more than 1e-6 outside the reference element.
 pub fn invert_on_plane(facet: &Facet3, plane: &AuxPlane, q: Vec2) -> Result<Vec2, GeomError> {
-    PlaneInverse::new(facet, plane)?.apply(facet, plane, q)
+    PlaneInverse::new(facet, plane)?.apply(facet, q)
 }
 
 /// The inverse of "facet map, then projection onto `plane`" for one facet, set up once for
-/// all the quadrature points of a pair.
+/// all the quadrature points of a pair. The projection `P` is affine, so the projected map is
+/// the facet's interpolation of its projected nodes `p_k = P(x_k)`:
 ///
-/// A tri3's map is affine, `P(x(xi)) = P(x_1) + J_P xi`, `J_P = [[t_1 . e1, t_2 . e1],
-/// [t_1 . e2, t_2 . e2]]`, `t_k = x_(k+1) - x_1`: `xi = J_P^{-1} (q - P(x_1))`. A quad4's is
-/// bilinear: Newton with the 2x2 Jacobian `[P x_xi, P x_eta]` from the facet centre, converged
-/// when `|P(x(xi)) - q| <= 1e-13 h` or the step is below 1e-14 (at most 50 steps).
+/// A tri3's is affine, `P(x(xi)) = p_1 + J_P xi`, `J_P = [p_2 - p_1, p_3 - p_1]`:
+/// `xi = J_P^{-1} (q - p_1)`. A quad4's is bilinear, `sum_k phi_k(xi) p_k`: Newton with its 2x2
+/// Jacobian from the facet centre, converged when the residual is below 1e-13 h or the step
+/// below 1e-14 (at most 50 steps).
 pub enum PlaneInverse {
     Affine { q0: Vec2, inv: [[f64; 2]; 2] },
-    Newton,
+    Bilinear { p: [Vec2; 4], h: f64 },
 }
 
 impl PlaneInverse {
     /// Err if a tri3 is seen edge-on (singular `J_P`).
     pub fn new(facet: &Facet3, plane: &AuxPlane) -> Result<PlaneInverse, GeomError> {
-        let Facet3::Tri3(x) = facet else { return Ok(PlaneInverse::Newton) };
+        let x = match facet {
+            Facet3::Quad4(x) => {
+                let p = [
+                    plane.coords(x[0]),
+                    plane.coords(x[1]),
+                    plane.coords(x[2]),
+                    plane.coords(x[3]),
+                ];
+                return Ok(PlaneInverse::Bilinear { p, h: facet.size() });
+            }
+            Facet3::Tri3(x) => x,
+        };
         let (t1, t2) = (sub3(x[1], x[0]), sub3(x[2], x[0]));
         let (a, b) = (dot3(t1, plane.e1), dot3(t2, plane.e1));
         let (c, d) = (dot3(t1, plane.e2), dot3(t2, plane.e2));
@@ -337,32 +351,39 @@ impl PlaneInverse {
     }
 
     /// `xi` with `P(x(xi)) = q`, checked to lie in the reference element (to 1e-6).
-    pub fn apply(&self, facet: &Facet3, plane: &AuxPlane, q: Vec2) -> Result<Vec2, GeomError> {
-        let PlaneInverse::Affine { q0, inv } = self else {
-            return invert_by_newton(facet, plane, q);
-        };
-        let r = sub2(q, *q0);
-        let xi = [inv[0][0] * r[0] + inv[0][1] * r[1], inv[1][0] * r[0] + inv[1][1] * r[1]];
-        check_in_reference(facet, xi)
+    pub fn apply(&self, facet: &Facet3, q: Vec2) -> Result<Vec2, GeomError> {
+        match self {
+            PlaneInverse::Affine { q0, inv } => {
+                let r = sub2(q, *q0);
+                let xi = [inv[0][0] * r[0] + inv[0][1] * r[1], inv[1][0] * r[0] + inv[1][1] * r[1]];
+                check_in_reference(facet, xi)
+            }
+            PlaneInverse::Bilinear { p, h } => invert_bilinear(facet, p, *h, q),
+        }
     }
 }
 
-fn invert_by_newton(facet: &Facet3, plane: &AuxPlane, q: Vec2) -> Result<Vec2, GeomError> {
-    let h = facet.size();
-    let mut xi = facet.centre_param();
+/// Newton on `sum_k phi_k(xi) p_k = q` (a quad4's projected corners `p`, its size `h`).
+fn invert_bilinear(facet: &Facet3, p: &[Vec2; 4], h: f64, q: Vec2) -> Result<Vec2, GeomError> {
+    let mut xi = [0.0, 0.0];
     for _ in 0..50 {
-        let r = sub2(plane.coords(facet.position(xi)), q);
+        let (phi, d) = (shape_quad4(xi), dshape_quad4(xi));
+        let (mut r, mut t1, mut t2) = ([-q[0], -q[1]], [0.0; 2], [0.0; 2]);
+        for k in 0..4 {
+            r = add2(r, scale2(phi[k], p[k]));
+            t1 = add2(t1, scale2(d[k][0], p[k]));
+            t2 = add2(t2, scale2(d[k][1], p[k]));
+        }
         if norm2(r) <= 1e-13 * h {
             return check_in_reference(facet, xi);
         }
-        let (t1, t2) = facet.tangents(xi);
-        let (a, b) = (dot3(t1, plane.e1), dot3(t2, plane.e1));
-        let (c, d) = (dot3(t1, plane.e2), dot3(t2, plane.e2));
-        let det = a * d - b * c;
-        if !(det.abs() > 1e-14 * norm3(t1) * norm3(t2)) {
+        let (a, b, c, dd) = (t1[0], t2[0], t1[1], t2[1]);
+        let det = a * dd - b * c;
+        // (The tangents of a quad on [-1, 1]^2 are about h/2 long.)
+        if !(det.abs() > 2.5e-15 * h * h) {
             return fail("facet is edge-on to the auxiliary plane (singular projected Jacobian)");
         }
-        let dxi = [-(d * r[0] - b * r[1]) / det, -(-c * r[0] + a * r[1]) / det];
+        let dxi = [-(dd * r[0] - b * r[1]) / det, -(-c * r[0] + a * r[1]) / det];
         xi = add2(xi, dxi);
         if dxi[0].abs().max(dxi[1].abs()) < 1e-14 {
             return check_in_reference(facet, xi);
@@ -557,8 +578,8 @@ pub fn mortar_pair_3d(
         }
         for (l, w) in rule.iter() {
             let q = add2(add2(scale2(l[0], c), scale2(l[1], p1)), scale2(l[2], p2));
-            let xs = slave_inverse.apply(slave, &plane, q)?;
-            let xm = master_inverse.apply(master, &plane, q)?;
+            let xs = slave_inverse.apply(slave, q)?;
+            let xm = master_inverse.apply(master, q)?;
             let phi = slave.shape(xs);
             let psi = dual.psi(&phi);
             let gap = sub3(master.position(xm), slave.position(xs));
