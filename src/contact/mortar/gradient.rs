@@ -62,7 +62,8 @@ pub struct FacetJacobian {
 /// The Jacobians of the slave facets `which` (indices into `slave`) at the positions `x`, by
 /// central differences (step 1e-6 of the facet's size). `reach`: the search reach.
 /// A fully covered facet (`finite_differences` false) gets its Jacobian in closed form, a
-/// partly covered one (dual basis on the covered part) by central differences.
+/// partly covered one (dual basis on the covered part) by central differences, of the moving
+/// nodes `column` takes only (the others' columns stay zero: ranks share a facet's columns).
 #[allow(clippy::too_many_arguments)]
 pub fn facet_jacobians(
     dim: usize,
@@ -73,6 +74,7 @@ pub fn facet_jacobians(
     x: &dyn Fn(usize) -> [f64; 3],
     reach: f64,
     finite_differences: bool,
+    column: &dyn Fn(&SurfaceFacet, usize) -> bool,
 ) -> Result<Vec<FacetJacobian>> {
     const FULL: f64 = 1.0 - 1e-9;
     let err = |e: GeomError| Error::Solver(format!("mortar (consistent force): {e}"));
@@ -143,7 +145,12 @@ pub fn facet_jacobians(
         if covered >= FULL && !finite_differences {
             // Fully covered: the facet's own dual basis, whose derivatives are built in closed
             // form (linearize.rs, linearize3d.rs).
-            let jac = closed_form(dim, f, slave, adjacency, &overlapping, x).map_err(err)?;
+            let mut jac = closed_form(dim, f, slave, adjacency, &overlapping, x).map_err(err)?;
+            for (kk, &v) in jac.moving.iter().enumerate() {
+                if !column(f, v) {
+                    jac.d.iter_mut().for_each(|row| row[kk] = [0.0; 3]);
+                }
+            }
             out.push(jac);
             continue;
         }
@@ -252,6 +259,9 @@ pub fn facet_jacobians(
         };
         let mut d = vec![vec![[0.0; 3]; moving.len()]; nj];
         for (kk, &v) in moving.iter().enumerate() {
+            if !column(f, v) {
+                continue; // another rank's column (zero here: the ranks' parts are summed)
+            }
             for c in 0..dim {
                 let (plus, minus) = (gaps(v, c, h)?, gaps(v, c, -h)?);
                 for j in 0..nj {

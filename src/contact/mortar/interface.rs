@@ -42,8 +42,9 @@ pub struct SurfaceFacet {
     pub cell: usize,
     pub pairs: u64,
     /// The rank that integrates the facet ([`SurfaceFacet::is_mine`]; `usize::MAX`: its
-    /// cell's owner).
+    /// cell's owner), and the hash of its node tags that chose it ([`spread_facets`]).
     pub worker: usize,
+    pub key: u64,
 }
 
 impl SurfaceFacet {
@@ -82,7 +83,19 @@ pub fn spread_facets(world: &SimpleCommunicator, mesh: &Mesh, facets: &mut [Surf
     let size = world.size() as u64;
     for (f, k) in facets.iter_mut().zip(keys) {
         f.worker = (k % size) as usize;
+        f.key = k;
     }
+}
+
+/// Whether this rank takes the derivative columns of facet `f` by its node `v` (gmsh tag
+/// `tag`): where the facets are spread, the columns are too (a contact zone has a few loaded
+/// facets, each with some twenty moving nodes); else its worker takes them all.
+pub fn column_is_mine(f: &SurfaceFacet, tag: u64, part: &Partition) -> bool {
+    if f.worker == usize::MAX {
+        return f.is_mine(part);
+    }
+    let h = (f.key ^ tag).wrapping_mul(0x9e37_79b9_7f4a_7c15);
+    ((h >> 32) % part.size as u64) as usize == part.rank
 }
 
 /// The facets of a contact boundary group, oriented outwards (gmsh does not promise an
@@ -109,7 +122,7 @@ pub fn oriented_facets(mesh: &Mesh, group: &str) -> Result<Vec<SurfaceFacet>> {
                 nodes[1..].reverse();
             }
         }
-        out.push(SurfaceFacet { nodes, cell, pairs: 1, worker: usize::MAX });
+        out.push(SurfaceFacet { nodes, cell, pairs: 1, worker: usize::MAX, key: 0 });
     }
     Ok(out)
 }

@@ -1042,7 +1042,7 @@ fn a_partly_covered_slave_facet_keeps_partition_of_unity_and_linear_transfer() {
     let s = Facet2 { x: [[1.0, 0.0], [0.0, 0.0]] };
     let nrm = [[0.0, 1.0]; 2];
     let ds = dual_basis_2d(&s).unwrap();
-    let facet = SurfaceFacet { nodes: vec![], cell: 0, pairs: 1, worker: usize::MAX };
+    let facet = SurfaceFacet { nodes: vec![], cell: 0, pairs: 1, worker: usize::MAX, key: 0 };
     let f = |x: f64| 3.0 - 2.0 * x;
     for c in [0.0, 0.3, 0.9, 0.999] {
         let split = 0.5 * (c + 1.0);

@@ -71,6 +71,10 @@ impl MortarActiveSet<'_> {
             }
             p
         };
+        let (part, tags) = (&self.pair.part, &self.pair.mesh.node_tags);
+        let column = |f: &super::super::interface::SurfaceFacet, v: usize| {
+            super::super::interface::column_is_mine(f, tags[v], part)
+        };
         let jacobians = |which: &[usize]| {
             gradient::facet_jacobians(
                 dim,
@@ -81,6 +85,7 @@ impl MortarActiveSet<'_> {
                 &x,
                 self.pair.reach,
                 !self.closed_form,
+                &column,
             )
         };
         // A facet whose perturbed geometry cannot be integrated (a warped face tipping over
@@ -103,12 +108,16 @@ impl MortarActiveSet<'_> {
         Ok(())
     }
 
-    /// The slave facets this rank integrates with a node among `nodes` (mesh indices).
+    /// The slave facets with a node among `nodes` (mesh indices) whose derivatives this rank
+    /// takes a share of: every rank where the facets are spread (each its columns,
+    /// [`column_is_mine`](super::super::interface::column_is_mine)), else the facets it
+    /// integrates.
     pub(super) fn owned_facets_around(&self, nodes: &HashSet<usize>) -> Vec<usize> {
         (0..self.pair.slave.len())
             .filter(|&i| {
                 let f = &self.pair.slave[i];
-                f.is_mine(&self.pair.part) && f.nodes.iter().any(|v| nodes.contains(v))
+                (f.worker != usize::MAX || f.is_mine(&self.pair.part))
+                    && f.nodes.iter().any(|v| nodes.contains(v))
             })
             .collect()
     }
