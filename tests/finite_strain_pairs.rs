@@ -483,6 +483,67 @@ fn the_neo_hookean_slide_off_does_not_depend_on_the_number_of_ranks() {
     }
 }
 
+/// 1, 2 and 3 ranks give the same contact histories of the coarse neo-Hookean oblique balls
+/// (`scenes/two_spheres_oblique_neo_hooke.toml`, h = 0.4, hc = 0.1, the first 40 steps: the
+/// touch-down and the caps sliding on each other): the same active sets at every step, and
+/// forces that differ by no more than the solves allow, the bound of the 2D slide-off's test
+/// above. In 3D the ranks share the slave facets' integrals and each loaded facet's derivative
+/// columns by hashes of node tags, whichever rank owns the facets' cells (on 2 ranks the
+/// partition puts each ball on its own rank).
+#[test]
+fn the_oblique_neo_hookean_balls_do_not_depend_on_the_number_of_ranks() {
+    let dir = scratch("fs-balls-ranks");
+    let scene = scene_variant("two_spheres_oblique_neo_hooke.toml", &dir, &[]);
+    const RTOL: f64 = 1e-14;
+    const NEWTON_RTOL: f64 = 1e-12;
+    const GEOMETRY_TOL: f64 = 1e-12;
+    const STEPS: usize = 40;
+    let (rtol, newton, geometry, steps) =
+        (RTOL.to_string(), NEWTON_RTOL.to_string(), GEOMETRY_TOL.to_string(), STEPS.to_string());
+    let series = |ranks: usize, estimate: bool| {
+        let out = dir.join(format!("balls-{ranks}.h5"));
+        let out = out.to_str().unwrap().to_string();
+        let mut args = vec!["run", scene.to_str().unwrap(), "--quiet", "--overwrite"];
+        args.extend(["--param", "h=0.4", "--param", "hc=0.1", "--steps", &steps]);
+        args.extend(["--output", &out, "--", "-step_pc_type", "jacobi", "-step_ksp_rtol", &rtol]);
+        args.extend(["-newton_rtol", &newton, "-mortar_geometry_tol", &geometry]);
+        args.extend(["-massless_energy_correction", "false"]);
+        if estimate {
+            args.push("-step_ksp_view_singularvalues");
+        }
+        let o = massfree(ranks, &args);
+        let stdout = String::from_utf8_lossy(&o.stdout);
+        assert!(o.status.success(), "{ranks} rank(s): {}", String::from_utf8_lossy(&o.stderr));
+        let kappa = stdout
+            .lines()
+            .filter(|l| l.contains("extreme singular values"))
+            .map(|l| l.rsplit(' ').next().unwrap().parse::<f64>().unwrap())
+            .fold(0.0f64, f64::max);
+        assert!(!estimate || kappa > 1.0, "no condition number estimate in the output");
+        let r = reader(std::path::Path::new(&out));
+        let f = r.table(&layout::contact("force")).unwrap();
+        let a = r.series(&layout::contact("active")).unwrap();
+        (f, a, kappa)
+    };
+    let (f1, a1, estimate) = series(1, true);
+    let fmax = f1.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+    assert!(a1.iter().any(|&x| x > 0.0), "the balls never touched in {STEPS} steps");
+    let kappa = 2.0 * estimate;
+    // E = 100 (both balls).
+    let bound =
+        2.0 * STEPS as f64 * kappa * (RTOL + NEWTON_RTOL) * fmax + 2.0 * 100.0 * GEOMETRY_TOL;
+    eprintln!("one rank: peak force {fmax:.4}, condition number estimate {estimate:.0}; bound {:.1e} of the peak", bound / fmax);
+    for ranks in [2, 3] {
+        let (f, a, _) = series(ranks, false);
+        assert_eq!(a1, a, "{ranks} ranks: active sets differ");
+        let most = (f1.rows().into_iter().zip(f.rows()))
+            .map(|(x, y)| x.iter().zip(y).fold(0.0f64, |m, (a, b)| m.max((a - b).abs())))
+            .fold(0.0f64, f64::max);
+        eprintln!("{ranks} ranks: forces differ by {:.2e} of the peak", most / fmax);
+        assert!(most <= bound, "{ranks} ranks: forces differ by {most:e}, beyond {bound:e}");
+    }
+}
+
 /// The neo-Hookean balls of `scenes/two_spheres_oblique_neo_hooke.toml` on a coarse mesh (h =
 /// 0.4, hc = 0.1), frictionless and with Coulomb friction (mu = 0.3) between the caps: no
 /// force acts on the pair but the contact, so the two bodies' contact impulses cancel (to
