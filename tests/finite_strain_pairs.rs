@@ -439,28 +439,13 @@ fn the_neo_hookean_slide_off_does_not_depend_on_the_number_of_ranks() {
         (RTOL.to_string(), NEWTON_RTOL.to_string(), GEOMETRY_TOL.to_string());
     let series = |ranks: usize, estimate: bool| {
         let out = dir.join(format!("slide_off-{ranks}.h5"));
-        let out = out.to_str().unwrap().to_string();
         let mut args = vec!["run", scene.to_str().unwrap(), "--quiet", "--overwrite"];
-        args.extend(["--model", "neo_hookean", "--output", &out, "--partition", "x-slabs"]);
+        args.extend(["--model", "neo_hookean", "--output", out.to_str().unwrap()]);
+        args.extend(["--partition", "x-slabs"]);
         args.extend(["--", "-step_pc_type", "jacobi", "-step_ksp_rtol", &rtol]);
         args.extend(["-newton_rtol", &newton, "-mortar_geometry_tol", &geometry]);
         args.extend(["-massless_energy_correction", "false"]);
-        if estimate {
-            args.push("-step_ksp_view_singularvalues");
-        }
-        let o = massfree(ranks, &args);
-        let stdout = String::from_utf8_lossy(&o.stdout);
-        assert!(o.status.success(), "{ranks} rank(s): {}", String::from_utf8_lossy(&o.stderr));
-        let kappa = stdout
-            .lines()
-            .filter(|l| l.contains("extreme singular values"))
-            .map(|l| l.rsplit(' ').next().unwrap().parse::<f64>().unwrap())
-            .fold(0.0f64, f64::max);
-        assert!(!estimate || kappa > 1.0, "no condition number estimate in the output");
-        let r = reader(std::path::Path::new(&out));
-        let f = r.table(&layout::contact("force")).unwrap();
-        let a = r.series(&layout::contact("active")).unwrap();
-        (f, a, kappa)
+        contact_history(ranks, &args, &out, estimate)
     };
     let (f1, a1, estimate) = series(1, true);
     let fmax = f1.iter().fold(0.0f64, |m, x| m.max(x.abs()));
@@ -471,10 +456,8 @@ fn the_neo_hookean_slide_off_does_not_depend_on_the_number_of_ranks() {
     for ranks in [2, 3] {
         let (f, a, _) = series(ranks, false);
         assert_eq!(a1, a, "{ranks} ranks: active sets differ");
-        let flat = (f1.rows().into_iter().zip(f.rows()))
-            .take(FLAT + 1)
-            .map(|(x, y)| x.iter().zip(y).fold(0.0f64, |m, (a, b)| m.max((a - b).abs())))
-            .fold(0.0f64, f64::max);
+        let d = step_differences(&f1, &f);
+        let flat = d[..=FLAT].iter().fold(0.0f64, |m, &x| m.max(x));
         eprintln!("{ranks} ranks: forces differ by {:.2e} of the peak on the flat", flat / fmax);
         assert!(
             flat <= bound,
@@ -502,28 +485,13 @@ fn the_oblique_neo_hookean_balls_do_not_depend_on_the_number_of_ranks() {
         (RTOL.to_string(), NEWTON_RTOL.to_string(), GEOMETRY_TOL.to_string(), STEPS.to_string());
     let series = |ranks: usize, estimate: bool| {
         let out = dir.join(format!("balls-{ranks}.h5"));
-        let out = out.to_str().unwrap().to_string();
         let mut args = vec!["run", scene.to_str().unwrap(), "--quiet", "--overwrite"];
         args.extend(["--param", "h=0.4", "--param", "hc=0.1", "--steps", &steps]);
-        args.extend(["--output", &out, "--", "-step_pc_type", "jacobi", "-step_ksp_rtol", &rtol]);
+        args.extend(["--output", out.to_str().unwrap()]);
+        args.extend(["--", "-step_pc_type", "jacobi", "-step_ksp_rtol", &rtol]);
         args.extend(["-newton_rtol", &newton, "-mortar_geometry_tol", &geometry]);
         args.extend(["-massless_energy_correction", "false"]);
-        if estimate {
-            args.push("-step_ksp_view_singularvalues");
-        }
-        let o = massfree(ranks, &args);
-        let stdout = String::from_utf8_lossy(&o.stdout);
-        assert!(o.status.success(), "{ranks} rank(s): {}", String::from_utf8_lossy(&o.stderr));
-        let kappa = stdout
-            .lines()
-            .filter(|l| l.contains("extreme singular values"))
-            .map(|l| l.rsplit(' ').next().unwrap().parse::<f64>().unwrap())
-            .fold(0.0f64, f64::max);
-        assert!(!estimate || kappa > 1.0, "no condition number estimate in the output");
-        let r = reader(std::path::Path::new(&out));
-        let f = r.table(&layout::contact("force")).unwrap();
-        let a = r.series(&layout::contact("active")).unwrap();
-        (f, a, kappa)
+        contact_history(ranks, &args, &out, estimate)
     };
     let (f1, a1, estimate) = series(1, true);
     let fmax = f1.iter().fold(0.0f64, |m, x| m.max(x.abs()));
@@ -536,9 +504,7 @@ fn the_oblique_neo_hookean_balls_do_not_depend_on_the_number_of_ranks() {
     for ranks in [2, 3] {
         let (f, a, _) = series(ranks, false);
         assert_eq!(a1, a, "{ranks} ranks: active sets differ");
-        let most = (f1.rows().into_iter().zip(f.rows()))
-            .map(|(x, y)| x.iter().zip(y).fold(0.0f64, |m, (a, b)| m.max((a - b).abs())))
-            .fold(0.0f64, f64::max);
+        let most = step_differences(&f1, &f).into_iter().fold(0.0f64, f64::max);
         eprintln!("{ranks} ranks: forces differ by {:.2e} of the peak", most / fmax);
         assert!(most <= bound, "{ranks} ranks: forces differ by {most:e}, beyond {bound:e}");
     }

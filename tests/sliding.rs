@@ -134,37 +134,13 @@ fn sliding_does_not_depend_on_the_number_of_ranks() {
     const GEOMETRY_TOL: f64 = 1e-12;
     const FLAT: usize = 280;
     let (rtol, geometry) = (RTOL.to_string(), GEOMETRY_TOL.to_string());
-    // Returns the forces, the active sets, and PETSc's largest condition number estimate
-    // (when asked for).
     let series = |ranks: usize, estimate: bool| {
         let out = dir.join(format!("slide_off-{ranks}.h5"));
-        let out = out.to_str().unwrap().to_string();
         let mut args = vec!["run", scene.to_str().unwrap(), "--quiet", "--overwrite"];
-        args.extend(["--output", &out, "--partition", "x-slabs", "--", "-ksp_rtol", &rtol]);
+        args.extend(["--output", out.to_str().unwrap(), "--partition", "x-slabs"]);
+        args.extend(["--", "-ksp_rtol", &rtol]);
         args.extend(["-mortar_geometry_tol", &geometry, "-massless_energy_correction", "false"]);
-        if estimate {
-            args.push("-step_ksp_view_singularvalues");
-        }
-        let o = massfree(ranks, &args);
-        let stdout = String::from_utf8_lossy(&o.stdout);
-        assert!(o.status.success(), "{ranks} rank(s): {}", String::from_utf8_lossy(&o.stderr));
-        // "Iteratively computed extreme singular values: max A min B max/min C", per solve.
-        let kappa = stdout
-            .lines()
-            .filter(|l| l.contains("extreme singular values"))
-            .map(|l| l.rsplit(' ').next().unwrap().parse::<f64>().unwrap())
-            .fold(0.0f64, f64::max);
-        assert!(!estimate || kappa > 1.0, "no condition number estimate in the output");
-        let r = reader(std::path::Path::new(&out));
-        let f = r.table(&massfree::io::layout::contact("force")).unwrap();
-        let a = r.series(&massfree::io::layout::contact("active")).unwrap();
-        (f, a, kappa)
-    };
-    // Per stored step (every step), the largest difference over the contact nodes.
-    let step_differences = |f: &ndarray::Array2<f64>, g: &ndarray::Array2<f64>| -> Vec<f64> {
-        (f.rows().into_iter().zip(g.rows()))
-            .map(|(x, y)| x.iter().zip(y).fold(0.0f64, |m, (a, b)| m.max((a - b).abs())))
-            .collect()
+        contact_history(ranks, &args, &out, estimate)
     };
     let (f1, a1, estimate) = series(1, true);
     let fmax = f1.iter().fold(0.0f64, |m, x| m.max(x.abs()));

@@ -228,6 +228,43 @@ pub fn force_history(h5: &Path) -> (Vec<f64>, Vec<bool>) {
     (total, any)
 }
 
+/// A run for a rank-count comparison: `massfree run` with `args` (output, scene and the
+/// solver options among them) on `ranks`, asserted to succeed. Returns the contact forces and
+/// active flags per step, and, with `estimate`, PETSc's largest condition number estimate of
+/// the step solves (`-step_ksp_view_singularvalues` is added; 0 without it).
+pub fn contact_history(
+    ranks: usize,
+    args: &[&str],
+    out: &Path,
+    estimate: bool,
+) -> (ndarray::Array2<f64>, Vec<f64>, f64) {
+    let mut args = args.to_vec();
+    if estimate {
+        args.push("-step_ksp_view_singularvalues");
+    }
+    let o = massfree(ranks, &args);
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    assert!(o.status.success(), "{ranks} rank(s): {}", String::from_utf8_lossy(&o.stderr));
+    // "Iteratively computed extreme singular values: max A min B max/min C", per solve.
+    let kappa = stdout
+        .lines()
+        .filter(|l| l.contains("extreme singular values"))
+        .map(|l| l.rsplit(' ').next().unwrap().parse::<f64>().unwrap())
+        .fold(0.0f64, f64::max);
+    assert!(!estimate || kappa > 1.0, "no condition number estimate in the output");
+    let r = reader(out);
+    let f = r.table(&layout::contact("force")).unwrap();
+    let a = r.series(&layout::contact("active")).unwrap();
+    (f, a, kappa)
+}
+
+/// Per stored step, the largest difference of two force tables over the contact nodes.
+pub fn step_differences(f: &ndarray::Array2<f64>, g: &ndarray::Array2<f64>) -> Vec<f64> {
+    (f.rows().into_iter().zip(g.rows()))
+        .map(|(x, y)| x.iter().zip(y).fold(0.0f64, |m, (a, b)| m.max((a - b).abs())))
+        .collect()
+}
+
 // ---------------------------------------------------------------------------------------------
 // Launches that cannot outlive their test, and limits no healthy run can reach.
 //

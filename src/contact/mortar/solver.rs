@@ -38,8 +38,11 @@ use crate::error::{Error, Result};
 use crate::partition::Partition;
 use crate::petsc::{Ksp, Matrix, Vector};
 
+mod basis;
 mod follow;
 mod rows;
+
+use basis::{basis_change, pattern_of, transfer};
 
 pub struct MortarActiveSet<'w> {
     inner: ActiveSet<'w>,
@@ -373,80 +376,6 @@ fn slave_slots(nodes: &ContactNodes<'_>, iface: &MortarInterface) -> Result<Vec<
     Ok(slots)
 }
 
-/// `E` (or `T = I + E` with `identity`), rows owned as the partition says.
-///
-/// Dirichlet DOFs need nothing here: `T` is invertible, so `T^T K T u~ = T^T rhs` is
-/// `K du = rhs` itself, the step operator's Dirichlet rows included (the mortar patch test
-/// has Dirichlet DOFs on both sides of the interface).
-fn transfer(part: &Partition, iface: &MortarInterface, identity: bool) -> Result<Matrix> {
-    let mut per: Vec<Vec<(usize, f64)>> = vec![Vec::new(); iface.slave.len()];
-    for &(q, l, v) in &iface.m {
-        per[q as usize].push((iface.master[l as usize], v / iface.d[q as usize]));
-    }
-    let mut rows: Vec<(usize, Vec<(usize, f64)>)> = Vec::new();
-    for (q, row) in per.iter().enumerate() {
-        let v = iface.slave[q];
-        if !part.owns(v) || row.is_empty() {
-            continue;
-        }
-        for c in 0..part.dim {
-            rows.push((part.dof(v, c), row.iter().map(|&(l, x)| (part.dof(l, c), x)).collect()));
-        }
-    }
-    basis_change(part, &rows, identity)
-}
-
-/// `E` (or `T = I + E` with `identity`) from its owned rows: per owned slave DOF, its columns
-/// (global DOFs, each once) and values.
-fn basis_change(
-    part: &Partition,
-    rows: &[(usize, Vec<(usize, f64)>)],
-    identity: bool,
-) -> Result<Matrix> {
-    let n_local = part.n_owned_dofs();
-    let lo = part.first_dof();
-    let local = |dof: usize| (lo..lo + n_local).contains(&dof);
-    let (mut d_nnz, mut o_nnz) = (vec![i32::from(identity); n_local], vec![0i32; n_local]);
-    for (row, cols) in rows {
-        for &(col, _) in cols {
-            if identity && col == *row {
-                continue; // the identity's diagonal, counted already
-            }
-            match local(col) {
-                true => d_nnz[row - lo] += 1,
-                false => o_nnz[row - lo] += 1,
-            }
-        }
-    }
-    let mut m = Matrix::new_aij(n_local, part.n_global_dofs(), part.dim, &d_nnz, &o_nnz)?;
-    if identity {
-        for i in lo..lo + n_local {
-            m.set_values(&[i as i32], &[i as i32], &[1.0], true)?;
-        }
-    }
-    for (row, cols) in rows {
-        let idx: Vec<i32> = cols.iter().map(|&(col, _)| col as i32).collect();
-        let vals: Vec<f64> = cols.iter().map(|&(_, x)| x).collect();
-        // Added: the identity's diagonal may be among the columns.
-        m.set_values(&[*row as i32], &idx, &vals, true)?;
-    }
-    m.assemble()?;
-    Ok(m)
-}
-
-/// A fingerprint of the nonzero pattern of this rank's rows of `m` (equal patterns, equal
-/// fingerprints; different ones collide with probability 2^-64).
-fn pattern_of(m: &Matrix) -> Result<u64> {
-    use std::hash::{Hash, Hasher};
-    let mut h = std::collections::hash_map::DefaultHasher::new();
-    let (lo, hi) = m.ownership_range();
-    for r in lo..hi {
-        m.with_row(r, |cols, _| cols.hash(&mut h))?;
-    }
-    (lo, hi).hash(&mut h);
-    Ok(h.finish())
-}
-
 /// A solver for `k` configured like `like` (type, preconditioner, tolerance), then the
 /// command line's `-step_` options, as the step operator's own.
 fn ksp_like(k: &Matrix, like: &Ksp) -> Result<Ksp> {
@@ -646,7 +575,8 @@ impl MortarActiveSet<'_> {
         // step: on the oblique balls 309 factorizations became 101, the GMRES iterations the
         // same to 0.1%). A kept one that lets a round take more than twice the iterations of
         // the solve that built it (and 10 more) is built again at the next round; a round that
-        // fails on it is solved again, from the round's start, on a fresh one.
+        // fails on it is solved again, from the round's start, on a fresh one. Only the active
+        // set needs restoring: friction's slip states are written once a solve has succeeded.
         let mut keep = self.tangent && self.pc_built.is_some_and(|(s, _)| s == step);
         let (mut out, its) = loop {
             let ksp = h.ksp.as_mut().expect("built above");
