@@ -243,19 +243,20 @@ fn cook_membrane_nearly_incompressible_converges_without_locking() {
 }
 
 /// Triangles (each cell cut along one diagonal, as gmsh's structured meshes; the pattern that
-/// locks most), E = 250, nu = 0.4999, force 100. The displacement triangles lock: on 64 x 64
-/// cells the tip is a third of the limit's, thirty times as far from it as the averaged nodal
-/// pressure's. That one converges to the quadrilaterals' limit (the mean dilatation's
-/// Richardson limit, an independent element), its distance falling by a third or more with
-/// each refinement (measured 0.59, 0.42, 0.38, 0.40), 2.2% on the finest mesh; its own
-/// Richardson limit is the quadrilaterals' within 1% (measured 0.24%). It is not fully uniform
-/// in lambda on coarse meshes (nu = 0.49999 moves the tip by 1.3% on 8 x 8, 0.17% on
-/// 64 x 64): asserted within 2% and falling over the finer meshes.
+/// locks most), E = 250, nu = 0.4999, force 100, meshes 4 x 4 to 128 x 128. The displacement
+/// triangles lock: on 128 x 128 cells the tip is under half the limit's, 57 times as far
+/// from it as the averaged nodal pressure's. That one converges to the quadrilaterals' limit
+/// (the mean dilatation's Richardson limit, an independent element), its distance falling by
+/// a third or more with each refinement (measured 0.59, 0.42, 0.38, 0.40, 0.41), within 1% on
+/// the finest mesh (measured 0.91%); its own Richardson limit is the quadrilaterals' within 1%
+/// (measured 0.1%). It is not fully uniform in lambda on coarse meshes (nu = 0.49999 moves the
+/// tip by 1.3% on 8 x 8, 0.07% on 128 x 128): asserted within 2% and falling over the finer
+/// meshes.
 #[test]
 fn cook_membrane_triangles_with_the_nodal_pressure_converge_without_locking() {
     let tips = |nu: f64, mixed: bool| -> Vec<f64> {
         let m = Material { mean_dilatation: mixed, ..Material::from_young_poisson(250.0, nu, 1.0) };
-        [4usize, 8, 16, 32, 64]
+        [4usize, 8, 16, 32, 64, 128]
             .iter()
             .map(|&n| cook_solve(n, ElementKind::Tri3, &m, 100.0)[2 * cook_node(n, n, n).0 + 1])
             .collect()
@@ -273,7 +274,7 @@ fn cook_membrane_triangles_with_the_nodal_pressure_converge_without_locking() {
     let dist: Vec<f64> = nodal.iter().map(|t| (t - limit).abs()).collect();
     assert!(dist.windows(2).all(|w| w[1] < 0.67 * w[0]), "not converging: {nodal:?}");
     let last = nodal.len() - 1;
-    assert!(dist[last] < 0.025 * limit, "{nodal:?} against {limit}");
+    assert!(dist[last] < 0.01 * limit, "{nodal:?} against {limit}");
     assert!((richardson(&nodal) - limit).abs() < 0.01 * limit, "{nodal:?} against {limit}");
     let lambda: Vec<f64> = nodal.iter().zip(&stiffer).map(|(a, b)| rel_diff(*a, *b)).collect();
     assert!(lambda.iter().all(|&d| d < 0.02), "lambda moves the tip: {lambda:?}");
