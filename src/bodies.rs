@@ -60,6 +60,9 @@ pub struct Bodies {
     entity_body: HashMap<i32, usize>,
     /// Sorted contact-surface nodes of each body (see [`Bodies::surface_body_nodes`]).
     surface_body_nodes: Vec<Vec<usize>>,
+    /// Whether some body's triangles or tetrahedra take the averaged nodal pressure (its
+    /// pattern couples nodes two cells apart).
+    pub nodal_pressure: bool,
 }
 
 impl Bodies {
@@ -125,7 +128,8 @@ impl Bodies {
         if scene.bodies.is_empty() {
             let mut n = vec![(0..mesh.cells.len()).filter(|&c| own(c)).count() as u64];
             sum(&mut n);
-            mixed_bodies_supported(&regions, mesh, own, &|_| 0, sum).map_err(fail)?;
+            let nodal_pressure =
+                mixed_bodies_supported(&regions, mesh, own, &|_| 0, sum).map_err(fail)?;
             regions[0].n_cells = n[0] as usize;
             let kind = scene.mass.kind;
             let layer = (kind.is_modified() && !groups.is_empty()).then_some((kind, groups));
@@ -137,6 +141,7 @@ impl Bodies {
                 no_layer: vec![false],
                 entity_body: HashMap::new(),
                 surface_body_nodes: Vec::new(),
+                nodal_pressure,
             });
         }
         if scene.bodies.len() >= u16::MAX as usize {
@@ -193,8 +198,9 @@ impl Bodies {
             }
         }
         sum(&mut counts);
-        mixed_bodies_supported(&regions, mesh, own, &|c| cell_region[c] as usize, sum)
-            .map_err(fail)?;
+        let nodal_pressure =
+            mixed_bodies_supported(&regions, mesh, own, &|c| cell_region[c] as usize, sum)
+                .map_err(fail)?;
         for (reg, &n) in regions.iter_mut().zip(&counts) {
             reg.n_cells = n as usize;
         }
@@ -298,6 +304,7 @@ impl Bodies {
             no_layer,
             entity_body,
             surface_body_nodes,
+            nodal_pressure,
         };
         b.surface_body_nodes = b.nodes_of(surface);
         Ok(b)
@@ -417,14 +424,15 @@ impl Bodies {
 /// (`assembly::nodal_pressure`): a linear body's is the small-strain operator `G^T D G`, a
 /// neo-Hookean body's the nodes' volumes at finite strain. A linear body with it in a
 /// finite-strain run (whose Newton loop integrates linear bodies cell by cell) is an error
-/// naming both bodies. Collective (`sum` adds over the ranks).
+/// naming both bodies. Returns whether some body has mixed simplices. Collective (`sum` adds
+/// over the ranks).
 fn mixed_bodies_supported(
     regions: &[Region],
     mesh: &Mesh,
     own: &dyn Fn(usize) -> bool,
     region_of: &dyn Fn(usize) -> usize,
     sum: &dyn Fn(&mut Vec<u64>),
-) -> std::result::Result<(), String> {
+) -> std::result::Result<bool, String> {
     // Per region: its mixed simplices, then its cells.
     let n = regions.len();
     let mut counts = vec![0u64; 2 * n];
@@ -439,13 +447,14 @@ fn mixed_bodies_supported(
     }
     sum(&mut counts);
     let finite = |r: usize| regions[r].spec.model.is_finite_strain();
-    let Some(r) = (0..n).find(|&r| counts[r] > 0 && !finite(r)) else { return Ok(()) };
+    let nodal = (0..n).any(|r| counts[r] > 0);
+    let Some(r) = (0..n).find(|&r| counts[r] > 0 && !finite(r)) else { return Ok(nodal) };
     match (0..n).find(|&q| counts[n + q] > 0 && finite(q)) {
         Some(q) => Err(format!(
             "{}: formulation = \"mixed\" on triangles or tetrahedra of a linear body is built for small-strain runs, and {} is finite-strain: make it model = \"neo_hookean\" too, or mesh it with quadrilaterals or hexahedra",
             regions[r].name, regions[q].name
         )),
-        None => Ok(()),
+        None => Ok(nodal),
     }
 }
 

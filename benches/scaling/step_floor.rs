@@ -292,8 +292,9 @@ pub fn section(
                         cfl,
                         contact: false,
                         memory_per_rank: 12e9,
-                        // The shipped beam and cube: nu = 0.3.
+                        // The shipped beam and cube: nu = 0.3, displacement form.
                         lambda_over_mu: 1.5,
+                        nodal_pressure: false,
                     };
                     format!("{:?}", massfree::time::choice::choose(&f, mm).0)
                 });

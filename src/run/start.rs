@@ -54,6 +54,7 @@ pub fn step_operator(
         contact: with_contact,
         memory_per_rank: memory_per_rank(d),
         lambda_over_mu: d.bodies.lambda_over_mu(),
+        nodal_pressure: d.bodies.nodal_pressure,
     };
     if finite_strain {
         // Newton's tangent (`time::newton`) is unsymmetric and changes every iteration: GMRES

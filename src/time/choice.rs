@@ -14,6 +14,12 @@
 //!   factor memory  12 bytes an entry (MUMPS's INFOG(16): 10.5-13.2), 1.25 / p per rank on p > 1
 //!   a solve        45 products with K (measured 35 at 0.27-1M DOFs, 45-49 at 37-83k)
 //! ```
+//! The averaged nodal pressure of triangles and tetrahedra couples nodes two cells apart: its
+//! graph is about the square of the mesh's, whose separators are two node layers thick, so
+//! the fronts double: flops 8 and entries 4 times the plain pattern's (MUMPS' analysis of the
+//! suite's disc of triangles at 828-11994 DOFs: 6.2-7.2 and 2.7-3.1 times; the ball of
+//! tetrahedra at 1317-13545 DOFs: 6.4-7.6 and 2.8-3.3 times, rising with the size).
+//!
 //! and the iterative solvers in products with `K` per step (fitted over CFL 0.3-100, 1 rank,
 //! free vibration): CG + Jacobi `5 + 13 CFL` in 2D and `5 + 20 CFL` in 3D, CG + GAMG
 //! `100 + 70 log10 CFL` in 2D and `120 + 120 log10 CFL` in 3D plus a set-up of 400 products.
@@ -37,7 +43,13 @@ pub struct RunFacts {
     pub memory_per_rank: f64,
     /// The largest `lambda / mu` of the bodies (48 at nu = 0.49, 5000 at nu = 0.4999).
     pub lambda_over_mu: f64,
+    /// Some body's simplices take the averaged nodal pressure: `K` couples nodes two cells
+    /// apart.
+    pub nodal_pressure: bool,
 }
+
+/// The nodal pressure's factor against the plain pattern's (module doc): flops, entries.
+pub const NODAL_PRESSURE_FILL: (f64, f64) = (8.0, 4.0);
 
 /// From this `lambda / mu` on (nu = 0.49) the iterative solvers' counts leave the fitted model
 /// (fitted at nu = 0.3): on the disc with contact (406 DOFs, 2 ranks) CG + GAMG took 188
@@ -145,9 +157,10 @@ pub fn iterative(cfl: f64, contact: bool) -> Solver {
 pub fn estimate(f: &RunFacts, matmult: f64) -> Estimate {
     let p = f.ranks.max(1) as f64;
     let n = f.dofs as f64;
-    let factor_seconds = factor_flops(f.dofs, f.dim) / (6e9 * p.sqrt()) + 4e-6 * n / p;
+    let (flops, entries) = if f.nodal_pressure { NODAL_PRESSURE_FILL } else { (1.0, 1.0) };
+    let factor_seconds = flops * factor_flops(f.dofs, f.dim) / (6e9 * p.sqrt()) + 4e-6 * n / p;
     let spread = if f.ranks > 1 { 1.25 } else { 1.0 };
-    let factor_bytes_per_rank = 12.0 * factor_entries(f.dofs, f.dim) * spread / p;
+    let factor_bytes_per_rank = 12.0 * entries * factor_entries(f.dofs, f.dim) * spread / p;
     let (per_step, setup) = iterative_products(iterative(f.cfl, f.contact), f.cfl, f.dim);
     let steps = f.steps as f64;
     let iterative_seconds = (setup + steps * per_step) * matmult;
@@ -182,10 +195,11 @@ pub fn choose(f: &RunFacts, matmult: f64) -> (Solver, Estimate, String) {
                 Solver::Cholesky,
                 e,
                 format!(
-                    "CFL {:.3}, lambda/mu {:.0}: Cholesky (MUMPS), est. {:.2} s and {mib:.0} MiB per rank to factor{} (nearly incompressible: {name} needs several times its usual iterations)",
+                    "CFL {:.3}, lambda/mu {:.0}: Cholesky (MUMPS), est. {:.2} s and {mib:.0} MiB per rank to factor{}{} (nearly incompressible: {name} needs several times its usual iterations)",
                     f.cfl,
                     f.lambda_over_mu,
                     e.factor_seconds,
+                    if f.nodal_pressure { " the nodal pressure's wider pattern" } else { "" },
                     if f.contact { ", again at active-set changes" } else { "" }
                 ),
             );
@@ -249,6 +263,7 @@ mod tests {
             contact: true,
             memory_per_rank,
             lambda_over_mu,
+            nodal_pressure: false,
         };
         assert!(finite_strain_factors(&disc(4999.0, 1e9)));
         assert!(!finite_strain_factors(&disc(499.0, 1e9)), "GMRES + SOR is faster at 0.499");
@@ -266,6 +281,7 @@ mod tests {
             contact: false,
             memory_per_rank: 20e9,
             lambda_over_mu: 1.5,
+            nodal_pressure: false,
         }
     }
 
@@ -290,6 +306,38 @@ mod tests {
         // Without room for the factor it stays iterative.
         let small_memory = RunFacts { memory_per_rank: 1e3, ..ball(5000.0) };
         assert_eq!(choose(&small_memory, 2e-4).0, Solver::Multigrid);
+    }
+
+    /// The nodal pressure's wider pattern (8 times the flops, 4 times the entries) decides:
+    /// a nearly incompressible ball of 40000 DOFs (one product 0.71 ms) factors with the plain
+    /// pattern (est. 0.87 s, ten multigrid steps 3.1 s) and not with the nodal one (6.4 s);
+    /// the ball of 11271 DOFs with 25 MB for the factor fits its plain estimate (17 MB) and
+    /// not the nodal one (68 MB), in the small-strain choice and the finite-strain LU alike.
+    #[test]
+    fn the_nodal_pressure_pattern_costs_its_factorization_more() {
+        let ball = |dofs, nodal_pressure| RunFacts {
+            dofs,
+            cfl: 435.0,
+            contact: true,
+            lambda_over_mu: 5000.0,
+            ranks: 2,
+            nodal_pressure,
+            ..block(220)
+        };
+        assert_eq!(choose(&ball(40000, false), 7.1e-4).0, Solver::Cholesky);
+        assert_eq!(choose(&ball(40000, true), 7.1e-4).0, Solver::Multigrid);
+        let (plain, nodal) =
+            (estimate(&ball(40000, false), 0.0), estimate(&ball(40000, true), 0.0));
+        let per_dof = 4e-6 * 40000.0 / 2.0; // the factorization's term linear in n
+        let flops = (nodal.factor_seconds - per_dof) / (plain.factor_seconds - per_dof);
+        assert!((flops - 8.0).abs() < 1e-9, "{flops}");
+        assert_eq!(nodal.factor_bytes_per_rank, 4.0 * plain.factor_bytes_per_rank);
+        let tight = |nodal| RunFacts { memory_per_rank: 50e6, ..ball(11271, nodal) };
+        assert_eq!(choose(&tight(false), 2e-4).0, Solver::Cholesky);
+        assert_eq!(choose(&tight(true), 2e-4).0, Solver::Multigrid);
+        let roomy = |nodal| RunFacts { memory_per_rank: 100e6, ..ball(11271, nodal) };
+        assert!(finite_strain_factors(&roomy(false)), "LU: twice 17 MB fits in 50");
+        assert!(!finite_strain_factors(&roomy(true)), "twice 68 MB does not");
     }
 
     #[test]
