@@ -263,6 +263,49 @@ fn toml_blocks_of_readme_parse() {
     assert_blocks_parse(&[repo().join("README.md")]);
 }
 
+/// `file:line` of every line of `text` with a control character, or that follows a line
+/// ending in `$` and starts with `u` and a math character: a TeX `\frac`, `\to` or `\nu`
+/// written through an escaping string becomes a form feed, a tab or a line break.
+fn control_characters(shown: &str, text: &str) -> Vec<String> {
+    let lines: Vec<&str> = text.lines().collect();
+    let broken_nu = |i: usize| {
+        let l = lines[i].trim_start();
+        i > 0
+            && lines[i - 1].ends_with('$')
+            && ["u$", "u ", "u_", "u="].iter().any(|p| l.starts_with(p))
+    };
+    (0..lines.len())
+        .filter(|&i| lines[i].chars().any(|c| c.is_control()) || broken_nu(i))
+        .map(|i| format!("{shown}:{}", i + 1))
+        .collect()
+}
+
+/// No Markdown page (README, CHANGELOG, docs, examples) holds a control character or a
+/// `\nu` broken into a line break and a `u`: a broken TeX command renders as garbage (it
+/// happened twice). The check's own failures are shown on made-up pages.
+#[test]
+fn markdown_pages_hold_no_control_characters() {
+    let bad = control_characters("page.md", "at $\\frac{a}{b}$, $\x0crac{a}{b}$,\n$\to 1$");
+    assert_eq!(bad, ["page.md:1", "page.md:2"], "the check cannot fail");
+    let bad = control_characters("page.md", "peak at $\nu$ = 0.4999\nu and v, $\\nu$");
+    assert_eq!(bad, ["page.md:2"], "the check cannot fail");
+    let mut files = vec![repo().join("README.md"), repo().join("CHANGELOG.md")];
+    markdown_under(&repo().join("docs"), &mut files);
+    markdown_under(&repo().join("examples"), &mut files);
+    let found: Vec<String> = (files.iter())
+        .flat_map(|f| {
+            let text =
+                std::fs::read_to_string(f).unwrap_or_else(|e| panic!("{}: {e}", f.display()));
+            control_characters(&f.strip_prefix(repo()).unwrap_or(f).display().to_string(), &text)
+        })
+        .collect();
+    assert!(
+        found.is_empty(),
+        "control characters (a TeX command lost its backslash?):\n{}",
+        found.join("\n")
+    );
+}
+
 #[test]
 fn the_block_check_can_fail() {
     // Each kind of block, good and bad: the check is not vacuous.
