@@ -34,6 +34,25 @@ fn cook_corners(i: usize, j: usize) -> [(usize, usize); 4] {
 /// quadrilaterals take the mean dilatation and the triangles the averaged nodal pressure (its
 /// own implementation here: `G^T diag(lambda / V_a) G` with `(G u)_a = sum_K |K|/3 div u_K`,
 /// `V_a = sum_K |K|/3`). Returns the displacements (node * 2 + component).
+/// The membrane's load vector (`stride` unknowns per node, the first two the displacement):
+/// the traction `force / 16` per unit length on the right edge, lumped to its nodes (exact for
+/// a constant traction on straight segments); the left edge clamped (identity rows and
+/// columns in `k`).
+fn cook_load_and_clamp(k: &mut Banded, n: usize, force: f64, stride: usize) -> Vec<f64> {
+    let mut f = vec![0.0; stride * (n + 1) * (n + 1)];
+    let h = 16.0 / n as f64;
+    for j in 0..n {
+        f[stride * cook_node(n, n, j).0 + 1] += 0.5 * force / 16.0 * h;
+        f[stride * cook_node(n, n, j + 1).0 + 1] += 0.5 * force / 16.0 * h;
+    }
+    for j in 0..=n {
+        for p in 0..2 {
+            k.fix(stride * cook_node(n, 0, j).0 + p);
+        }
+    }
+    f
+}
+
 fn cook_solve(n: usize, kind: ElementKind, m: &Material, force: f64) -> Vec<f64> {
     let np = n + 1;
     let dofs = 2 * np * np;
@@ -87,20 +106,7 @@ fn cook_solve(n: usize, kind: ElementKind, m: &Material, force: f64) -> Vec<f64>
             }
         }
     }
-    // The traction force / 16 per unit length, lumped to the edge's nodes (exact for a
-    // constant traction on straight segments).
-    let mut f = vec![0.0; dofs];
-    let h = 16.0 / n as f64;
-    for j in 0..n {
-        f[2 * cook_node(n, n, j).0 + 1] += 0.5 * force / 16.0 * h;
-        f[2 * cook_node(n, n, j + 1).0 + 1] += 0.5 * force / 16.0 * h;
-    }
-    // Clamped edge: identity rows and columns.
-    for j in 0..np {
-        for p in 0..2 {
-            k.fix(2 * cook_node(n, 0, j).0 + p);
-        }
-    }
+    let f = cook_load_and_clamp(&mut k, n, force, 2);
     k.solve(f)
 }
 
@@ -283,17 +289,7 @@ fn cook_p1p1(n: usize, m: &Material, force: f64) -> (f64, Vec<f64>) {
             }
         }
     }
-    let mut f = vec![0.0; dofs];
-    let h = 16.0 / n as f64;
-    for j in 0..n {
-        f[3 * cook_node(n, n, j).0 + 1] += 0.5 * force / 16.0 * h;
-        f[3 * cook_node(n, n, j + 1).0 + 1] += 0.5 * force / 16.0 * h;
-    }
-    for j in 0..np {
-        for p in 0..2 {
-            k.fix(3 * cook_node(n, 0, j).0 + p);
-        }
-    }
+    let f = cook_load_and_clamp(&mut k, n, force, 3);
     let x = k.solve_quasi_definite(f);
     let pressure = (0..np * np).map(|a| x[3 * a + 2]).collect();
     (x[3 * cook_node(n, n, n).0 + 1], pressure)
